@@ -1,0 +1,28 @@
+# Two commands: `make serve` sets up and runs the service; `make test` sets up and runs the tests.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+
+.PHONY: setup serve test lint bench-smoke clean
+
+$(BIN)/trajcache: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e ".[dev]"
+	touch $(BIN)/trajcache
+
+setup: $(BIN)/trajcache
+
+serve: setup
+	$(BIN)/trajcache serve
+
+test: setup
+	$(BIN)/pytest -q $(PYTEST_ARGS)
+
+lint: setup
+	$(BIN)/ruff check service client tests bench
+	$(BIN)/ruff format --check service client tests bench
+	$(BIN)/mypy
+
+clean:
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

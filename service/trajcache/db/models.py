@@ -1,0 +1,264 @@
+"""ORM tables of the trajectory cache (schema changes go through `migrations/`)."""
+
+from __future__ import annotations
+
+import hashlib
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    DateTime,
+    Dialect,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    LargeBinary,
+    String,
+    Text,
+    UniqueConstraint,
+)
+from sqlalchemy.orm import Mapped, mapped_column, relationship
+from sqlalchemy.types import TypeDecorator
+
+from trajcache.db.base import Base
+
+STATE_DTYPE = np.dtype("<f8")
+# SQLite only autoincrements INTEGER PRIMARY KEY; PostgreSQL gets a BIGINT identity.
+BigIntPK = BigInteger().with_variant(Integer, "sqlite")
+
+
+def utcnow() -> datetime:
+    """The current time, timezone-aware in UTC."""
+    return datetime.now(UTC)
+
+
+class UTCDateTime(TypeDecorator[datetime]):
+    """A timezone-aware timestamp; naive values read back (SQLite) are taken as UTC."""
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is not None and value.tzinfo is None:
+            value = value.replace(tzinfo=UTC)
+        if value is not None and dialect.name == "sqlite":
+            value = value.astimezone(UTC)  # SQLite compares timestamps as text
+        return value
+
+    def process_result_value(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is not None and value.tzinfo is None:
+            value = value.replace(tzinfo=UTC)
+        return value
+
+
+def pack_states(states: npt.ArrayLike) -> bytes:
+    """Serialize an (n, dof) array of states as float64 little-endian, row-major."""
+    array = np.asarray(states, dtype=np.float64)
+    if array.ndim != 2:
+        raise ValueError(f"states must be a 2-D (n, dof) array, got shape {array.shape}")
+    return np.ascontiguousarray(array, dtype=STATE_DTYPE).tobytes(order="C")
+
+
+def unpack_states(data: bytes, *, n_states: int, dof: int) -> npt.NDArray[np.float64]:
+    """Deserialize bytes from `pack_states` into a writable (n_states, dof) float64 array."""
+    expected = n_states * dof * STATE_DTYPE.itemsize
+    if len(data) != expected:
+        raise ValueError(f"state blob has {len(data)} bytes, expected {expected}")
+    array = np.frombuffer(data, dtype=STATE_DTYPE).reshape(n_states, dof)
+    return array.astype(np.float64, copy=True)
+
+
+def trajectory_content_hash(states: npt.ArrayLike) -> str:
+    """SHA-256 of a trajectory's shape and packed states (identity for idempotent import)."""
+    array = np.asarray(states, dtype=np.float64)
+    digest = hashlib.sha256(f"{array.shape[0]}x{array.shape[1]}:".encode())
+    digest.update(pack_states(array))
+    return digest.hexdigest()
+
+
+class RobotModel(Base):
+    """A registered robot model, identified by the hash of its content."""
+
+    __tablename__ = "robot_models"
+
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    name: Mapped[str] = mapped_column(String(200))
+    base: Mapped[str] = mapped_column(String(16))
+    joint_names: Mapped[list[str]] = mapped_column(JSON)
+    urdf: Mapped[str] = mapped_column(Text)
+    allowed_pairs: Mapped[list[list[int]]] = mapped_column(JSON, default=list)
+    config: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+    files: Mapped[list[ModelFile]] = relationship(
+        back_populates="model", cascade="all, delete-orphan", passive_deletes=True
+    )
+
+
+class ModelFile(Base):
+    """A mesh (or other) file from a model's archive, addressed by its path inside it."""
+
+    __tablename__ = "model_files"
+    __table_args__ = (UniqueConstraint("model_id", "path"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    model_id: Mapped[str] = mapped_column(
+        String(64), ForeignKey("robot_models.id", ondelete="CASCADE"), index=True
+    )
+    path: Mapped[str] = mapped_column(String(1024))
+    sha256: Mapped[str] = mapped_column(String(64))
+    data: Mapped[bytes] = mapped_column(LargeBinary)
+
+    model: Mapped[RobotModel] = relationship(back_populates="files")
+
+
+class Robot(Base):
+    """A robot instance: its model and the number of its current scene version."""
+
+    __tablename__ = "robots"
+
+    id: Mapped[str] = mapped_column(String(128), primary_key=True)
+    model_id: Mapped[str] = mapped_column(String(64), ForeignKey("robot_models.id"), index=True)
+    scene_version: Mapped[int | None] = mapped_column(Integer)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow, onupdate=utcnow)
+
+    model: Mapped[RobotModel] = relationship()
+    scene_versions: Mapped[list[SceneVersion]] = relationship(
+        back_populates="robot", cascade="all, delete-orphan", passive_deletes=True
+    )
+
+
+class SceneVersion(Base):
+    """One immutable version of a robot's scene (canonical native form) and its hash."""
+
+    __tablename__ = "scene_versions"
+    __table_args__ = (UniqueConstraint("robot_id", "version"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    robot_id: Mapped[str] = mapped_column(String(128), ForeignKey("robots.id", ondelete="CASCADE"))
+    version: Mapped[int] = mapped_column(Integer)
+    hash: Mapped[str] = mapped_column(String(64), index=True)
+    payload: Mapped[dict[str, Any]] = mapped_column(JSON)
+    env: Mapped[dict[str, float]] = mapped_column(JSON, default=dict)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+    robot: Mapped[Robot] = relationship(back_populates="scene_versions")
+
+
+class Trajectory(Base):
+    """A cached trajectory: key states joined by straight lines in state space."""
+
+    __tablename__ = "trajectories"
+    __table_args__ = (
+        UniqueConstraint("model_id", "content_hash"),
+        Index("ix_trajectories_model_id_id", "model_id", "id"),
+        Index("ix_trajectories_model_id_start_xy", "model_id", "start_x", "start_y"),
+        # AUTOINCREMENT: ids never reused, so replicas can sync by high-water mark.
+        {"sqlite_autoincrement": True},
+    )
+
+    id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
+    model_id: Mapped[str] = mapped_column(String(64), ForeignKey("robot_models.id"))
+    source: Mapped[str] = mapped_column(String(16))
+    robot_id: Mapped[str | None] = mapped_column(String(128))
+    states: Mapped[bytes] = mapped_column(LargeBinary)
+    n_states: Mapped[int] = mapped_column(Integer)
+    dof: Mapped[int] = mapped_column(Integer)
+    start: Mapped[list[float]] = mapped_column(JSON)
+    goal: Mapped[list[float]] = mapped_column(JSON)
+    start_x: Mapped[float] = mapped_column(Float)
+    start_y: Mapped[float] = mapped_column(Float)
+    goal_x: Mapped[float] = mapped_column(Float)
+    goal_y: Mapped[float] = mapped_column(Float)
+    scene_hash: Mapped[str | None] = mapped_column(String(64))
+    env: Mapped[dict[str, float]] = mapped_column(JSON, default=dict)
+    content_hash: Mapped[str] = mapped_column(String(64))
+    hits: Mapped[int] = mapped_column(Integer, default=0)
+    failures: Mapped[int] = mapped_column(Integer, default=0)
+    consecutive_failures: Mapped[int] = mapped_column(Integer, default=0)
+    real_validations: Mapped[int] = mapped_column(Integer, default=0)
+    last_used_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    last_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    last_real_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    planning_time_ms: Mapped[float | None] = mapped_column(Float)
+    length: Mapped[float | None] = mapped_column(Float)
+    quality: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+    def states_array(self) -> npt.NDArray[np.float64]:
+        """The key states as a writable (n_states, dof) float64 array."""
+        return unpack_states(self.states, n_states=self.n_states, dof=self.dof)
+
+    def set_states(self, states: npt.ArrayLike) -> None:
+        """Store key states and the columns derived from them (start/goal, prefilter, hash)."""
+        array = np.asarray(states, dtype=np.float64)
+        if array.ndim != 2 or array.shape[0] < 2 or array.shape[1] < 1:
+            raise ValueError(f"need at least 2 states of dof >= 1, got shape {array.shape}")
+        self.states = pack_states(array)
+        self.n_states, self.dof = int(array.shape[0]), int(array.shape[1])
+        self.start, self.goal = array[0].tolist(), array[-1].tolist()
+        first, last = array[0], array[-1]
+        self.start_x, self.goal_x = float(first[0]), float(last[0])
+        self.start_y = float(first[1]) if self.dof > 1 else 0.0
+        self.goal_y = float(last[1]) if self.dof > 1 else 0.0
+        self.content_hash = trajectory_content_hash(array)
+
+
+class TrajectoryTombstone(Base):
+    """A record that a trajectory was deleted, for replicas to drop it from their index."""
+
+    __tablename__ = "trajectory_tombstones"
+    __table_args__ = ({"sqlite_autoincrement": True},)
+
+    id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
+    trajectory_id: Mapped[int] = mapped_column(BigInteger)
+    model_id: Mapped[str] = mapped_column(String(64), index=True)
+    deleted_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+
+class PlanEvent(Base):
+    """One answered (or failed) plan request, for statistics and the dashboard."""
+
+    __tablename__ = "plan_events"
+    __table_args__ = (
+        Index("ix_plan_events_robot_id_created_at", "robot_id", "created_at"),
+        Index("ix_plan_events_model_id_created_at", "model_id", "created_at"),
+        Index("ix_plan_events_status_created_at", "status", "created_at"),
+        {"sqlite_autoincrement": True},
+    )
+
+    id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow, index=True)
+    robot_id: Mapped[str] = mapped_column(String(128))
+    model_id: Mapped[str] = mapped_column(String(64))
+    scene_hash: Mapped[str | None] = mapped_column(String(64))
+    status: Mapped[str] = mapped_column(String(32))
+    source: Mapped[str | None] = mapped_column(String(16))
+    trajectory_id: Mapped[int | None] = mapped_column(BigInteger)
+    candidates_tried: Mapped[int] = mapped_column(Integer, default=0)
+    lookup_ms: Mapped[float] = mapped_column(Float, default=0.0)
+    validate_ms: Mapped[float] = mapped_column(Float, default=0.0)
+    plan_ms: Mapped[float] = mapped_column(Float, default=0.0)
+    total_ms: Mapped[float] = mapped_column(Float, default=0.0)
+    error: Mapped[str | None] = mapped_column(String(500))
+
+
+class ApiKey(Base):
+    """An API key (only its hash is stored) with a role and, for robots, the robots it may use."""
+
+    __tablename__ = "api_keys"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(200))
+    prefix: Mapped[str] = mapped_column(String(16), index=True)
+    key_hash: Mapped[str] = mapped_column(String(128))
+    role: Mapped[str] = mapped_column(String(16))
+    robot_ids: Mapped[list[str]] = mapped_column(JSON, default=list)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    revoked_at: Mapped[datetime | None] = mapped_column(UTCDateTime())

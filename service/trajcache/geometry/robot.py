@@ -1,0 +1,87 @@
+"""The robot model: planning joints, limits, collision geometry and the kinematic tree."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from trajcache.geometry.shapes import FloatArray, Shape
+
+BASE_STATE_NAMES = ("base_x", "base_y", "base_theta")
+
+
+class BaseType(str, Enum):
+    """How the robot's root link is placed in the world."""
+
+    FIXED = "fixed"
+    PLANAR = "planar"
+
+
+@dataclass(frozen=True, eq=False)
+class CollisionElement:
+    """One collision shape rigidly attached to a link, posed in the link frame."""
+
+    link: int
+    shape: Shape
+    origin: FloatArray  # 4×4, link frame → shape frame
+
+
+@dataclass(frozen=True, eq=False)
+class KinematicJoint:
+    """One URDF joint in topological order (parent before child).
+
+    `index` is the joint's position in the state vector, or -1 when it is not a planning joint
+    (fixed joints, and movable joints held at `default`).
+    """
+
+    name: str
+    kind: str  # "fixed" | "revolute" | "continuous" | "prismatic"
+    parent: int  # link index
+    child: int  # link index
+    origin: FloatArray  # 4×4, parent link frame → joint frame at zero position
+    axis: FloatArray  # unit 3-vector in the joint frame
+    index: int = -1
+    default: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class RobotModel:
+    """A robot ready for kinematics and collision checking.
+
+    States are ordered as `state_names`: for a planar base (x, y, θ) first, then the planning
+    joints in `joint_names` order. Link 0 is the root link; the planar base moves it in the world.
+    """
+
+    model_id: str
+    name: str
+    base: BaseType
+    joint_names: tuple[str, ...]
+    link_names: tuple[str, ...]
+    joints: tuple[KinematicJoint, ...]
+    elements: tuple[CollisionElement, ...]
+    lower: FloatArray  # per state value; base x, y are -inf/+inf, θ is -π/π (wrapped)
+    upper: FloatArray
+    velocity_limits: FloatArray  # per state value
+    allowed_pairs: frozenset[tuple[int, int]] = field(default_factory=frozenset)  # (i < j) links
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the state values in order."""
+        prefix = BASE_STATE_NAMES if self.base is BaseType.PLANAR else ()
+        return prefix + self.joint_names
+
+    @property
+    def dof(self) -> int:
+        """Length of a state vector."""
+        return len(self.joint_names) + (3 if self.base is BaseType.PLANAR else 0)
+
+    @property
+    def arm_offset(self) -> int:
+        """Index of the first arm joint in a state vector."""
+        return 3 if self.base is BaseType.PLANAR else 0
+
+    def geometric_links(self) -> np.ndarray:
+        """Indices of links that carry at least one collision element."""
+        return np.unique(np.array([e.link for e in self.elements], dtype=np.int64))

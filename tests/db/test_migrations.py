@@ -1,0 +1,140 @@
+"""Migrations: an empty database upgraded to head matches the ORM metadata exactly."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+import sqlalchemy as sa
+from alembic.autogenerate import compare_metadata
+from alembic.runtime.migration import MigrationContext
+from alembic.script import ScriptDirectory
+
+from trajcache.db import migrate
+from trajcache.db.base import Base
+from trajcache.db.models import Trajectory
+
+TABLES = {
+    "api_keys",
+    "model_files",
+    "plan_events",
+    "robot_models",
+    "robots",
+    "scene_versions",
+    "trajectories",
+    "trajectory_tombstones",
+}
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
+def empty_db_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    if request.param == "sqlite":
+        return f"sqlite:///{tmp_path / 'migrate.db'}"
+    return str(request.getfixturevalue("postgres_url"))
+
+
+def schema_diff(url: str) -> list[Any]:
+    engine = sa.create_engine(url)
+    try:
+        with engine.connect() as conn:
+            context = MigrationContext.configure(conn, opts={"compare_type": True})
+            return list(compare_metadata(context, Base.metadata))
+    finally:
+        engine.dispose()
+
+
+def table_names(url: str) -> set[str]:
+    engine = sa.create_engine(url)
+    try:
+        return set(sa.inspect(engine).get_table_names())
+    finally:
+        engine.dispose()
+
+
+def head_revision() -> str | None:
+    return ScriptDirectory.from_config(migrate.alembic_config("sqlite://")).get_current_head()
+
+
+def test_single_head() -> None:
+    script = ScriptDirectory.from_config(migrate.alembic_config("sqlite://"))
+    assert len(script.get_heads()) == 1
+
+
+def test_upgrade_empty_database_matches_models(empty_db_url: str) -> None:
+    assert migrate.current_revision(empty_db_url) is None
+    migrate.upgrade(empty_db_url)
+    assert migrate.current_revision(empty_db_url) == head_revision()
+    assert table_names(empty_db_url) == TABLES | {"alembic_version"}
+    assert schema_diff(empty_db_url) == []
+
+
+def test_diff_detects_a_column_missing_from_migrations(empty_db_url: str) -> None:
+    migrate.upgrade(empty_db_url)
+    metadata = sa.MetaData(naming_convention=Base.metadata.naming_convention)
+    for table in Base.metadata.sorted_tables:
+        table.to_metadata(metadata)
+    sa.Table(
+        Trajectory.__tablename__,
+        metadata,
+        sa.Column("unmigrated", sa.Integer()),
+        extend_existing=True,
+    )
+    engine = sa.create_engine(empty_db_url)
+    try:
+        with engine.connect() as conn:
+            context = MigrationContext.configure(conn, opts={"compare_type": True})
+            diff = compare_metadata(context, metadata)
+    finally:
+        engine.dispose()
+    assert [d[0] for d in diff] == ["add_column"]
+    assert diff[0][3].name == "unmigrated"
+
+
+def test_downgrade_to_base_and_upgrade_again(empty_db_url: str) -> None:
+    migrate.upgrade(empty_db_url)
+    migrate.downgrade(empty_db_url, "base")
+    assert migrate.current_revision(empty_db_url) is None
+    assert table_names(empty_db_url) <= {"alembic_version"}
+    migrate.upgrade(empty_db_url)
+    assert migrate.current_revision(empty_db_url) == head_revision()
+    assert schema_diff(empty_db_url) == []
+
+
+def test_sqlite_ids_are_never_reused(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'autoinc.db'}"
+    migrate.upgrade(url)
+    engine = sa.create_engine(url)
+    try:
+        with engine.connect() as conn:
+            sql: dict[str, str] = dict(
+                conn.execute(sa.text("SELECT name, sql FROM sqlite_master")).all()
+            )
+    finally:
+        engine.dispose()
+    for table in ("trajectories", "trajectory_tombstones", "plan_events"):
+        assert "AUTOINCREMENT" in sql[table]
+
+
+@pytest.mark.postgres
+def test_postgres_version_table_lands_in_search_path_schema(postgres_url: str) -> None:
+    migrate.upgrade(postgres_url)
+    schema = postgres_url.rsplit("%3D", 1)[1]
+    engine = sa.create_engine(postgres_url)
+    try:
+        with engine.connect() as conn:
+            rows = conn.execute(
+                sa.text(
+                    "SELECT table_schema, table_name FROM information_schema.tables "
+                    "WHERE table_name IN ('alembic_version', 'trajectories')"
+                    " AND table_schema = :schema"
+                ),
+                {"schema": schema},
+            ).all()
+            version = conn.execute(
+                sa.text(f'SELECT version_num FROM "{schema}".alembic_version')
+            ).scalar_one()
+    finally:
+        engine.dispose()
+    assert {name for _, name in rows} == {"alembic_version", "trajectories"}
+    assert version == head_revision()
