@@ -10,6 +10,8 @@ GeometryError
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 
 class GeometryError(ValueError):
     """Base class: the input describes geometry that cannot be used."""
@@ -33,3 +35,11 @@ class SceneError(GeometryError):
 
 class StateError(GeometryError):
     """A robot state has the wrong length, a non-finite value or is out of limits."""
+
+
+class CollisionStateError(StateError):
+    """A start or goal state collides; `contacts` names the links and objects involved."""
+
+    def __init__(self, message: str, *, contacts: Sequence[object] = ()) -> None:
+        super().__init__(message)
+        self.contacts = list(contacts)

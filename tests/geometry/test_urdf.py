@@ -1,0 +1,280 @@
+"""URDF loading: structure, limits, meshes from archives, safety, model ids and allowed pairs."""
+
+from __future__ import annotations
+
+import io
+import math
+import tarfile
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from trajcache.geometry.errors import MeshError, RobotModelError, UnsafePathError
+from trajcache.geometry.robot import BaseType
+from trajcache.geometry.shapes import ShapeKind
+from trajcache.geometry.urdf import load_robot_model, unpack_archive
+
+DATA = Path(__file__).parent / "data"
+ARM = (DATA / "arm.urdf").read_text()
+SWING = (DATA / "swing.urdf").read_text()
+
+
+def _box_bytes(kind: str, extents: tuple[float, float, float] = (0.1, 0.2, 0.3)) -> bytes:
+    exported = trimesh.creation.box(extents=extents).export(file_type=kind)
+    return exported.encode() if isinstance(exported, str) else bytes(exported)
+
+
+def _zip(entries: dict[str, bytes]) -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for name, content in entries.items():
+            archive.writestr(zipfile.ZipInfo(name), content)
+    return buffer.getvalue()
+
+
+def _mesh_urdf(*filenames: str, scale: str = "1 1 1") -> str:
+    links = "".join(
+        f'<link name="l{i}"><collision><geometry><mesh filename="{f}" scale="{scale}"/>'
+        "</geometry></collision></link>"
+        for i, f in enumerate(filenames)
+    )
+    joints = "".join(
+        f'<joint name="j{i}" type="fixed"><parent link="l0"/><child link="l{i}"/></joint>'
+        for i in range(1, len(filenames))
+    )
+    return f'<robot name="meshy">{links}{joints}</robot>'
+
+
+def _chain_urdf(n: int) -> str:
+    links = [f'<link name="l{i}"><collision><origin xyz="0 0 0.1"/><geometry>'
+             '<cylinder radius="0.03" length="0.2"/></geometry></collision></link>'
+             for i in range(n)]  # fmt: skip
+    joints = [
+        f'<joint name="j{i}" type="revolute"><parent link="l{i - 1}"/><child link="l{i}"/>'
+        f'<origin xyz="0 0 0.2" rpy="{0.5 * (i % 2)} 0 0"/><axis xyz="0 1 0"/>'
+        '<limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>'
+        for i in range(1, n)
+    ]
+    return f'<robot name="chain">{"".join(links)}{"".join(joints)}</robot>'
+
+
+def test_links_joints_and_limits_follow_the_tree() -> None:
+    model = load_robot_model(ARM)
+    assert model.link_names[0] == "base_link"
+    assert model.joint_names == ("j4", "j1", "j2", "slide", "flag_joint")  # URDF order
+    seen = {0}
+    for joint in model.joints:  # parents before children
+        assert joint.parent in seen
+        seen.add(joint.child)
+    index = {j.name: j.index for j in model.joints}
+    assert index == {"mount_fixed": -1, "j1": 1, "cam_fixed": -1, "j2": 2, "slide": 3,
+                     "j4": 0, "tool_fixed": -1, "flag_joint": 4}  # fmt: skip
+    np.testing.assert_allclose(model.lower, [-math.pi, -2.5, -math.pi, -0.1, 0.2])
+    np.testing.assert_allclose(model.upper, [math.pi, 2.5, math.pi, 0.2, 1.0])
+    np.testing.assert_allclose(model.velocity_limits, [2.5, 2.0, 3.14, 0.3, 1.0])
+    assert len(model.elements) == 9 and model.name == "test_arm"
+
+
+def test_planar_base_and_held_joints() -> None:
+    model = load_robot_model(ARM, base="planar", joint_names=["j1", "j2"], name="r")
+    assert model.base is BaseType.PLANAR and model.name == "r"
+    assert model.state_names == ("base_x", "base_y", "base_theta", "j1", "j2")
+    np.testing.assert_allclose(model.lower[:3], [-np.inf, -np.inf, -math.pi])
+    np.testing.assert_allclose(model.upper[:3], [np.inf, np.inf, math.pi])
+    np.testing.assert_allclose(model.velocity_limits[:3], [0.5, 0.5, 1.0])
+    joints = {j.name: j for j in model.joints}
+    assert (joints["j1"].index, joints["j2"].index) == (3, 4)
+    assert joints["flag_joint"].index == -1 and joints["flag_joint"].default == 0.2  # clipped
+    assert joints["slide"].default == 0.0
+
+
+def test_unknown_and_fixed_joint_names_are_refused() -> None:
+    with pytest.raises(RobotModelError, match="nope"):
+        load_robot_model(ARM, joint_names=["j1", "nope"])
+    with pytest.raises(RobotModelError, match="tool_fixed"):
+        load_robot_model(ARM, joint_names=["tool_fixed"])
+    with pytest.raises(RobotModelError, match="base type"):
+        load_robot_model(ARM, base="holonomic")
+
+
+def test_model_id_is_a_content_hash() -> None:
+    first = load_robot_model(ARM, acm_samples=0)
+    assert load_robot_model("\n" + ARM + "  \n", acm_samples=0).model_id == first.model_id
+    assert len(first.model_id) == 64
+    others = {
+        load_robot_model(ARM.replace('velocity="2.0"', 'velocity="2.1"'), acm_samples=0).model_id,
+        load_robot_model(ARM, base="planar", acm_samples=0).model_id,
+        load_robot_model(ARM, joint_names=["j1"], acm_samples=0).model_id,
+    }
+    assert first.model_id not in others and len(others) == 3
+
+
+def test_meshes_resolve_package_and_relative_uris_from_a_zip() -> None:
+    files = unpack_archive(
+        _zip({"my_pkg/meshes/a.stl": _box_bytes("stl"), "meshes/b.obj": _box_bytes("obj")})
+    )
+    assert set(files) == {"my_pkg/meshes/a.stl", "meshes/b.obj"}
+    urdf = _mesh_urdf(
+        "package://my_pkg/meshes/a.stl", "package://other/meshes/b.obj", "./meshes/b.obj"
+    )
+    model = load_robot_model(urdf.replace('scale="1 1 1"', 'scale="2 1 0.5"', 1), files=files)
+    assert [e.shape.kind for e in model.elements] == [ShapeKind.MESH] * 3
+    np.testing.assert_allclose(model.elements[0].shape.half_extents(), [0.1, 0.1, 0.075])
+    np.testing.assert_allclose(model.elements[2].shape.half_extents(), [0.05, 0.1, 0.15])
+    base_id = load_robot_model(urdf, files=files).model_id
+    assert load_robot_model(urdf, files={**files, "unused.stl": b"x"}).model_id == base_id
+    changed = {**files, "meshes/b.obj": _box_bytes("obj", (0.1, 0.2, 0.4))}
+    assert load_robot_model(urdf, files=changed).model_id != base_id
+
+
+@pytest.mark.parametrize(
+    "uri",
+    ["package://x/../../etc/passwd", "../a.stl", "/etc/passwd", "file:///etc/passwd",
+     "C:\\meshes\\a.stl", "http://example.com/a.stl"],
+)  # fmt: skip
+def test_mesh_uris_cannot_escape(uri: str) -> None:
+    with pytest.raises(UnsafePathError):
+        load_robot_model(_mesh_urdf(uri), files={"a.stl": _box_bytes("stl")})
+
+
+def test_missing_and_unreadable_meshes() -> None:
+    with pytest.raises(MeshError, match=r"package://p/missing\.stl"):
+        load_robot_model(_mesh_urdf("package://p/missing.stl"), files={})
+    with pytest.raises(MeshError, match=r"broken\.stl"):
+        load_robot_model(_mesh_urdf("broken.stl"), files={"broken.stl": b"not a mesh"})
+
+
+def test_entity_expansion_is_refused_quickly() -> None:
+    lol = "".join(f'<!ENTITY l{i} "{f"&l{i - 1};" * 10}">' for i in range(1, 10))
+    bomb = f'<?xml version="1.0"?><!DOCTYPE r [<!ENTITY l0 "lol">{lol}]><robot name="&l9;"/>'
+    started = time.perf_counter()
+    with pytest.raises(RobotModelError, match="DOCTYPE"):
+        load_robot_model(bomb)
+    assert time.perf_counter() - started < 1.0
+    external = '<!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]><robot name="&x;"/>'
+    with pytest.raises(RobotModelError, match="DOCTYPE"):
+        load_robot_model(external)
+
+
+@pytest.mark.parametrize(
+    ("urdf", "message"),
+    [
+        ('<robot name="r"><link name="a"></robot>', "malformed"),
+        ('<robot name="r"/>', "no <link>"),
+        ("<model/>", "expected <robot>"),
+        ('<robot><link name="a"/></robot>', "no name"),
+        ('<robot name="r"><link name="a"/><link name="b"/></robot>', "several root"),
+        (
+            '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+            '<joint name="x" type="fixed"><parent link="a"/><child link="b"/></joint>'
+            '<joint name="y" type="fixed"><parent link="c"/><child link="c"/></joint></robot>',
+            "cycle",
+        ),
+        (
+            '<robot name="r"><link name="a"/><link name="b"/>'
+            '<joint name="x" type="floating"><parent link="a"/><child link="b"/></joint></robot>',
+            "floating",
+        ),
+        (
+            '<robot name="r"><link name="a"/>'
+            '<joint name="x" type="fixed"><parent link="a"/><child link="zz"/></joint></robot>',
+            "zz",
+        ),
+        (
+            '<robot name="r"><link name="a"/><link name="b"/>'
+            '<joint name="x" type="revolute"><parent link="a"/><child link="b"/></joint></robot>',
+            "no <limit>",
+        ),
+        (
+            '<robot name="r"><link name="a"><collision><geometry><capsule radius="1" length="1"/>'
+            "</geometry></collision></link></robot>",
+            "capsule",
+        ),
+        (
+            '<robot name="r"><link name="a"><collision><geometry><box size="1 1"/>'
+            "</geometry></collision></link></robot>",
+            "box",
+        ),
+    ],
+)
+def test_broken_urdfs_are_refused_with_a_reason(urdf: str, message: str) -> None:
+    with pytest.raises(RobotModelError, match=message):
+        load_robot_model(urdf)
+
+
+def test_mimic_joints_are_refused_when_planned() -> None:
+    urdf = ARM.replace(
+        '<limit lower="0.2" upper="1.0" effort="1" velocity="1.0"/>',
+        '<limit lower="0.2" upper="1.0" effort="1" velocity="1.0"/><mimic joint="j1"/>',
+    )
+    with pytest.raises(RobotModelError, match="mimic"):
+        load_robot_model(urdf)
+    held = load_robot_model(urdf, joint_names=["j2"], acm_samples=0)
+    assert {j.name: j.default for j in held.joints}["flag_joint"] == 0.2
+
+
+def test_unpack_archive_handles_tar_and_refuses_unsafe_entries() -> None:
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w:gz") as tar:
+        for name in ("pkg/", "pkg/./m.stl"):
+            info = tarfile.TarInfo(name)
+            info.type = tarfile.DIRTYPE if name.endswith("/") else tarfile.REGTYPE
+            info.size = 0 if name.endswith("/") else 3
+            tar.addfile(info, io.BytesIO(b"abc"))
+    assert unpack_archive(buffer.getvalue()) == {"pkg/m.stl": b"abc"}
+    for name in ("../evil.stl", "/abs.stl", "a/../../evil.stl"):
+        with pytest.raises(UnsafePathError):
+            unpack_archive(_zip({name: b"x"}))
+    link_info = zipfile.ZipInfo("link.stl")
+    link_info.external_attr = 0o120777 << 16
+    with pytest.raises(UnsafePathError, match="symbolic link"):
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w") as archive:
+            archive.writestr(link_info, "/etc/passwd")
+        unpack_archive(buffer.getvalue())
+    for link_type in (tarfile.SYMTYPE, tarfile.LNKTYPE):
+        buffer = io.BytesIO()
+        with tarfile.open(fileobj=buffer, mode="w") as tar:
+            info = tarfile.TarInfo("link.stl")
+            info.type, info.linkname = link_type, "/etc/passwd"
+            tar.addfile(info)
+        with pytest.raises(UnsafePathError, match="link"):
+            unpack_archive(buffer.getvalue())
+    with pytest.raises(RobotModelError, match="entries"):
+        unpack_archive(_zip({f"f{i}": b"" for i in range(5)}), max_entries=4)
+    with pytest.raises(RobotModelError, match="exceeds"):
+        unpack_archive(_zip({"a": b"x" * 600, "b": b"y" * 600}), max_total_bytes=1000)
+    with pytest.raises(RobotModelError):
+        unpack_archive(b"definitely not an archive")
+
+
+def test_allowed_pairs_keep_pairs_that_can_collide() -> None:
+    model = load_robot_model(SWING)
+    idx = {name: i for i, name in enumerate(model.link_names)}
+
+    def pair(a: str, b: str) -> tuple[int, int]:
+        return min(idx[a], idx[b]), max(idx[a], idx[b])
+
+    assert pair("base_link", "upper") in model.allowed_pairs  # adjacent
+    assert pair("upper", "fore") in model.allowed_pairs  # adjacent
+    assert pair("base_link", "mast") in model.allowed_pairs  # rigidly attached
+    assert pair("mast", "fore") in model.allowed_pairs  # never in reach
+    assert pair("base_link", "fore") not in model.allowed_pairs  # folds back onto the base
+    assert all(a < b for a, b in model.allowed_pairs)
+    assert pair("mast", "upper") in model.allowed_pairs  # adjacent through the rigid base body
+    without_sampling = load_robot_model(SWING, acm_samples=0).allowed_pairs
+    assert without_sampling == model.allowed_pairs - {pair("mast", "fore")}
+
+
+def test_allowed_pairs_are_deterministic_and_fast() -> None:
+    urdf = _chain_urdf(10)
+    started = time.perf_counter()
+    model = load_robot_model(urdf, acm_samples=2000, seed=3)
+    elapsed = time.perf_counter() - started
+    assert load_robot_model(urdf, acm_samples=2000, seed=3).allowed_pairs == model.allowed_pairs
+    assert elapsed < 3.0, f"allowed-pair computation took {elapsed:.2f} s"
+    assert (0, 1) in model.allowed_pairs and (0, 3) not in model.allowed_pairs

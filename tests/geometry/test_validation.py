@@ -1,0 +1,129 @@
+"""Certified validation: thin obstacles between samples, near-contact motions, limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from trajcache.geometry.errors import StateError
+from trajcache.geometry.scene import Scene, SceneObject
+from trajcache.geometry.shapes import Shape, ShapeKind
+from trajcache.geometry.urdf import load_robot_model
+from trajcache.geometry.validation import (
+    Resolution,
+    TrajectoryValidator,
+    ValidationStatus,
+    interpolate,
+)
+
+# One revolute joint about z carrying a 1 m rod (radius 1 cm) along x, 0.5 m above the floor.
+SWING_URDF = """<?xml version="1.0"?>
+<robot name="swing">
+  <link name="root"/>
+  <link name="rod">
+    <collision>
+      <origin xyz="0.5 0 0" rpy="0 1.5707963267948966 0"/>
+      <geometry><cylinder radius="0.01" length="1.0"/></geometry>
+    </collision>
+  </link>
+  <joint name="j" type="revolute">
+    <parent link="root"/><child link="rod"/>
+    <origin xyz="0 0 0.5" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/>
+  </joint>
+</robot>
+"""
+
+STEP = Resolution().joint_rad
+
+
+@pytest.fixture(scope="module")
+def swing():  # type: ignore[no-untyped-def]
+    return load_robot_model(SWING_URDF)
+
+
+def _plate(angle: float, radius: float, *, thickness: float = 0.002, length: float = 0.1) -> Scene:
+    """A thin vertical plate lying along the radial direction at `angle`, centred at `radius`."""
+    c, s = np.cos(angle), np.sin(angle)
+    pose = np.eye(4)
+    pose[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    pose[:3, 3] = [radius * c, radius * s, 0.5]
+    plate = SceneObject("plate", Shape(ShapeKind.BOX, (length, thickness, 0.2)), pose)
+    return Scene(objects=(plate,), env={}, hash=f"plate-{angle:.6f}-{radius:.4f}-{thickness}")
+
+
+def _dense_collides(validator: TrajectoryValidator, key: np.ndarray, factor: int = 200) -> bool:
+    fine = interpolate(
+        key, validator.model, Resolution(0.04 / factor, 0.04 / factor, STEP / factor)
+    )
+    return bool(validator.checker.check(fine).first_collision >= 0)
+
+
+def test_interpolation_respects_steps_and_keeps_key_states(swing) -> None:  # type: ignore[no-untyped-def]
+    key = np.array([[0.0], [1.0], [0.5]])
+    dense = interpolate(key, swing, Resolution())
+    assert np.all(np.abs(np.diff(dense[:, 0])) <= STEP + 1e-12)
+    for state in key:
+        assert np.any(np.all(np.isclose(dense, state), axis=1))
+    assert dense[0, 0] == 0.0 and dense[-1, 0] == 0.5
+
+
+def test_thin_obstacle_between_samples_is_missed_by_plain_and_caught_by_certified(swing) -> None:  # type: ignore[no-untyped-def]
+    key = np.array([[0.0], [1.0]])
+    samples = interpolate(key, swing, Resolution())
+    between = (samples[10, 0] + samples[11, 0]) / 2.0
+    scene = _plate(between, 0.9)
+    plain = TrajectoryValidator(swing, scene, certified=False).validate(key)
+    certified = TrajectoryValidator(swing, scene, certified=True).validate(key)
+    assert plain.status is ValidationStatus.VALID  # the per-sample check really misses it
+    assert _dense_collides(TrajectoryValidator(swing, scene), key)  # ...and it really is there
+    assert certified.status is ValidationStatus.COLLISION
+    assert certified.contacts and certified.contacts[0].link == "rod"
+    assert certified.contacts[0].other == "plate"
+
+
+def test_near_contact_motion_is_certified_not_rejected(swing) -> None:  # type: ignore[no-untyped-def]
+    # A plate just past the rod's tip: 3 mm clearance along the whole sweep.
+    key = np.array([[0.0], [1.0]])
+    scene = _plate(0.5, 1.0 + 0.01 + 0.003 + 0.05)
+    result = TrajectoryValidator(swing, scene).validate(key)
+    assert result.status is ValidationStatus.VALID
+    assert result.subdivisions > 0  # it had to refine, and refining proved it safe
+    assert not _dense_collides(TrajectoryValidator(swing, scene), key)
+
+
+def test_certified_never_accepts_a_colliding_segment(swing) -> None:  # type: ignore[no-untyped-def]
+    rng = np.random.default_rng(7)
+    accepted = rejected = 0
+    for _ in range(60):
+        a, b = rng.uniform(-1.5, 1.5, size=2)
+        scene = _plate(
+            rng.uniform(-1.5, 1.5), rng.uniform(0.2, 1.05), thickness=rng.uniform(0.001, 0.01)
+        )
+        key = np.array([[a], [b]])
+        validator = TrajectoryValidator(swing, scene)
+        result = validator.validate(key)
+        if result.valid:
+            accepted += 1
+            assert not _dense_collides(validator, key), (a, b)
+        else:
+            rejected += 1
+    assert accepted > 5 and rejected > 5  # the sample exercises both outcomes
+
+
+def test_out_of_limits_is_reported_with_joint_name(swing) -> None:  # type: ignore[no-untyped-def]
+    result = TrajectoryValidator(swing, _plate(2.0, 5.0)).validate(np.array([[0.0], [3.5]]))
+    assert result.status is ValidationStatus.OUT_OF_LIMITS
+    assert "j=" in result.message
+
+
+def test_wrong_state_length_is_a_state_error(swing) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(StateError):
+        TrajectoryValidator(swing, _plate(2.0, 5.0)).validate(np.array([[0.0, 1.0], [1.0, 0.0]]))
+
+
+def test_start_in_collision_reports_first_sample(swing) -> None:  # type: ignore[no-untyped-def]
+    scene = _plate(0.0, 0.5, thickness=0.05)
+    result = TrajectoryValidator(swing, scene).validate(np.array([[0.0], [1.0]]))
+    assert result.status is ValidationStatus.COLLISION
+    assert result.state is not None and result.state[0] == pytest.approx(0.0)
