@@ -1,0 +1,404 @@
+"""In-memory lookup of cached trajectories by (start, goal) similarity (paper section 3, eq. 1–2).
+
+Design: each trajectory is a key ``[start, goal]`` in 2·D dimensions. The relevance test
+(``d_base < t`` and ``d_arm < t`` on both ends) implies ``|Δ| < t`` in every coordinate
+(``||Δp|| + |Δθ| < t`` bounds ``|Δx|``, ``|Δy|``, ``|Δθ|``), so a Chebyshev (L∞) ball of radius t
+is a superset; it is fetched from a scipy ``cKDTree`` (θ columns periodic via ``boxsize``, so the
+wrap needs no extra queries) and then filtered exactly with :mod:`trajcache.cache.metric`.
+
+Recent inserts go to a small unsorted delta scanned with numpy; when it outgrows
+``max(rebuild_min, 4·√n)`` (or tombstones pile up) everything is merged into a new id-sorted main
+block whose tree is built off to the side and swapped in. Reads never lock: the whole state is an
+immutable :class:`_Snapshot` replaced atomically under ``_lock`` (copy-on-write), and mutations that
+land while a rebuild runs are logged and replayed onto the rebuilt snapshot. ``arm_only`` queries
+use a second tree over the arm columns only, built lazily on the first such query (and kept
+afterwards by every rebuild).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import cKDTree
+
+from trajcache.cache.metric import (
+    PLANAR_ARM_OFFSET,
+    THETA,
+    TWO_PI,
+    FloatArray,
+    check_arm_offset,
+    state_distance,
+)
+
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+__all__ = ["Match", "TrajectoryIndex"]
+
+_log = logging.getLogger(__name__)
+_BELOW_TWO_PI = float(np.nextafter(TWO_PI, 0.0))
+_EPS = 1e-9  # widens the prefilter so float rounding can never drop a true match
+_NODE_BYTES = 72  # sizeof(scipy ckdtreenode): 7 intp/pointer fields + 1 double, + split_dim
+
+
+@dataclass(frozen=True)
+class Match:
+    """One relevant cached trajectory: ``reversed`` means it must be played goal → start."""
+
+    trajectory_id: int
+    reversed: bool
+    d_start: float
+    d_goal: float
+    score: float
+
+
+class _Block:
+    """An immutable id-sorted main block with its KD-tree and a lazily built arm-only tree."""
+
+    def __init__(self, ids: IntArray, keys: FloatArray, boxsize: FloatArray | None, leafsize: int):
+        self.ids = ids
+        self.keys = keys
+        self.leafsize = leafsize
+        self.tree: cKDTree | None = None
+        if len(ids):
+            self.tree = _make_tree(keys, leafsize, boxsize)
+        keys.flags.writeable = False
+        self._arm_tree: cKDTree | None = None
+        self._arm_keys = np.empty((0, 0))
+        self._arm_lock = threading.Lock()
+
+    def arm_tree(self, cols: IntArray) -> cKDTree | None:
+        """The tree over the arm columns only (built on first use)."""
+        if self._arm_tree is None and len(self.ids):
+            with self._arm_lock:
+                if self._arm_tree is None:
+                    self._arm_keys = np.ascontiguousarray(self.keys[:, cols])
+                    self._arm_tree = _make_tree(self._arm_keys, self.leafsize, None)
+        return self._arm_tree
+
+    def memory_bytes(self) -> tuple[int, int]:
+        """Bytes of (ids, keys and main tree; arm-only keys and tree)."""
+        main = self.ids.nbytes + self.keys.nbytes + _tree_bytes(self.tree)
+        return main, self._arm_keys.nbytes + _tree_bytes(self._arm_tree)
+
+
+def _make_tree(keys: FloatArray, leafsize: int, boxsize: FloatArray | None) -> cKDTree:
+    """A KD-tree over ``keys`` (not copied); median splits, uncompacted nodes.
+
+    Measured at 10⁶ clustered 20-D keys: same query time as the alternatives, 1/5 of the nodes of
+    midpoint splits, and half the build time of compacted nodes.
+    """
+    return cKDTree(keys, leafsize=leafsize, boxsize=boxsize, compact_nodes=False)
+
+
+def _tree_bytes(tree: cKDTree | None) -> int:
+    """Index array and node storage (estimated from the node count) of a tree, not its data."""
+    if tree is None:
+        return 0
+    return int(tree.indices.nbytes + tree.size * _NODE_BYTES)
+
+
+@dataclass(frozen=True)
+class _Snapshot:
+    """Everything a query needs; never mutated once published."""
+
+    main: _Block
+    alive: BoolArray  # over main.ids
+    n_alive: int
+    delta_ids: IntArray
+    delta_keys: FloatArray
+
+
+_Op = Callable[[_Snapshot], _Snapshot]
+
+
+def _with_removed(snap: _Snapshot, ids: IntArray) -> _Snapshot:
+    """Tombstone ``ids`` in the main block and drop them from the delta."""
+    alive, n_alive = snap.alive, snap.n_alive
+    main_ids = snap.main.ids
+    if len(main_ids) and len(ids):
+        pos = np.minimum(np.searchsorted(main_ids, ids), len(main_ids) - 1)
+        pos = pos[(main_ids[pos] == ids) & alive[pos]]
+        if len(pos):
+            alive = alive.copy()
+            alive[pos] = False
+            n_alive -= len(pos)
+    keep = ~np.isin(snap.delta_ids, ids)
+    if keep.all():
+        return replace(snap, alive=alive, n_alive=n_alive)
+    return _Snapshot(snap.main, alive, n_alive, snap.delta_ids[keep], snap.delta_keys[keep])
+
+
+def _with_added(snap: _Snapshot, ids: IntArray, keys: FloatArray) -> _Snapshot:
+    """Upsert: replace any existing entries with the same ids, then append to the delta."""
+    snap = _with_removed(snap, ids)
+    if len(snap.delta_ids):
+        ids, keys = np.concatenate([snap.delta_ids, ids]), np.concatenate([snap.delta_keys, keys])
+    return replace(snap, delta_ids=ids, delta_keys=keys)
+
+
+def _box_candidates(keys: FloatArray, q: FloatArray, radius: float, cols: IntArray) -> IntArray:
+    """Superset of the rows within ``radius`` of ``q`` on ``cols``, narrowed until few remain."""
+    cand = np.flatnonzero(np.abs(keys[:, cols[0]] - q[cols[0]]) <= radius)
+    for c in cols[1:]:
+        if len(cand) <= 8:  # few enough for the exact metric
+            break
+        cand = cand[np.abs(keys[cand, c] - q[c]) <= radius]
+    return cand
+
+
+class TrajectoryIndex:
+    """Thread-safe in-memory index of one model's trajectories: id → (start, goal)."""
+
+    def __init__(
+        self,
+        dim: int,
+        *,
+        arm_offset: int,
+        rebuild_min: int = 1024,
+        background_rebuild: bool = True,
+        leafsize: int = 16,
+    ) -> None:
+        check_arm_offset(arm_offset, dim)
+        self.dim = dim
+        self.arm_offset = arm_offset
+        self.rebuild_min = rebuild_min
+        self.background_rebuild = background_rebuild
+        self._leafsize = leafsize
+        planar = arm_offset == PLANAR_ARM_OFFSET
+        self._theta_cols = np.array([THETA, dim + THETA] if planar else [], dtype=np.intp)
+        # arm columns of start and goal, interleaved; then the base x, y (θ is left to the metric)
+        self._arm_cols = np.stack([np.arange(arm_offset, dim), np.arange(arm_offset, dim) + dim], 1)
+        self._arm_cols = self._arm_cols.reshape(-1)
+        xy = np.array([0, dim, 1, dim + 1] if planar else [], dtype=np.intp)
+        self._filter_cols = np.r_[self._arm_cols, xy]
+        self._boxsize: FloatArray | None = None
+        if planar:
+            self._boxsize = np.zeros(2 * dim)
+            self._boxsize[self._theta_cols] = TWO_PI
+        self._lock = threading.Lock()  # guards _snap replacement, _log, _rebuild_scheduled
+        self._rebuild_lock = threading.Lock()  # one rebuild at a time
+        self._log: list[_Op] | None = None  # mutations made while a rebuild is in flight
+        self._rebuild_scheduled = False
+        self._arm_used = False
+        self._snap = self._empty()
+
+    def add(self, ids: npt.ArrayLike, starts: npt.ArrayLike, goals: npt.ArrayLike) -> None:
+        """Insert (or replace) a batch: ``ids`` (n,), ``starts`` and ``goals`` (n, D)."""
+        id_arr = np.asarray(ids, dtype=np.int64).reshape(-1)
+        keys = self._keys(starts, goals)
+        if len(id_arr) != len(keys):
+            raise ValueError(f"{len(id_arr)} ids for {len(keys)} start/goal pairs")
+        if len(id_arr) > 1 and not (np.diff(np.sort(id_arr)) != 0).all():
+            raise ValueError("duplicate trajectory ids in one batch")
+        self._mutate(lambda s: _with_added(s, id_arr, keys))
+
+    def remove(self, ids: npt.ArrayLike) -> None:
+        """Remove trajectories by id (unknown ids are ignored)."""
+        id_arr = np.unique(np.asarray(ids, dtype=np.int64).reshape(-1))
+        self._mutate(lambda s: _with_removed(s, id_arr))
+
+    def clear(self) -> None:
+        """Remove everything."""
+        self._mutate(lambda s: self._empty())
+
+    def rebuild(self) -> None:
+        """Merge the delta and drop tombstones into a fresh main block (queries keep running)."""
+        with self._rebuild_lock:
+            with self._lock:
+                snap = self._snap
+                self._log = []
+                self._rebuild_scheduled = False
+            try:
+                main, all_alive = snap.main, snap.n_alive == len(snap.main.ids)
+                ids = np.concatenate([main.ids[snap.alive], snap.delta_ids])
+                keys = np.concatenate(
+                    [main.keys if all_alive else main.keys[snap.alive], snap.delta_keys]
+                )
+                if len(ids) > 1 and not (ids[1:] > ids[:-1]).all():
+                    order = np.argsort(ids)
+                    ids, keys = ids[order], keys[order]
+                block = _Block(ids, keys, self._boxsize, self._leafsize)
+                if self._arm_used:  # keep arm-only queries fast after the swap
+                    block.arm_tree(self._arm_cols)
+            except BaseException:
+                with self._lock:
+                    self._log = None
+                raise
+            with self._lock:
+                fresh = _Snapshot(block, np.ones(len(ids), bool), len(ids), *self._empty_delta())
+                for op in self._log:
+                    fresh = op(fresh)
+                self._log = None
+                self._snap = fresh
+
+    def __len__(self) -> int:
+        snap = self._snap
+        return snap.n_alive + len(snap.delta_ids)
+
+    def __contains__(self, trajectory_id: object) -> bool:
+        if not isinstance(trajectory_id, int | np.integer):
+            return False
+        snap = self._snap
+        main_ids = snap.main.ids
+        pos = int(np.searchsorted(main_ids, trajectory_id))
+        if pos < len(main_ids) and main_ids[pos] == trajectory_id and snap.alive[pos]:
+            return True
+        return bool((snap.delta_ids == trajectory_id).any())
+
+    def ids(self) -> IntArray:
+        """All indexed trajectory ids, sorted."""
+        snap = self._snap
+        return np.sort(np.concatenate([snap.main.ids[snap.alive], snap.delta_ids]))
+
+    @property
+    def delta_size(self) -> int:
+        """Entries waiting in the unsorted delta buffer."""
+        return len(self._snap.delta_ids)
+
+    def memory_bytes(self) -> dict[str, int]:
+        """Approximate bytes held by the main block, the arm-only tree and the delta buffer."""
+        snap = self._snap
+        main, arm = snap.main.memory_bytes()
+        delta = snap.delta_ids.nbytes + snap.delta_keys.nbytes
+        return {"main": main + snap.alive.nbytes, "arm_only": arm, "delta": delta}
+
+    def delta_limit(self, n_main: int) -> int:
+        """Delta size beyond which a rebuild is due, for a main block of ``n_main`` entries."""
+        return max(self.rebuild_min, int(4 * np.sqrt(max(n_main, 0))))
+
+    def query(
+        self,
+        start: npt.ArrayLike,
+        goal: npt.ArrayLike,
+        *,
+        threshold: float = 0.2,
+        limit: int = 3,
+        arm_only: bool = False,
+    ) -> list[Match]:
+        """Up to ``limit`` relevant trajectories, best (lowest score, then id) first."""
+        if not threshold > 0:
+            raise ValueError(f"threshold must be positive, not {threshold}")
+        q = self._keys(start, goal)[0]
+        arm_only = arm_only and self.arm_offset == PLANAR_ARM_OFFSET
+        if arm_only and self.dim == self.arm_offset:
+            raise ValueError("arm_only queries need arm joints")
+        if limit <= 0:
+            return []
+        snap = self._snap
+        d = self.dim
+        queries = np.stack([q, np.concatenate([q[d:], q[:d]])])  # forward, reversed
+        radius = threshold + _EPS
+        parts_ids: list[IntArray] = []
+        parts_keys: list[FloatArray] = []
+        parts_rev: list[BoolArray] = []
+
+        main = snap.main
+        self._arm_used |= arm_only
+        tree = main.arm_tree(self._arm_cols) if arm_only else main.tree
+        if tree is not None:
+            tree_queries = queries[:, self._arm_cols] if arm_only else queries
+            hits = tree.query_ball_point(tree_queries, radius, p=np.inf, return_sorted=False)
+            for rev, hit in enumerate(hits):
+                idx = np.asarray(hit, dtype=np.intp)
+                idx = idx[snap.alive[idx]]
+                parts_ids.append(main.ids[idx])
+                parts_keys.append(main.keys[idx])
+                parts_rev.append(np.full(len(idx), bool(rev)))
+        if len(snap.delta_ids):
+            cols = self._arm_cols if arm_only else self._filter_cols
+            for rev in (0, 1):
+                near = _box_candidates(snap.delta_keys, queries[rev], radius, cols)
+                parts_ids.append(snap.delta_ids[near])
+                parts_keys.append(snap.delta_keys[near])
+                parts_rev.append(np.full(len(near), bool(rev)))
+        if not parts_ids:
+            return []
+        cand_ids = np.concatenate(parts_ids)
+        if not len(cand_ids):
+            return []
+        return self._rank(
+            cand_ids, np.concatenate(parts_keys), np.concatenate(parts_rev), queries, threshold,
+            limit, arm_only,
+        )  # fmt: skip
+
+    def _rank(
+        self,
+        ids: IntArray,
+        keys: FloatArray,
+        rev: BoolArray,
+        queries: FloatArray,
+        threshold: float,
+        limit: int,
+        arm_only: bool,
+    ) -> list[Match]:
+        """Exact metric on the candidates, best orientation per id, top ``limit`` by score."""
+        d, off = self.dim, self.arm_offset
+        qk = queries[rev.astype(np.intp)]
+        base1, arm1 = state_distance(keys[:, :d], qk[:, :d], arm_offset=off)
+        base2, arm2 = state_distance(keys[:, d:], qk[:, d:], arm_offset=off)
+        if arm_only:
+            base1, base2 = np.zeros_like(base1), np.zeros_like(base2)
+        ok = (base1 < threshold) & (arm1 < threshold) & (base2 < threshold) & (arm2 < threshold)
+        d1, d2 = (base1 + arm1)[ok], (base2 + arm2)[ok]
+        ids, rev = ids[ok], rev[ok]
+        d_start, d_goal = np.where(rev, d2, d1), np.where(rev, d1, d2)
+        score = d_start + d_goal
+        order = np.lexsort((rev, ids, score))
+        _, first = np.unique(ids[order], return_index=True)
+        best = order[np.sort(first)[:limit]]
+        rows = zip(ids[best], rev[best], d_start[best], d_goal[best], score[best], strict=True)
+        return [Match(int(i), bool(r), float(s), float(g), float(c)) for i, r, s, g, c in rows]
+
+    def _keys(self, starts: npt.ArrayLike, goals: npt.ArrayLike) -> FloatArray:
+        """Validate (n, D) starts/goals and pack them as keys with θ mapped into [0, 2π)."""
+        s = np.atleast_2d(np.asarray(starts, dtype=np.float64))
+        g = np.atleast_2d(np.asarray(goals, dtype=np.float64))
+        if s.ndim != 2 or s.shape != g.shape or s.shape[1] != self.dim:
+            raise ValueError(f"starts/goals must be (n, {self.dim}); got {s.shape} and {g.shape}")
+        keys = np.concatenate([s, g], axis=1)
+        if not np.isfinite(keys).all():
+            raise ValueError("states must be finite")
+        if len(self._theta_cols):
+            th = np.mod(keys[:, self._theta_cols] + np.pi, TWO_PI)
+            keys[:, self._theta_cols] = np.minimum(th, _BELOW_TWO_PI)
+        return keys
+
+    def _empty_delta(self) -> tuple[IntArray, FloatArray]:
+        return np.empty(0, np.int64), np.empty((0, 2 * self.dim))
+
+    def _empty(self) -> _Snapshot:
+        block = _Block(np.empty(0, np.int64), np.empty((0, 2 * self.dim)), None, self._leafsize)
+        return _Snapshot(block, np.empty(0, bool), 0, *self._empty_delta())
+
+    def _mutate(self, op: _Op) -> None:
+        """Apply ``op`` to the published snapshot (and to the log if a rebuild is running)."""
+        with self._lock:
+            snap = op(self._snap)
+            self._snap = snap
+            if self._log is not None:
+                self._log.append(op)
+            n_main = len(snap.main.ids)
+            due = len(snap.delta_ids) > self.delta_limit(n_main) or (
+                n_main - snap.n_alive > max(self.rebuild_min, n_main // 4)
+            )
+            start = due and not self._rebuild_scheduled
+            if start:
+                self._rebuild_scheduled = True
+        if not start:
+            return
+        if self.background_rebuild:
+            threading.Thread(target=self._rebuild_logged, name="index-rebuild", daemon=True).start()
+        else:
+            self.rebuild()
+
+    def _rebuild_logged(self) -> None:
+        try:
+            self.rebuild()
+        except Exception:  # a failed rebuild leaves the index correct, just slower
+            _log.exception("trajectory index rebuild failed")
