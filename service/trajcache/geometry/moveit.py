@@ -1,0 +1,238 @@
+"""MoveIt `moveit_msgs/PlanningScene` world ↔ scene objects.
+
+Accepted: the whole message (`world.collision_objects`), `{"world": {...}}` or
+`{"collision_objects": [...]}`, as decoded from JSON/YAML (rosbridge-style dicts; points and
+quaternions may also be plain lists). Only world-frame objects are supported. An object with
+several shapes becomes several scene objects `id`, `id#1`, `id#2` … (primitives first, then
+meshes); the object pose composes with each shape pose. As in MoveIt itself, an all-zero
+quaternion in a message means identity (a default-constructed pose).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from trajcache.geometry.errors import SceneError
+from trajcache.geometry.scene import (
+    MAX_OBJECTS,
+    Scene,
+    SceneObject,
+    make_shape,
+    matrix_to_quaternion,
+    number_list,
+    parse_pose,
+)
+from trajcache.geometry.shapes import FloatArray, ShapeKind
+
+WORLD_FRAMES = frozenset({"", "world", "map", "odom"})
+# shape_msgs/SolidPrimitive type constants
+BOX, SPHERE, CYLINDER, CONE = 1, 2, 3, 4
+_PRIMITIVE_NAMES = {"box": BOX, "sphere": SPHERE, "cylinder": CYLINDER, "cone": CONE}
+# moveit_msgs/CollisionObject operation constants
+ADD, REMOVE, APPEND, MOVE = 0, 1, 2, 3
+_OPERATION_NAMES = {"add": ADD, "remove": REMOVE, "append": APPEND, "move": MOVE}
+
+
+def _as_list(value: Any, where: str) -> Sequence[Any]:
+    if value is None:
+        return []
+    if not isinstance(value, Sequence) or isinstance(value, str):
+        raise SceneError(f"{where} must be a list")
+    return value
+
+
+def _collision_objects(payload: Mapping[str, Any]) -> Sequence[Any]:
+    world = payload.get("world", payload)
+    if not isinstance(world, Mapping):
+        raise SceneError("world must be a mapping with collision_objects")
+    octomap = world.get("octomap")
+    if isinstance(octomap, Mapping):
+        inner = octomap.get("octomap", octomap)
+        if isinstance(inner, Mapping) and inner.get("data"):
+            raise SceneError("octomaps are not supported; send collision objects")
+    return _as_list(world.get("collision_objects"), "world.collision_objects")
+
+
+def _enum(value: Any, names: Mapping[str, int], where: str) -> int:
+    if isinstance(value, str):
+        code = names.get(value.strip().lower())
+        if code is None:
+            raise SceneError(f"{where}: unknown value {value!r}")
+        return code
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise SceneError(f"{where} must be an integer or a name, got {value!r:.40}")
+    return value
+
+
+def _frame_id(obj: Mapping[str, Any], oid: str) -> None:
+    header = obj.get("header") or {}
+    if not isinstance(header, Mapping):
+        raise SceneError(f"object {oid!r}: header must be a mapping")
+    frame = header.get("frame_id", "")
+    if not isinstance(frame, str) or frame.lstrip("/") not in WORLD_FRAMES:
+        raise SceneError(
+            f"object {oid!r}: header.frame_id {frame!r} is not a world frame "
+            f"(only {sorted(WORLD_FRAMES)} are supported)"
+        )
+
+
+def _primitive(raw: Any, oid: str, where: str) -> tuple[ShapeKind, list[float]]:
+    if not isinstance(raw, Mapping):
+        raise SceneError(f"object {oid!r}: {where} must be a mapping")
+    code = _enum(raw.get("type"), _PRIMITIVE_NAMES, f"object {oid!r}: {where}.type")
+    dims = raw.get("dimensions")
+    if code == BOX:
+        return ShapeKind.BOX, number_list(dims, 3, f"object {oid!r}: {where}.dimensions")
+    if code == SPHERE:
+        return ShapeKind.SPHERE, number_list(dims, 1, f"object {oid!r}: {where}.dimensions")
+    if code == CYLINDER:  # SolidPrimitive cylinder is [height, radius]; Shape is (radius, length)
+        height, radius = number_list(dims, 2, f"object {oid!r}: {where}.dimensions")
+        return ShapeKind.CYLINDER, [radius, height]
+    if code == CONE:
+        raise SceneError(f"object {oid!r}: {where}.type cone is not supported")
+    raise SceneError(f"object {oid!r}: {where}.type {code} is not a known primitive")
+
+
+def _mesh(raw: Any, oid: str, where: str) -> tuple[Any, Any]:
+    if not isinstance(raw, Mapping):
+        raise SceneError(f"object {oid!r}: {where} must be a mapping")
+    vertices = [
+        number_list(v, 3, f"object {oid!r}: {where}.vertices[{i}]", "xyz")
+        for i, v in enumerate(_as_list(raw.get("vertices"), f"object {oid!r}: {where}.vertices"))
+    ]
+    faces = []
+    for i, tri in enumerate(_as_list(raw.get("triangles"), f"object {oid!r}: {where}.triangles")):
+        indices = tri.get("vertex_indices") if isinstance(tri, Mapping) else tri
+        faces.append(number_list(indices, 3, f"object {oid!r}: {where}.triangles[{i}]"))
+    return vertices, faces
+
+
+def _poses(obj: Mapping[str, Any], key: str, count: int, oid: str) -> list[FloatArray]:
+    raw = _as_list(obj.get(key), f"object {oid!r}: {key}")
+    if len(raw) != count:
+        raise SceneError(f"object {oid!r}: {key} has {len(raw)} poses for {count} shapes")
+    return [
+        parse_pose(p, f"object {oid!r}: {key}[{i}]", zero_is_identity=True)
+        for i, p in enumerate(raw)
+    ]
+
+
+def _object_shapes(obj: Mapping[str, Any], oid: str) -> list[tuple[Any, FloatArray]]:
+    """(Shape, world pose) for every primitive then mesh of one CollisionObject."""
+    _frame_id(obj, oid)
+    if _as_list(obj.get("planes"), f"object {oid!r}: planes"):
+        raise SceneError(f"object {oid!r}: planes are not supported")
+    base = parse_pose(obj.get("pose"), f"object {oid!r}: pose", zero_is_identity=True)
+    out: list[tuple[Any, FloatArray]] = []
+    primitives = _as_list(obj.get("primitives"), f"object {oid!r}: primitives")
+    for i, (raw, pose) in enumerate(
+        zip(primitives, _poses(obj, "primitive_poses", len(primitives), oid), strict=True)
+    ):
+        kind, dims = _primitive(raw, oid, f"primitives[{i}]")
+        out.append((make_shape(oid, kind, dims), base @ pose))
+    meshes = _as_list(obj.get("meshes"), f"object {oid!r}: meshes")
+    for i, (raw, pose) in enumerate(
+        zip(meshes, _poses(obj, "mesh_poses", len(meshes), oid), strict=True)
+    ):
+        vertices, faces = _mesh(raw, oid, f"meshes[{i}]")
+        out.append((make_shape(oid, ShapeKind.MESH, (), vertices, faces), base @ pose))
+    return out
+
+
+def parse_moveit_objects(payload: Mapping[str, Any]) -> list[SceneObject]:
+    """Scene objects from a PlanningScene world; REMOVE entries are skipped, APPEND extends."""
+    groups: dict[str, list[tuple[Any, FloatArray]]] = {}
+    for n, obj in enumerate(_collision_objects(payload)):
+        if not isinstance(obj, Mapping):
+            raise SceneError(f"collision_objects[{n}] must be a mapping")
+        oid = obj.get("id")
+        if not isinstance(oid, str) or not oid.strip() or len(oid) > 200:
+            raise SceneError(f"collision_objects[{n}]: id must be a non-empty string")
+        op = _enum(obj.get("operation", ADD), _OPERATION_NAMES, f"object {oid!r}: operation")
+        if op == REMOVE:
+            continue
+        if op == MOVE:
+            raise SceneError(f"object {oid!r}: operation MOVE is not valid in a full scene")
+        if op == ADD and oid in groups:
+            raise SceneError(f"duplicate object id {oid!r}")
+        if op not in (ADD, APPEND):
+            raise SceneError(f"object {oid!r}: unknown operation {op}")
+        shapes = _object_shapes(obj, oid)
+        if not shapes:
+            raise SceneError(f"object {oid!r}: no primitives or meshes")
+        groups.setdefault(oid, []).extend(shapes)
+    objects = [
+        SceneObject(oid if i == 0 else f"{oid}#{i}", shape, pose)
+        for oid, shapes in groups.items()
+        for i, (shape, pose) in enumerate(shapes)
+    ]
+    if len(objects) > MAX_OBJECTS:
+        raise SceneError(f"a scene may hold at most {MAX_OBJECTS} objects")
+    return objects
+
+
+def _pose_msg(pose: FloatArray) -> dict[str, dict[str, float]]:
+    x, y, z = (float(v) for v in pose[:3, 3])
+    qx, qy, qz, qw = (float(v) for v in matrix_to_quaternion(pose))
+    return {
+        "position": {"x": x, "y": y, "z": z},
+        "orientation": {"x": qx, "y": qy, "z": qz, "w": qw},
+    }
+
+
+_IDENTITY_MSG = _pose_msg(np.eye(4))
+
+
+def _collision_object(obj: SceneObject, frame_id: str) -> dict[str, Any]:
+    shape = obj.shape
+    msg: dict[str, Any] = {
+        "header": {"frame_id": frame_id},
+        "id": obj.id,
+        "pose": _pose_msg(obj.pose),
+        "primitives": [],
+        "primitive_poses": [],
+        "meshes": [],
+        "mesh_poses": [],
+        "planes": [],
+        "plane_poses": [],
+        "operation": ADD,
+    }
+    if shape.kind is ShapeKind.MESH:
+        assert shape.vertices is not None and shape.faces is not None
+        msg["meshes"].append(
+            {
+                "triangles": [{"vertex_indices": [int(i) for i in f]} for f in shape.faces],
+                "vertices": [
+                    {"x": float(a), "y": float(b), "z": float(c)} for a, b, c in shape.vertices
+                ],
+            }
+        )
+        msg["mesh_poses"].append(_IDENTITY_MSG)
+        return msg
+    if shape.kind is ShapeKind.BOX:
+        prims = [(BOX, list(shape.size), 0.0)]
+    elif shape.kind is ShapeKind.SPHERE:
+        prims = [(SPHERE, list(shape.size), 0.0)]
+    else:  # cylinder; a capsule (no MoveIt primitive) becomes a cylinder plus two end spheres
+        radius, length = shape.size
+        prims = [(CYLINDER, [length, radius], 0.0)]
+        if shape.kind is ShapeKind.CAPSULE:
+            prims += [(SPHERE, [radius], -length / 2), (SPHERE, [radius], length / 2)]
+    for code, dims, dz in prims:
+        msg["primitives"].append({"type": code, "dimensions": [float(v) for v in dims]})
+        offset = np.eye(4)
+        offset[2, 3] = dz
+        msg["primitive_poses"].append(_pose_msg(offset))
+    return msg
+
+
+def scene_to_moveit(scene: Scene, *, frame_id: str = "world", name: str = "") -> dict[str, Any]:
+    """The scene as a PlanningScene message dict (capsules become cylinder + spheres)."""
+    return {
+        "name": name,
+        "is_diff": False,
+        "world": {"collision_objects": [_collision_object(o, frame_id) for o in scene.objects]},
+    }
