@@ -98,6 +98,11 @@ class SceneGeometry:
         self.rotation = np.array([o.pose[:3, :3] for o in scene.objects]).reshape(count, 3, 3)
         self.position = np.array([o.pose[:3, 3] for o in scene.objects]).reshape(count, 3)
         self.half = np.array([o.shape.half_extents() for o in scene.objects]).reshape(count, 3)
+        # local = Rᵀ(c − t) for every object in one matmul: c @ [R_0 | R_1 | …] − tᵀR.
+        self.rotation_cat = np.ascontiguousarray(self.rotation.transpose(1, 0, 2).reshape(3, -1))
+        self.offset = np.einsum("mj,mji->mi", self.position, self.rotation)
+        reach = np.einsum("mij,mj->mi", np.abs(self.rotation), self.half)
+        self.aabb_lo, self.aabb_hi = self.position - reach, self.position + reach
 
 
 class _LRU:
@@ -194,14 +199,21 @@ class CollisionChecker:
         sg = self.scene
         if len(sg.ids) == 0:
             return np.empty((0, 3), dtype=np.int64)
-        rel = centers[:, :, None, :] - sg.position[None, None, :, :]
-        local = np.einsum("mji,nemj->nemi", sg.rotation, rel)
-        outside = np.maximum(np.abs(local) - sg.half[None, None], 0.0)
-        bound = (
-            np.sqrt(np.einsum("nemi,nemi->nem", outside, outside))
-            - self.robot.radius[None, :, None]
-        )
-        return np.argwhere(bound <= pad[:, :, None])
+        n, e = centers.shape[:2]
+        # Cull objects far from everything this batch does: one AABB around all padded spheres.
+        grow = (self.robot.radius[None, :] + pad)[..., None]
+        lo, hi = (centers - grow).min(axis=(0, 1)), (centers + grow).max(axis=(0, 1))
+        near = np.flatnonzero(np.all((sg.aabb_lo <= hi) & (sg.aabb_hi >= lo), axis=1))
+        if len(near) == 0:
+            return np.empty((0, 3), dtype=np.int64)
+        rot = sg.rotation_cat.reshape(3, -1, 3)[:, near].reshape(3, -1)
+        local = (centers.reshape(-1, 3) @ rot).reshape(n, e, len(near), 3) - sg.offset[near]
+        outside = np.maximum(np.abs(local) - sg.half[near], 0.0)
+        sq = outside[..., 0] ** 2 + outside[..., 1] ** 2 + outside[..., 2] ** 2
+        bound = np.sqrt(sq) - self.robot.radius[None, :, None]
+        rows = np.argwhere(bound <= pad[:, :, None])
+        rows[:, 2] = near[rows[:, 2]]
+        return rows
 
     def _self_candidates(self, centers: FloatArray, pad: FloatArray) -> IntArray:
         """(K, 2) rows (state, pair) whose bounding-sphere distance is within the pad."""
@@ -244,16 +256,21 @@ class CollisionChecker:
         contacts: list[Contact] = []
         checks = 0
         first = -1
+        posed = [-1] * len(objs)  # the state each element's FCL object is currently posed at
         for s, a, b, is_self in rows.tolist():
             if is_self:
                 i, j = int(rg.pair_i[a]), int(rg.pair_j[a])
-                _set_pose(objs[i], poses[s, i])
-                _set_pose(objs[j], poses[s, j])
+                for k in (i, j):
+                    if posed[k] != s:
+                        _set_pose(objs[k], poses[s, k])
+                        posed[k] = s
                 pad = float(ppad[s, a])
                 other = objs[j]
                 first_obj = objs[i]
             else:
-                _set_pose(objs[a], poses[s, a])
+                if posed[a] != s:
+                    _set_pose(objs[a], poses[s, a])
+                    posed[a] = s
                 pad = float(epad[s, a])
                 other = sg.objects[b]
                 first_obj = objs[a]
