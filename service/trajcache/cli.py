@@ -2,14 +2,90 @@
 
 from __future__ import annotations
 
+import os
+from typing import TYPE_CHECKING, Annotated
+
 import typer
+from rich.console import Console
 
 from trajcache.cli_reference import app as reference_app
+
+if TYPE_CHECKING:
+    from trajcache.core.config import Settings
 
 app = typer.Typer(
     help="trajcache: a shared, collision-validated trajectory cache.", no_args_is_help=True
 )
 app.add_typer(reference_app, name="reference")
+
+
+def _settings() -> Settings:
+    from pydantic import ValidationError
+
+    from trajcache.core.config import Settings
+
+    try:
+        return Settings()
+    except ValidationError as exc:
+        Console(stderr=True).print(f"[red]invalid TRAJCACHE_* settings:[/red] {exc}")
+        raise typer.Exit(2) from None
+
+
+@app.command()
+def serve(
+    host: Annotated[
+        str | None, typer.Option(help="Address to bind (default: TRAJCACHE_HOST).")
+    ] = None,
+    port: Annotated[
+        int | None, typer.Option(min=1, max=65535, help="Port (default: TRAJCACHE_PORT).")
+    ] = None,
+    workers: Annotated[int, typer.Option(min=1, help="Server worker processes.")] = 1,
+    no_migrate: Annotated[
+        bool, typer.Option("--no-migrate", help="Do not upgrade the database on start.")
+    ] = False,
+) -> None:
+    """Run the HTTP service (settings from TRAJCACHE_* environment variables)."""
+    import uvicorn
+
+    from trajcache.db import migrate
+    from trajcache.main import AUTO_MIGRATE_ENV
+
+    settings = _settings()
+    host = host or settings.host
+    port = port or settings.port
+    if not no_migrate:
+        migrate.upgrade(settings.database_url)  # once here rather than once per worker
+    os.environ[AUTO_MIGRATE_ENV] = "0"
+    shown = f"[{host}]" if ":" in host else host
+    Console(stderr=True).print(
+        f"trajcache serving on [bold]http://{shown}:{port}[/bold] "
+        f"(API docs at /docs, {workers} worker{'s' if workers > 1 else ''})"
+    )
+    uvicorn.run(
+        "trajcache.main:create_app",
+        factory=True,
+        host=host,
+        port=port,
+        workers=workers,
+        log_level=settings.log_level,
+    )
+
+
+@app.command("migrate")
+def migrate_command(
+    revision: Annotated[str, typer.Option(help="Target revision.")] = "head",
+) -> None:
+    """Upgrade the configured database (TRAJCACHE_DATABASE_URL) to a revision."""
+    from sqlalchemy.engine import make_url
+
+    from trajcache.db import migrate
+
+    settings = _settings()
+    url = settings.database_url
+    migrate.upgrade(url, revision)
+    shown = make_url(url).render_as_string(hide_password=True)
+    Console().print(f"{shown} is at revision [bold]{migrate.current_revision(url)}[/bold]")
+
 
 if __name__ == "__main__":
     app()

@@ -1,0 +1,56 @@
+"""Start the real service (uvicorn on loopback) in a subprocess for benchmarks."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import httpx
+
+
+def free_port() -> int:
+    """An unused TCP port on loopback."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+@contextmanager
+def running_service(
+    database_url: str | None = None, *, workers: int = 1, env: dict[str, str] | None = None
+) -> Iterator[str]:
+    """Run `trajcache serve` on a free port; yield its base URL; stop it afterwards."""
+    port = free_port()
+    with tempfile.TemporaryDirectory() as tmp:
+        url = database_url or f"sqlite:///{Path(tmp) / 'bench.db'}"
+        child_env = {**os.environ, "TRAJCACHE_DATABASE_URL": url, "TRAJCACHE_LOG_LEVEL": "warning"}
+        child_env.update(env or {})
+        cmd = [sys.executable, "-m", "trajcache.cli", "serve", "--host", "127.0.0.1",
+               "--port", str(port), "--workers", str(workers)]  # fmt: skip
+        proc = subprocess.Popen(cmd, env=child_env, cwd=tmp)
+        base = f"http://127.0.0.1:{port}"
+        try:
+            deadline = time.monotonic() + 60
+            while True:
+                try:
+                    if httpx.get(f"{base}/readyz", timeout=1.0).status_code == 200:
+                        break
+                except httpx.HTTPError:
+                    pass
+                if proc.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError("the service did not start")
+                time.sleep(0.2)
+            yield base
+        finally:
+            proc.terminate()
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()

@@ -1,0 +1,70 @@
+"""Request dependencies as `Annotated` aliases: the service context, a session, settings, paging."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Annotated
+
+from fastapi import Depends, Query, Request
+from sqlalchemy.orm import Session
+
+from trajcache.core.config import Settings
+from trajcache.services.context import ServiceContext
+from trajcache.services.errors import InvalidInputError
+
+DEFAULT_PAGE_SIZE = 100
+
+
+def get_ctx(request: Request) -> ServiceContext:
+    """The app's ServiceContext (created by the lifespan)."""
+    ctx: ServiceContext = request.app.state.ctx
+    return ctx
+
+
+CtxDep = Annotated[ServiceContext, Depends(get_ctx)]
+
+
+def get_settings(ctx: CtxDep) -> Settings:
+    """The settings the app was built with."""
+    return ctx.settings
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+
+
+def get_session(ctx: CtxDep) -> Iterator[Session]:
+    """A session per request, closed afterwards; services commit, nothing here does."""
+    with ctx.sessions() as session:
+        yield session
+
+
+SessionDep = Annotated[Session, Depends(get_session)]
+
+
+@dataclass(frozen=True)
+class Page:
+    """Validated `limit` and `offset` query parameters."""
+
+    limit: int
+    offset: int
+
+
+def get_page(
+    settings: SettingsDep,
+    limit: Annotated[
+        int | None, Query(ge=1, description="Page size (at most the service's max_page_size).")
+    ] = None,
+    offset: Annotated[int, Query(ge=0, description="Items to skip.")] = 0,
+) -> Page:
+    """The page asked for; a `limit` above `max_page_size` is a 422 naming the limit."""
+    if limit is None:
+        limit = min(DEFAULT_PAGE_SIZE, settings.max_page_size)
+    if limit > settings.max_page_size:
+        raise InvalidInputError(
+            f"query.limit: {limit} is above max_page_size={settings.max_page_size}"
+        )
+    return Page(limit=limit, offset=offset)
+
+
+PageDep = Annotated[Page, Depends(get_page)]

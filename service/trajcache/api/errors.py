@@ -1,0 +1,128 @@
+"""Exception → HTTP response mapping; every error body is `{"detail": "<readable message>"}`."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from sqlalchemy.exc import (
+    DataError,
+    DBAPIError,
+    IntegrityError,
+    InterfaceError,
+    OperationalError,
+)
+from sqlalchemy.exc import TimeoutError as PoolTimeoutError
+
+from trajcache.geometry.errors import GeometryError
+from trajcache.services.errors import (
+    ConflictError,
+    InvalidInputError,
+    NotFoundError,
+    PayloadTooLargeError,
+    ServiceError,
+    UnavailableError,
+)
+
+logger = logging.getLogger(__name__)
+
+_STATUS: tuple[tuple[type[Exception], int], ...] = (
+    (NotFoundError, 404),
+    (ConflictError, 409),
+    (PayloadTooLargeError, 413),
+    (InvalidInputError, 422),
+    (UnavailableError, 503),
+)
+_MAX_LISTED_ERRORS = 10
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Register the handlers on `app`."""
+    app.add_exception_handler(GeometryError, _geometry_error)
+    app.add_exception_handler(ServiceError, _service_error)
+    app.add_exception_handler(DBAPIError, _database_error)
+    app.add_exception_handler(PoolTimeoutError, _pool_timeout)
+    app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(Exception, _unexpected_error)
+
+
+def _detail(status: int, message: str, **extra: Any) -> JSONResponse:
+    return JSONResponse(status_code=status, content={"detail": message, **extra})
+
+
+async def _geometry_error(_request: Request, exc: Exception) -> JSONResponse:
+    return _detail(422, str(exc) or type(exc).__name__)
+
+
+async def _service_error(_request: Request, exc: Exception) -> JSONResponse:
+    status = next((code for kind, code in _STATUS if isinstance(exc, kind)), 500)
+    if status == 500:
+        logger.error("unmapped service error", exc_info=exc)
+    return _detail(status, str(exc) or type(exc).__name__)
+
+
+def _db_message(exc: DBAPIError) -> str:
+    text = str(exc.orig if exc.orig is not None else exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+async def _database_error(_request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, DBAPIError)
+    if isinstance(exc, IntegrityError):
+        return _detail(409, f"conflicts with stored data: {_db_message(exc)}")
+    if isinstance(exc, DataError):
+        return _detail(422, f"value not accepted by the database: {_db_message(exc)}")
+    if isinstance(exc, OperationalError | InterfaceError) or exc.connection_invalidated:
+        logger.warning("database unavailable: %s", _db_message(exc))
+        return _detail(503, f"database unavailable: {_db_message(exc)}")
+    logger.error("database error", exc_info=exc)
+    return _detail(500, "internal database error")
+
+
+async def _pool_timeout(_request: Request, exc: Exception) -> JSONResponse:
+    logger.warning("database connection pool exhausted: %s", exc)
+    return _detail(503, "database unavailable: no free connection in the pool")
+
+
+def _location(loc: Sequence[Any]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out
+
+
+def validation_message(errors: Sequence[Any]) -> str:
+    """One readable line naming each invalid field, e.g. `body.states[0][1]: ...`."""
+    parts = []
+    for error in errors[:_MAX_LISTED_ERRORS]:
+        where = _location(error.get("loc", ()))
+        message = str(error.get("msg", "invalid value"))
+        reason = (error.get("ctx") or {}).get("error")
+        if error.get("type") == "json_invalid" and reason:
+            message = f"{message} ({reason})"
+        parts.append(f"{where}: {message}" if where else message)
+    if len(errors) > _MAX_LISTED_ERRORS:
+        parts.append(f"and {len(errors) - _MAX_LISTED_ERRORS} more error(s)")
+    return "; ".join(parts) or "invalid request"
+
+
+async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    errors = list(exc.errors())
+    listed = [
+        {"loc": list(e.get("loc", ())), "msg": str(e.get("msg", "")), "type": str(e.get("type"))}
+        for e in errors[:_MAX_LISTED_ERRORS]
+    ]
+    return _detail(422, validation_message(errors), errors=listed)
+
+
+async def _unexpected_error(request: Request, exc: Exception) -> JSONResponse:
+    logger.error("unhandled error in %s %s", request.method, request.url.path, exc_info=exc)
+    return _detail(500, "internal server error")

@@ -1,0 +1,264 @@
+"""/v1/robot-models: register (JSON or multipart/form-data), list and read robot models."""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import json
+import math
+from dataclasses import dataclass
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, Request, Response
+from fastapi.exceptions import RequestValidationError
+from pydantic import ValidationError
+from starlette.datastructures import UploadFile
+from starlette.exceptions import HTTPException
+
+from trajcache.api.deps import CtxDep, PageDep, SessionDep, SettingsDep
+from trajcache.api.schemas import (
+    ModelFileOut,
+    RobotModelDetail,
+    RobotModelIn,
+    RobotModelOut,
+    RobotModelPage,
+    RobotModelSummary,
+)
+from trajcache.core.config import Settings
+from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
+from trajcache.services.models import (
+    get_model,
+    get_model_row,
+    list_model_files,
+    list_models,
+    register_model,
+    state_names,
+    unpack_model_archive,
+)
+
+router = APIRouter(prefix="/robot-models", tags=["robot models"])
+
+_FORM_SCHEMA = {
+    "type": "object",
+    "required": ["urdf"],
+    "properties": {
+        "urdf": {"type": "string", "description": "URDF text (a field or an uploaded file)."},
+        "base": {"type": "string", "enum": ["fixed", "planar"], "default": "fixed"},
+        "joint_names": {"type": "string", "description": "Comma-separated planning joints."},
+        "name": {"type": "string"},
+        "archive": {"type": "string", "format": "binary", "description": "zip or tar(.gz)."},
+    },
+}
+_REGISTRATION_BODY: dict[str, Any] = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/json": {"schema": RobotModelIn.model_json_schema()},
+            "multipart/form-data": {"schema": _FORM_SCHEMA},
+        },
+    }
+}
+
+
+@dataclass(frozen=True)
+class Registration:
+    """A parsed registration request: the fields and the raw mesh archive, if any."""
+
+    fields: RobotModelIn
+    archive: bytes | None
+
+
+def _reject_constant(token: str) -> Any:
+    raise ValueError(f"{token} is not a valid JSON value")
+
+
+def _validated(data: Any) -> RobotModelIn:
+    try:
+        return RobotModelIn.model_validate(data)
+    except ValidationError as exc:
+        errors = exc.errors(include_url=False, include_input=False)
+        raise RequestValidationError([{**e, "loc": ("body", *e["loc"])} for e in errors]) from None
+
+
+def _from_json(body: bytes, settings: Settings) -> Registration:
+    limit = settings.max_urdf_bytes + math.ceil(settings.max_archive_bytes * 4 / 3) + 65536
+    if len(body) > limit:
+        raise PayloadTooLargeError(
+            f"request body has {len(body)} bytes, more than max_urdf_bytes="
+            f"{settings.max_urdf_bytes} plus max_archive_bytes={settings.max_archive_bytes} allow"
+        )
+    try:
+        data = json.loads(body, parse_constant=_reject_constant)
+    except ValueError as exc:
+        raise RequestValidationError(
+            [{"type": "json_invalid", "loc": ("body",), "msg": f"invalid JSON: {exc}"}]
+        ) from None
+    fields = _validated(data)
+    archive = None
+    if fields.archive_base64 is not None:
+        encoded = fields.archive_base64
+        if len(encoded) * 3 // 4 > settings.max_archive_bytes + 2:
+            limit = settings.max_archive_bytes
+            raise PayloadTooLargeError(
+                f"archive_base64 decodes to more than max_archive_bytes={limit}"
+            )
+        try:
+            archive = base64.b64decode(encoded, validate=True)
+        except (binascii.Error, ValueError):
+            raise InvalidInputError("body.archive_base64: not valid base64") from None
+    return Registration(fields, archive)
+
+
+async def _read_upload(upload: UploadFile, limit: int, what: str) -> bytes:
+    data = await upload.read(limit + 1)
+    if len(data) > limit:
+        raise PayloadTooLargeError(f"{what} is larger than {limit} bytes")
+    return data
+
+
+async def _from_form(request: Request, settings: Settings) -> Registration:
+    try:
+        form = await request.form(max_files=2, max_fields=8, max_part_size=settings.max_urdf_bytes)
+    except HTTPException as exc:
+        if "size" in str(exc.detail).lower():
+            raise PayloadTooLargeError(
+                f"a form field exceeds max_urdf_bytes={settings.max_urdf_bytes}: {exc.detail}"
+            ) from None
+        raise InvalidInputError(f"malformed multipart body: {exc.detail}") from None
+    try:
+        data: dict[str, Any] = {}
+        archive = None
+        for key, value in form.multi_items():
+            if key in data or (key == "archive" and archive is not None):
+                raise InvalidInputError(f"form field {key!r} is given twice")
+            if key == "archive":
+                if not isinstance(value, UploadFile):
+                    raise InvalidInputError("form field 'archive' must be an uploaded file")
+                limit = settings.max_archive_bytes
+                archive = await _read_upload(value, limit, f"archive (max_archive_bytes={limit})")
+            elif isinstance(value, UploadFile):
+                if key != "urdf":
+                    raise InvalidInputError(f"form field {key!r} must not be a file")
+                limit = settings.max_urdf_bytes
+                raw = await _read_upload(value, limit, f"URDF (max_urdf_bytes={limit})")
+                try:
+                    data[key] = raw.decode("utf-8-sig")
+                except UnicodeDecodeError:
+                    raise InvalidInputError("the uploaded URDF is not UTF-8 text") from None
+            elif key == "joint_names":
+                names = [n.strip() for n in value.split(",") if n.strip()]
+                data[key] = names or None
+            else:
+                data[key] = value
+    finally:
+        await form.close()
+    return Registration(_validated(data), archive)
+
+
+async def read_registration(request: Request, settings: SettingsDep) -> Registration:
+    """Parse a registration sent as JSON or as a form (multipart, or URL-encoded without files)."""
+    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if media in ("multipart/form-data", "application/x-www-form-urlencoded"):
+        return await _from_form(request, settings)
+    if media in ("", "application/json") or media.endswith("+json"):
+        return _from_json(await request.body(), settings)
+    raise HTTPException(
+        415, f"unsupported content type {media!r}; send application/json or multipart/form-data"
+    )
+
+
+RegistrationDep = Annotated[Registration, Depends(read_registration)]
+
+
+@router.post(
+    "",
+    status_code=201,
+    response_model=RobotModelOut,
+    summary="Register a robot model (same content → same model_id)",
+    openapi_extra=_REGISTRATION_BODY,
+    responses={
+        200: {"description": "Already registered", "model": RobotModelOut},
+        413: {"description": "URDF or archive above the size limits"},
+        415: {"description": "Neither JSON nor multipart/form-data"},
+        422: {"description": "Unusable URDF, joints, meshes or archive"},
+    },
+)
+def register_model_route(
+    registration: RegistrationDep, ctx: CtxDep, session: SessionDep, response: Response
+) -> RobotModelOut:
+    """Register a URDF with its mesh archive; 201 when new, 200 when it already existed."""
+    s = ctx.settings
+    fields = registration.fields
+    files: dict[str, bytes] = {}
+    if registration.archive is not None:
+        files = unpack_model_archive(
+            registration.archive, max_bytes=s.max_archive_bytes, max_entries=s.max_archive_entries
+        )
+    model, created = register_model(
+        session=session,
+        registry=ctx.models,
+        urdf=fields.urdf,
+        files=files,
+        base=fields.base,
+        joint_names=fields.joint_names,
+        name=fields.name,
+        max_urdf_bytes=s.max_urdf_bytes,
+    )
+    if not created:
+        response.status_code = 200
+    return RobotModelOut(
+        model_id=model.model_id,
+        name=model.name,
+        joint_names=list(model.joint_names),
+        base=model.base.value,
+        state_names=list(model.state_names),
+        created=created,
+    )
+
+
+@router.get("", response_model=RobotModelPage, summary="List registered robot models")
+def list_models_route(session: SessionDep, page: PageDep) -> RobotModelPage:
+    """Registered models, oldest first."""
+    rows, total = list_models(session=session, limit=page.limit, offset=page.offset)
+    items = [
+        RobotModelSummary(
+            model_id=row.id,
+            name=row.name,
+            base=row.base,
+            joint_names=row.joint_names,
+            state_names=state_names(row.base, row.joint_names),
+            created_at=row.created_at,
+        )
+        for row in rows
+    ]
+    return RobotModelPage(items=items, total=total, limit=page.limit, offset=page.offset)
+
+
+def _finite_or_none(values: Any) -> list[float | None]:
+    return [float(v) if math.isfinite(v) else None for v in values]
+
+
+@router.get(
+    "/{model_id}",
+    response_model=RobotModelDetail,
+    summary="A robot model: joints, links, limits and files",
+    responses={404: {"description": "Unknown model"}},
+)
+def get_model_route(model_id: str, ctx: CtxDep, session: SessionDep) -> RobotModelDetail:
+    """The model `model_id`."""
+    row = get_model_row(session=session, model_id=model_id)
+    model = get_model(session=session, registry=ctx.models, model_id=model_id)
+    files = list_model_files(session=session, model_id=model_id)
+    return RobotModelDetail(
+        model_id=row.id,
+        name=row.name,
+        base=model.base.value,
+        joint_names=list(model.joint_names),
+        state_names=list(model.state_names),
+        created_at=row.created_at,
+        link_names=list(model.link_names),
+        lower=_finite_or_none(model.lower),
+        upper=_finite_or_none(model.upper),
+        velocity_limits=[float(v) for v in model.velocity_limits],
+        files=[ModelFileOut(path=f.path, sha256=f.sha256, size=f.size) for f in files],
+    )

@@ -1,0 +1,56 @@
+"""Builds the FastAPI application (`uvicorn --factory trajcache.main:create_app`)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI
+from starlette.concurrency import run_in_threadpool
+
+from trajcache import __version__
+from trajcache.api.errors import install_error_handlers
+from trajcache.api.router import api_router
+from trajcache.api.routes import health
+from trajcache.core.config import Settings, get_settings
+from trajcache.db import migrate as db_migrate
+from trajcache.services.context import ServiceContext
+
+AUTO_MIGRATE_ENV = "TRAJCACHE_AUTO_MIGRATE"
+
+
+def _auto_migrate() -> bool:
+    return os.environ.get(AUTO_MIGRATE_ENV, "1").strip().lower() not in {"0", "false", "no"}
+
+
+def create_app(settings: Settings | None = None, *, migrate: bool | None = None) -> FastAPI:
+    """The app; on startup it migrates the database (unless told not to) and opens the engine.
+
+    `migrate=None` reads TRAJCACHE_AUTO_MIGRATE (default on), so `trajcache serve --no-migrate`
+    reaches the app factory that uvicorn calls without arguments.
+    """
+    settings = settings or get_settings()
+    run_migrations = _auto_migrate() if migrate is None else migrate
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        if run_migrations:
+            await run_in_threadpool(db_migrate.upgrade, settings.database_url)
+        ctx = ServiceContext.create(settings)
+        app.state.ctx = ctx
+        try:
+            yield
+        finally:
+            ctx.close()
+
+    app = FastAPI(
+        title="trajcache",
+        version=__version__,
+        summary="A shared, collision-validated trajectory cache for mobile manipulators.",
+        lifespan=lifespan,
+    )
+    install_error_handlers(app)
+    app.include_router(api_router, prefix="/v1")
+    app.include_router(health.router)
+    return app

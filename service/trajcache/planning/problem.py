@@ -1,0 +1,68 @@
+"""What goes into a planner and what comes out; picklable, so it crosses process boundaries."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any
+
+import numpy as np
+
+
+class PlannerStatus(str, Enum):
+    """How a planning attempt ended (failure is a value, not an exception)."""
+
+    SOLVED = "solved"
+    TIMEOUT = "timeout"  # no path within the budget
+    INVALID_START = "invalid_start"
+    INVALID_GOAL = "invalid_goal"
+    ERROR = "error"  # the planner could not run (crashed worker, backend down, bad planner name)
+
+
+@dataclass(frozen=True)
+class ModelSource:
+    """Everything needed to rebuild a RobotModel in a worker; workers cache by `model_id`."""
+
+    model_id: str
+    urdf: str
+    base: str
+    joint_names: tuple[str, ...]
+    allowed_pairs: tuple[tuple[int, int], ...]
+    files: dict[str, bytes] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SceneSource:
+    """A scene in its native payload form; workers cache the parsed scene by `hash`."""
+
+    hash: str
+    payload: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class PlanningProblem:
+    """One planning query: robot, scene, endpoints, budget and planner choice."""
+
+    model: ModelSource
+    scene: SceneSource
+    start: tuple[float, ...]
+    goal: tuple[float, ...]
+    budget_s: float = 2.0
+    planner: str = "rrtconnect"
+    seed: int = 0
+    shortcut_s: float = 0.25
+
+
+@dataclass
+class PlanResult:
+    """A planner's answer: a status, the path (key states) when solved, and statistics."""
+
+    status: PlannerStatus
+    path: np.ndarray | None = None
+    message: str = ""
+    stats: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def solved(self) -> bool:
+        """True when `path` holds a validated path."""
+        return self.status is PlannerStatus.SOLVED and self.path is not None

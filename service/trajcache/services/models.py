@@ -1,0 +1,243 @@
+"""Robot models: registration (idempotent by content hash) and a per-process cache of them."""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+
+import defusedxml.ElementTree as DefusedET
+import sqlalchemy as sa
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session, defer
+
+from trajcache.db import models as tables
+from trajcache.geometry.robot import BASE_STATE_NAMES, BaseType, RobotModel
+from trajcache.geometry.urdf import _MeshResolver, load_robot_model, unpack_archive
+from trajcache.planning.problem import ModelSource
+from trajcache.services.errors import NotFoundError, PayloadTooLargeError
+
+NAME_MAX = 200  # robot_models.name column width
+
+
+class ModelRegistry:
+    """Thread-safe in-memory cache of loaded geometry models by model id."""
+
+    def __init__(self) -> None:
+        self._models: dict[str, RobotModel] = {}
+        self._sources: dict[str, ModelSource] = {}
+        self._lock = threading.Lock()
+
+    def get(self, model_id: str) -> RobotModel | None:
+        """The cached model, or None."""
+        with self._lock:
+            return self._models.get(model_id)
+
+    def put(self, model: RobotModel) -> RobotModel:
+        """Cache `model`; when another thread cached it first, return that one."""
+        with self._lock:
+            return self._models.setdefault(model.model_id, model)
+
+    def get_source(self, model_id: str) -> ModelSource | None:
+        """The cached worker-side description of a model, or None."""
+        with self._lock:
+            return self._sources.get(model_id)
+
+    def put_source(self, source: ModelSource) -> ModelSource:
+        """Cache a model's worker-side description and return the cached one."""
+        with self._lock:
+            return self._sources.setdefault(source.model_id, source)
+
+    def __contains__(self, model_id: object) -> bool:
+        with self._lock:
+            return model_id in self._models
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._models)
+
+
+@dataclass(frozen=True)
+class ModelFileInfo:
+    """A stored file of a model, without its content."""
+
+    path: str
+    sha256: str
+    size: int
+
+
+def state_names(base: str, joint_names: Sequence[str]) -> list[str]:
+    """Names of the state values of a model with this base and these planning joints."""
+    prefix = list(BASE_STATE_NAMES) if base == BaseType.PLANAR.value else []
+    return prefix + list(joint_names)
+
+
+def unpack_model_archive(data: bytes, *, max_bytes: int, max_entries: int) -> dict[str, bytes]:
+    """Files of an uploaded mesh archive; PayloadTooLargeError above `max_bytes`."""
+    if len(data) > max_bytes:
+        raise PayloadTooLargeError(
+            f"mesh archive has {len(data)} bytes, more than max_archive_bytes={max_bytes}"
+        )
+    return unpack_archive(data, max_entries=max_entries, max_total_bytes=max_bytes)
+
+
+def referenced_files(urdf: str, files: Mapping[str, bytes]) -> dict[str, bytes]:
+    """The uploaded files that the URDF's collision meshes resolve to (call after loading it)."""
+    if not files:
+        return {}
+    resolver = _MeshResolver(files)
+    root = DefusedET.fromstring(urdf.strip(), forbid_dtd=True)
+    out: dict[str, bytes] = {}
+    for mesh in root.iterfind("./link/collision/geometry/mesh"):
+        path = resolver.resolve(mesh.get("filename", ""))
+        out[path] = resolver.files[path]
+    return out
+
+
+def register_model(
+    *,
+    session: Session,
+    registry: ModelRegistry,
+    urdf: str,
+    files: Mapping[str, bytes] | None = None,
+    base: BaseType | str = BaseType.FIXED,
+    joint_names: Sequence[str] | None = None,
+    name: str | None = None,
+    max_urdf_bytes: int | None = None,
+) -> tuple[RobotModel, bool]:
+    """Register a model (same content → same model id, no new rows); return it and `created`."""
+    size = len(urdf.encode("utf-8"))
+    if max_urdf_bytes is not None and size > max_urdf_bytes:
+        raise PayloadTooLargeError(
+            f"URDF has {size} bytes, more than max_urdf_bytes={max_urdf_bytes}"
+        )
+    model = load_robot_model(urdf, files=files or {}, base=base, joint_names=joint_names, name=name)
+    model = replace(model, name=model.name[:NAME_MAX])
+    existing = _stored_name(session, model.model_id)
+    if existing is not None:
+        return _cached(registry, model, existing), False
+    row = tables.RobotModel(
+        id=model.model_id,
+        name=model.name,
+        base=model.base.value,
+        joint_names=list(model.joint_names),
+        urdf=urdf,
+        allowed_pairs=[list(pair) for pair in sorted(model.allowed_pairs)],
+        config={},
+    )
+    row.files = [
+        tables.ModelFile(path=path, sha256=hashlib.sha256(data).hexdigest(), data=data)
+        for path, data in sorted(referenced_files(urdf, files or {}).items())
+    ]
+    session.add(row)
+    try:
+        session.commit()
+    except IntegrityError:  # registered concurrently by another request or replica
+        session.rollback()
+        stored = _stored_name(session, model.model_id)
+        if stored is None:
+            raise
+        return _cached(registry, model, stored), False
+    return registry.put(model), True
+
+
+def _cached(registry: ModelRegistry, model: RobotModel, stored_name: str) -> RobotModel:
+    cached = registry.get(model.model_id)
+    if cached is not None:
+        return cached
+    return registry.put(replace(model, name=stored_name))
+
+
+def _stored_name(session: Session, model_id: str) -> str | None:
+    return session.scalar(sa.select(tables.RobotModel.name).where(tables.RobotModel.id == model_id))
+
+
+def get_model(*, session: Session, registry: ModelRegistry, model_id: str) -> RobotModel:
+    """The geometry model `model_id`, loaded from the database on a cache miss."""
+    cached = registry.get(model_id)
+    if cached is not None:
+        return cached
+    row = session.get(tables.RobotModel, model_id)
+    if row is None:
+        raise NotFoundError(f"robot model {model_id!r} not found")
+    model = load_robot_model(
+        row.urdf,
+        files=_stored_files(session, model_id),
+        base=row.base,
+        joint_names=row.joint_names,
+        name=row.name,
+        allowed_pairs=[(int(a), int(b)) for a, b in row.allowed_pairs],
+    )
+    if model.model_id != row.id:  # hashing changed since registration: the stored id rules
+        model = replace(model, model_id=row.id)
+    return registry.put(model)
+
+
+def model_source(
+    *, session: Session, model_id: str, registry: ModelRegistry | None = None
+) -> ModelSource:
+    """What a planner worker needs to rebuild model `model_id` (picklable; cached if a registry
+    is given)."""
+    if registry is not None and (cached := registry.get_source(model_id)) is not None:
+        return cached
+    row = session.get(tables.RobotModel, model_id)
+    if row is None:
+        raise NotFoundError(f"robot model {model_id!r} not found")
+    source = ModelSource(
+        model_id=row.id,
+        urdf=row.urdf,
+        base=row.base,
+        joint_names=tuple(row.joint_names),
+        allowed_pairs=tuple((int(a), int(b)) for a, b in row.allowed_pairs),
+        files=_stored_files(session, model_id),
+    )
+    return registry.put_source(source) if registry is not None else source
+
+
+def _stored_files(session: Session, model_id: str) -> dict[str, bytes]:
+    rows = session.execute(
+        sa.select(tables.ModelFile.path, tables.ModelFile.data).where(
+            tables.ModelFile.model_id == model_id
+        )
+    )
+    return {path: data for path, data in rows}
+
+
+def get_model_row(*, session: Session, model_id: str) -> tables.RobotModel:
+    """The stored row of model `model_id`."""
+    row = session.scalar(
+        sa.select(tables.RobotModel)
+        .options(defer(tables.RobotModel.urdf, raiseload=True))
+        .where(tables.RobotModel.id == model_id)
+    )
+    if row is None:
+        raise NotFoundError(f"robot model {model_id!r} not found")
+    return row
+
+
+def list_model_files(*, session: Session, model_id: str) -> list[ModelFileInfo]:
+    """Paths, hashes and sizes of a model's stored files."""
+    rows = session.execute(
+        sa.select(
+            tables.ModelFile.path, tables.ModelFile.sha256, sa.func.length(tables.ModelFile.data)
+        )
+        .where(tables.ModelFile.model_id == model_id)
+        .order_by(tables.ModelFile.path)
+    )
+    return [ModelFileInfo(path, sha, int(size or 0)) for path, sha, size in rows]
+
+
+def list_models(
+    *, session: Session, limit: int, offset: int = 0
+) -> tuple[list[tables.RobotModel], int]:
+    """A page of registered models (oldest first) and the total count."""
+    total = session.execute(sa.select(sa.func.count()).select_from(tables.RobotModel)).scalar_one()
+    rows = session.scalars(
+        sa.select(tables.RobotModel)
+        .options(defer(tables.RobotModel.urdf, raiseload=True))
+        .order_by(tables.RobotModel.created_at, tables.RobotModel.id)
+        .limit(limit)
+        .offset(offset)
+    ).all()
+    return list(rows), int(total)

@@ -1,0 +1,260 @@
+"""Robots and their versioned scenes; parsed scenes are cached by hash for the plan flow."""
+
+from __future__ import annotations
+
+import re
+import threading
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from trajcache.db import models as tables
+from trajcache.geometry.scene import Scene, apply_patch, make_scene, parse_scene, scene_to_payload
+from trajcache.services.errors import (
+    ConflictError,
+    InvalidInputError,
+    NotFoundError,
+    PayloadTooLargeError,
+)
+
+ROBOT_ID_PATTERN = r"^[A-Za-z0-9._:-]{1,128}$"
+_ROBOT_ID = re.compile(ROBOT_ID_PATTERN)
+EMPTY_SCENE = make_scene([], {})
+_PATCH_ATTEMPTS = 5
+
+
+class SceneCache:
+    """Thread-safe LRU of parsed scenes keyed by scene hash (each version is parsed once)."""
+
+    def __init__(self, capacity: int = 256) -> None:
+        self.capacity = capacity
+        self._scenes: OrderedDict[str, Scene] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, scene_hash: str) -> Scene | None:
+        """The cached scene with this hash, or None."""
+        with self._lock:
+            scene = self._scenes.get(scene_hash)
+            if scene is not None:
+                self._scenes.move_to_end(scene_hash)
+            return scene
+
+    def put(self, scene: Scene) -> Scene:
+        """Cache `scene` (evicting the least recently used beyond capacity) and return it."""
+        with self._lock:
+            self._scenes[scene.hash] = scene
+            self._scenes.move_to_end(scene.hash)
+            while len(self._scenes) > self.capacity:
+                self._scenes.popitem(last=False)
+            return scene
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._scenes)
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """A robot's current scene as returned by the API."""
+
+    version: int
+    hash: str
+    objects: list[dict[str, Any]]
+    env: dict[str, float]
+
+
+def check_robot_id(robot_id: str) -> str:
+    """`robot_id` if it is 1–128 characters of letters, digits and `._:-`."""
+    if not _ROBOT_ID.fullmatch(robot_id):
+        raise InvalidInputError(
+            f"robot id {robot_id[:140]!r} must match {ROBOT_ID_PATTERN} "
+            "(1-128 letters, digits, '.', '_', ':' or '-')"
+        )
+    return robot_id
+
+
+def put_robot(*, session: Session, robot_id: str, model_id: str) -> tuple[tables.Robot, bool]:
+    """Create robot `robot_id` of model `model_id`, or re-point it; return it and `created`."""
+    check_robot_id(robot_id)
+    if (
+        session.scalar(sa.select(tables.RobotModel.id).where(tables.RobotModel.id == model_id))
+        is None
+    ):
+        raise NotFoundError(f"robot model {model_id!r} not found")
+    robot = session.get(tables.Robot, robot_id)
+    if robot is None:
+        robot = tables.Robot(id=robot_id, model_id=model_id, scene_version=None)
+        session.add(robot)
+        try:
+            session.commit()
+            return robot, True
+        except IntegrityError:  # created concurrently: fall through to re-pointing it
+            session.rollback()
+            robot = session.get(tables.Robot, robot_id)
+            if robot is None:
+                raise
+    if robot.model_id != model_id:
+        robot.model_id = model_id
+        robot.updated_at = tables.utcnow()
+        session.commit()
+    return robot, False
+
+
+def get_robot(*, session: Session, robot_id: str) -> tables.Robot:
+    """The robot `robot_id`."""
+    robot = session.get(tables.Robot, robot_id)
+    if robot is None:
+        raise NotFoundError(f"robot {robot_id!r} not found")
+    return robot
+
+
+def current_scene(
+    *, session: Session, scenes: SceneCache, robot_id: str
+) -> tuple[tables.Robot, Scene, int]:
+    """The robot, its current scene and version (0: empty) in one query when the scene is cached."""
+    row = session.execute(
+        sa.select(tables.Robot, tables.SceneVersion.hash)
+        .outerjoin(
+            tables.SceneVersion,
+            sa.and_(
+                tables.SceneVersion.robot_id == tables.Robot.id,
+                tables.SceneVersion.version == tables.Robot.scene_version,
+            ),
+        )
+        .where(tables.Robot.id == robot_id)
+    ).one_or_none()
+    if row is None:
+        raise NotFoundError(f"robot {robot_id!r} not found")
+    robot, scene_hash = row
+    version = robot.scene_version or 0
+    if version == 0 or scene_hash is None:
+        return robot, EMPTY_SCENE, 0
+    scene = scenes.get(scene_hash)
+    if scene is None:
+        payload = session.scalar(
+            sa.select(tables.SceneVersion.payload).where(
+                tables.SceneVersion.robot_id == robot_id, tables.SceneVersion.version == version
+            )
+        )
+        scene = parse_scene(payload or {})
+        if scene.hash != scene_hash:  # the stored hash names this version everywhere
+            scene = replace(scene, hash=scene_hash)
+        scene = scenes.put(scene)
+    return robot, scene, version
+
+
+def get_scene(*, session: Session, scenes: SceneCache, robot_id: str) -> SceneInfo:
+    """The robot's current scene in native form, with its version and hash."""
+    _, scene, version = current_scene(session=session, scenes=scenes, robot_id=robot_id)
+    payload = scene_to_payload(scene)
+    return SceneInfo(version, scene.hash, payload["objects"], payload["env"])
+
+
+def put_scene(
+    *,
+    session: Session,
+    scenes: SceneCache,
+    robot_id: str,
+    scene: Scene,
+    max_objects: int | None = None,
+) -> tuple[int, str]:
+    """Replace the robot's scene; return the new (version, hash), or the current ones if equal."""
+    _check_size(scene, max_objects)
+    _, current, version = current_scene(session=session, scenes=scenes, robot_id=robot_id)
+    if current.hash == scene.hash:
+        return version, scene.hash
+    new_version = _append_version(session, robot_id, scene, expected=None)
+    if new_version is None:
+        session.rollback()
+        raise NotFoundError(f"robot {robot_id!r} not found")
+    session.commit()
+    scenes.put(scene)
+    return new_version, scene.hash
+
+
+def patch_scene(
+    *,
+    session: Session,
+    scenes: SceneCache,
+    robot_id: str,
+    patch: Mapping[str, Any],
+    max_objects: int | None = None,
+) -> tuple[int, str]:
+    """Upsert/remove objects and env values of the current scene; return (version, hash).
+
+    The robot row is locked before the current scene is read, so concurrent patches apply one
+    after the other instead of losing each other's changes.
+    """
+    for _ in range(_PATCH_ATTEMPTS):
+        try:
+            _lock_robot(session, robot_id)
+            _, current, version = current_scene(session=session, scenes=scenes, robot_id=robot_id)
+            scene = apply_patch(current, patch)
+            _check_size(scene, max_objects)
+            if scene.hash == current.hash:
+                session.rollback()
+                return version, scene.hash
+            new_version = _append_version(session, robot_id, scene, expected=version)
+        except BaseException:
+            session.rollback()
+            raise
+        if new_version is not None:
+            session.commit()
+            scenes.put(scene)
+            return new_version, scene.hash
+        session.rollback()  # another writer got in between: patch its version instead
+    raise ConflictError(f"the scene of robot {robot_id!r} keeps changing; retry the patch")
+
+
+def _lock_robot(session: Session, robot_id: str) -> None:
+    """Take the robot's row lock (PostgreSQL) or the write lock (SQLite) until commit."""
+    touched = session.execute(
+        sa.update(tables.Robot)
+        .where(tables.Robot.id == robot_id)
+        .values(updated_at=tables.utcnow())
+        .execution_options(synchronize_session=False)
+    )
+    if getattr(touched, "rowcount", 1) == 0:
+        raise NotFoundError(f"robot {robot_id!r} not found")
+
+
+def _append_version(
+    session: Session, robot_id: str, scene: Scene, *, expected: int | None
+) -> int | None:
+    """Bump the robot's scene version (only from `expected` if given) and add the version row.
+
+    The UPDATE locks the robot row first, so concurrent writers get consecutive versions.
+    Returns None when the robot is missing or its version is no longer `expected`.
+    """
+    current = sa.func.coalesce(tables.Robot.scene_version, 0)
+    stmt = sa.update(tables.Robot).where(tables.Robot.id == robot_id)
+    if expected is not None:
+        stmt = stmt.where(current == expected)
+    stmt = stmt.values(scene_version=current + 1, updated_at=tables.utcnow())
+    version = session.execute(stmt.returning(tables.Robot.scene_version)).scalar_one_or_none()
+    if version is None:
+        return None
+    payload = scene_to_payload(scene)
+    session.add(
+        tables.SceneVersion(
+            robot_id=robot_id,
+            version=version,
+            hash=scene.hash,
+            payload=payload,
+            env=dict(scene.env),
+        )
+    )
+    session.flush()
+    return int(version)
+
+
+def _check_size(scene: Scene, max_objects: int | None) -> None:
+    if max_objects is not None and len(scene.objects) > max_objects:
+        raise PayloadTooLargeError(
+            f"scene has {len(scene.objects)} objects, more than max_scene_objects={max_objects}"
+        )
