@@ -24,5 +24,10 @@ lint: setup
 	$(BIN)/ruff format --check service client tests bench
 	$(BIN)/mypy
 
+bench-smoke: setup
+	$(BIN)/python bench/validation.py --smoke
+	$(BIN)/python bench/lookup.py --smoke
+	$(BIN)/python bench/plan_hit.py --smoke
+
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
