@@ -1,4 +1,4 @@
-"""Shared test fixtures: real PostgreSQL and Redis when present, skipped (or failed in CI) when not."""
+"""Shared fixtures: real PostgreSQL and Redis when present; skipped (failed in CI) when not."""
 
 from __future__ import annotations
 
