@@ -9,6 +9,7 @@ import typer
 from rich.console import Console
 
 from trajcache.cli_reference import app as reference_app
+from trajcache.jobs.worker_cli import worker
 
 if TYPE_CHECKING:
     from trajcache.core.config import Settings
@@ -17,6 +18,7 @@ app = typer.Typer(
     help="trajcache: a shared, collision-validated trajectory cache.", no_args_is_help=True
 )
 app.add_typer(reference_app, name="reference")
+app.command("worker", help="Start a Celery planner worker (broker from settings).")(worker)
 
 
 def _settings() -> Settings:

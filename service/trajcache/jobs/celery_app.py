@@ -1,0 +1,196 @@
+"""The Celery backend of the planner pool: the app, the `trajcache.plan` task and its client.
+
+Workers start with `celery -A trajcache.jobs.celery_app worker -Q plan` (or `trajcache worker`).
+Problems hold bytes and numpy arrays, so the plan task travels as pickle: Redis must only be
+reachable by trusted hosts, as anyone who can write to the broker can run code in the workers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+import time
+from concurrent.futures import Future
+from concurrent.futures import TimeoutError as FutureTimeout
+from functools import lru_cache
+
+from celery import Celery
+from celery.exceptions import TimeoutError as CeleryTimeout
+from celery.result import AsyncResult
+from celery.signals import worker_process_init
+from celery.utils.log import get_logger
+from kombu.exceptions import EncodeError, OperationalError
+
+from trajcache.core.config import Settings, get_settings
+from trajcache.jobs.pool import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
+from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+
+PLAN_TASK = "trajcache.plan"
+PLAN_QUEUE = "plan"
+TASK_FN_ENV = "TRAJCACHE_CELERY_TASK_FN"  # `module:function` run by the plan task (tests, dev)
+TIME_LIMIT_GRACE_S = 5.0  # a prefork worker kills a task this long after the caller gave up
+CONNECT_TIMEOUT_S = 2.0
+
+logger = get_logger(__name__)
+
+
+@lru_cache(maxsize=1)
+def worker_task_fn() -> TaskFn:
+    """The task function this worker process runs (run_planning unless overridden)."""
+    return load_task_fn(os.environ.get(TASK_FN_ENV) or DEFAULT_TASK_FN)
+
+
+@worker_process_init.connect(weak=False)
+def _import_task_fn(**_: object) -> None:
+    """Import the task function when a worker process starts, not on its first request."""
+    try:
+        worker_task_fn()
+    except Exception:  # reported by every task instead, as an ERROR result
+        logger.exception("cannot import the planning task function")
+
+
+def plan(problem: PlanningProblem) -> PlanResult:
+    """The body of the `trajcache.plan` task: the same pure function as the local pool runs."""
+    return worker_task_fn()(problem)
+
+
+def make_celery(settings: Settings, *, fail_fast: bool = False) -> Celery:
+    """A Celery app for `settings`; `fail_fast` for clients that must not hang on a dead broker."""
+    app = Celery(
+        "trajcache",
+        broker=settings.celery_broker_url,
+        backend=settings.celery_result_backend,
+        set_as_current=False,
+    )
+    app.conf.update(
+        accept_content=["pickle", "json"],
+        result_accept_content=["pickle", "json"],
+        task_serializer="pickle",
+        result_serializer="pickle",
+        task_routes={PLAN_TASK: {"queue": PLAN_QUEUE}},
+        task_track_started=True,  # lets a client tell "still queued" from "overran"
+        task_acks_late=False,  # a task that crashed its worker is not redelivered to crash another
+        worker_prefetch_multiplier=1,  # planning tasks are long: don't hoard them
+        result_expires=600,
+        broker_connection_timeout=CONNECT_TIMEOUT_S,
+        broker_connection_retry_on_startup=True,
+        redis_socket_connect_timeout=CONNECT_TIMEOUT_S,
+        broker_transport_options={"socket_connect_timeout": CONNECT_TIMEOUT_S},
+    )
+    if fail_fast:  # a client answers ERROR at once; workers keep Celery's patient reconnects
+        retry = {"max_retries": 1, "interval_start": 0, "interval_step": 0.2, "interval_max": 0.2}
+        app.conf.update(
+            task_publish_retry_policy=retry,
+            broker_connection_max_retries=1,
+            broker_pool_limit=None,  # no cap: a publisher never queues for a connection
+            broker_transport_options={
+                **retry,
+                "socket_connect_timeout": CONNECT_TIMEOUT_S,
+                "socket_timeout": CONNECT_TIMEOUT_S * 2,  # a hung Redis must not hang a publish
+            },
+            result_backend_transport_options={"retry_policy": {**retry, "timeout": 1.0}},
+            redis_socket_timeout=10.0,
+        )
+    app.task(name=PLAN_TASK, serializer="pickle")(plan)
+    return app
+
+
+class CeleryBackend:
+    """Sends problems to Celery workers and waits for their results."""
+
+    def __init__(
+        self,
+        settings: Settings,
+        *,
+        queue: str = PLAN_QUEUE,
+        app: Celery | None = None,
+        time_limit_grace_s: float = TIME_LIMIT_GRACE_S,
+    ) -> None:
+        self.app = app or make_celery(settings, fail_fast=True)
+        self.queue = queue
+        self.time_limit_grace_s = time_limit_grace_s
+
+    def run(self, problem: PlanningProblem, timeout_s: float) -> PlanResult:
+        """Send the task and wait up to `timeout_s`; ERROR quickly when the broker is down."""
+        deadline = time.monotonic() + timeout_s
+        try:
+            async_result = self.app.send_task(
+                PLAN_TASK,
+                args=(problem,),
+                queue=self.queue,
+                serializer="pickle",
+                expires=timeout_s,  # not started by then: nobody waits for it any more
+                time_limit=timeout_s + self.time_limit_grace_s,
+            )
+        except EncodeError as exc:
+            return error_result(f"planning problem could not be serialized: {_describe(exc)}")
+        except Exception as exc:  # kombu's connection errors, redis errors, OSError
+            return error_result(f"worker backend unavailable: {_describe(exc)}")
+        # AsyncResult.get checks its timeout only once a second: wait for it from a helper thread
+        # so that this request's deadline holds to the millisecond.
+        outcome: Future[object] = Future()
+        threading.Thread(
+            target=_collect,
+            args=(async_result, timeout_s, outcome),
+            name="trajcache-celery-result",
+            daemon=True,
+        ).start()
+        try:
+            value = outcome.result(timeout=max(0.0, deadline - time.monotonic()))
+        except (FutureTimeout, CeleryTimeout):
+            return self._timed_out(async_result, problem, timeout_s)
+        except (OperationalError, ConnectionError, OSError) as exc:
+            return error_result(f"worker backend unavailable: {_describe(exc)}")
+        except Exception as exc:  # the task raised in the worker (or was revoked)
+            return error_result(f"planning task failed in the worker: {_describe(exc)}")
+        if not isinstance(value, PlanResult):
+            return error_result(f"planning task returned {type(value).__name__}")
+        return value
+
+    def _timed_out(
+        self, async_result: AsyncResult, problem: PlanningProblem, timeout_s: float
+    ) -> PlanResult:
+        try:
+            state = async_result.state
+        except Exception:
+            state = "UNKNOWN"
+        if state == "PENDING":
+            return error_result(
+                f"no Celery worker started the planning task within "
+                f"{timeout_s:g} s (queue {self.queue!r})"
+            )
+        return PlanResult(
+            PlannerStatus.TIMEOUT,
+            message=f"planning overran its budget of "
+            f"{problem.budget_s:g} s (no answer after {timeout_s:g} s)",
+        )
+
+    def counters(self) -> dict[str, int]:
+        """Celery workers keep their own counters."""
+        return {}
+
+    def close(self) -> None:
+        """Release the broker and result backend connections."""
+        self.app.close()
+
+
+def _collect(async_result: AsyncResult, timeout_s: float, outcome: Future[object]) -> None:
+    """Wait for a task's result into `outcome`, then drop it from the result backend."""
+    try:
+        outcome.set_result(async_result.get(timeout=timeout_s))
+    except BaseException as exc:
+        outcome.set_exception(exc)
+    with contextlib.suppress(Exception):  # best effort: the result expires anyway
+        async_result.forget()
+
+
+def _describe(exc: BaseException) -> str:
+    # Celery wraps a failed result-store reconnect in a RuntimeError: name the real cause.
+    if isinstance(exc, RuntimeError) and exc.__cause__ is not None:
+        exc = exc.__cause__
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+
+
+celery_app = make_celery(get_settings())
+app = celery_app  # `celery -A trajcache.jobs.celery_app` finds either name

@@ -1,0 +1,26 @@
+"""`trajcache worker`: run a Celery planning worker (register `worker` on the CLI's Typer app)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+
+def worker(
+    concurrency: Annotated[
+        int | None,
+        typer.Option(min=1, help="Worker processes [default: TRAJCACHE_WORKER_PROCESSES]."),
+    ] = None,
+    loglevel: Annotated[str, typer.Option(help="Celery log level.")] = "info",
+    queues: Annotated[str, typer.Option(help="Comma-separated queues to consume.")] = "plan",
+) -> None:
+    """Run a Celery worker that plans `trajcache.plan` tasks from the configured broker."""
+    from trajcache.core.config import get_settings
+    from trajcache.jobs.celery_app import celery_app
+
+    if concurrency is None:
+        concurrency = get_settings().worker_processes
+    celery_app.worker_main(
+        ["worker", f"--concurrency={concurrency}", f"--loglevel={loglevel}", f"--queues={queues}"]
+    )

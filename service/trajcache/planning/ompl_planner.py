@@ -1,0 +1,289 @@
+"""OMPL (Python bindings) as the fallback planner.
+
+State space: SE2 for a moving planar base plus RealVector(n) for the joints; RealVector(n) alone
+when the base is fixed or does not move in the query (the base is then held at its pose, as the
+paper's adaptation step assumes). BIT*'s informed sampler does not support compound spaces, so
+for BIT* the base angle becomes a bounded real (segments still take the short way, see below).
+
+Motion validation: a `MotionValidator` subclass (the nanobind bindings allow it) whose
+`checkMotion(a, b)` calls `MotionChecker.segment_free`: the segment is sampled at the paper's
+resolution (0.04 m, 0.04 rad, 0.035 rad per joint, θ the short way) and every sample goes into
+ONE batched collision check, coarse samples first, stopping at the first collision. OMPL's own
+validator (used by `naive=True`, the benchmark baseline) samples at a fraction of the space's
+maximum extent; there the fraction is set so that OMPL's longest valid segment is no longer
+than the smallest paper step, and each state costs one Python callback and one check call.
+
+The result is shortcut (`shortcut.shortcut_and_certify`, new segments keep 1 cm clearance at
+their samples) and must pass certified validation.
+A raw path that fails it (a thin obstacle between two samples) is replanned with a finer
+motion-check resolution while the budget lasts.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable, Iterator, Sequence
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+from ompl import util as ou
+
+from trajcache.geometry.collision import FREE
+from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.scene import Scene
+from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.validation import TrajectoryValidator
+from trajcache.planning.deadline import Deadline
+from trajcache.planning.problem import PlannerStatus, PlanResult
+from trajcache.planning.shortcut import shortcut_and_certify
+from trajcache.planning.space import (
+    SHORTCUT_CLEARANCE_M,
+    MotionChecker,
+    Query,
+    StateSpaceSpec,
+    prepare_query,
+)
+
+PlannerFactory = Callable[[ob.SpaceInformation], ob.Planner]
+PLANNERS: dict[str, PlannerFactory] = {
+    "rrtconnect": og.RRTConnect,
+    "rrt": og.RRT,
+    "bitstar": og.BITstar,
+    "bit*": og.BITstar,
+    "prm": og.PRM,
+    "kpiece": og.KPIECE1,
+}
+RANGE_FRACTION = 0.2  # RRT-family step as a fraction of the space's maximum extent
+MAX_ATTEMPTS = 3  # plan again, with a finer motion check, when certification fails
+
+ou.setLogLevel(ou.LOG_WARN)
+
+
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """Silence OMPL's log (re-seeding after the first sample logs an error, harmlessly)."""
+    level = ou.getLogLevel()
+    ou.setLogLevel(ou.LOG_NONE)
+    try:
+        yield
+    finally:
+        ou.setLogLevel(level)
+
+
+def seed_ompl(seed: int) -> None:
+    """Seed OMPL's global generator (0 is not a valid OMPL seed, hence the offset)."""
+    with _quiet():
+        ou.RNG.setSeed(int(seed) % (2**31 - 2) + 1)
+
+
+class _Codec:
+    """Converts between OMPL states and numpy states of the full model."""
+
+    def __init__(self, spec: StateSpaceSpec, compound: bool) -> None:
+        self.template = (spec.lower + spec.upper) / 2.0
+        self.free = np.flatnonzero(~spec.held)  # state values OMPL plans over
+        self.compound = compound
+        self.count = len(self.free)
+
+    def array(self, state: ob.State) -> FloatArray:
+        out = self.template.copy()
+        if self.compound:
+            base, arm = state[0], state[1]
+            out[0], out[1], out[2] = base.getX(), base.getY(), base.getYaw()
+            out[3:] = [arm[i] for i in range(self.count - 3)]
+        else:
+            out[self.free] = [state[i] for i in range(self.count)]
+        return out
+
+    def fill(self, space: ob.StateSpace, values: FloatArray) -> ob.State:
+        state = space.allocState()
+        space.copyFromReals(state, [float(v) for v in np.asarray(values)[self.free]])
+        return state
+
+
+def _bounds(lower: FloatArray, upper: FloatArray) -> ob.RealVectorBounds:
+    bounds = ob.RealVectorBounds(len(lower))
+    for i, (lo, hi) in enumerate(zip(lower, upper, strict=True)):
+        bounds.setLow(i, float(lo))
+        bounds.setHigh(i, float(hi))
+    return bounds
+
+
+def _state_space(spec: StateSpaceSpec, compound: bool) -> ob.StateSpace:
+    free = np.flatnonzero(~spec.held)
+    if not compound:
+        space = ob.RealVectorStateSpace(len(free))
+        space.setBounds(_bounds(spec.lower[free], spec.upper[free]))
+        return space
+    base = ob.SE2StateSpace()
+    base.setBounds(_bounds(spec.lower[:2], spec.upper[:2]))
+    arm = ob.RealVectorStateSpace(spec.dof - 3)
+    arm.setBounds(_bounds(spec.lower[3:], spec.upper[3:]))
+    space = ob.CompoundStateSpace()
+    space.addSubspace(base, 1.0)
+    space.addSubspace(arm, 1.0)
+    return space
+
+
+class SegmentMotionValidator(ob.MotionValidator):
+    """OMPL motion validation by one batched check of the segment's paper-resolution samples."""
+
+    def __init__(self, si: ob.SpaceInformation, codec: _Codec, checker: MotionChecker) -> None:
+        super().__init__(si)
+        self._codec = codec
+        self._checker = checker
+
+    def checkMotion(self, s1: ob.State, s2: ob.State) -> bool:
+        """True when the straight motion s1 → s2 is free (s1 assumed valid)."""
+        return self._checker.segment_free(self._codec.array(s1), self._codec.array(s2))
+
+
+def _naive_resolution(spec: StateSpaceSpec, space: ob.StateSpace, compound: bool) -> float:
+    """OMPL's segment fraction that keeps every per-value step within the paper's steps."""
+    res = spec.resolution
+    step = res.joint_rad
+    if spec.planar and not spec.held[0]:
+        # SE2 distance = |Δxy| + 0.5 |Δθ| (OMPL's subspace weights); a real θ counts fully
+        step = min(step, res.position_m, res.orientation_rad * (0.5 if compound else 1.0))
+    return step / space.getMaximumExtent()
+
+
+def _setup(query: Query, planner: str, naive: bool) -> tuple[og.SimpleSetup, _Codec, list[object]]:
+    """SimpleSetup with the space, validity checking and the planner; returns keep-alives."""
+    spec, checker = query.spec, query.checker
+    compound = spec.planar and not spec.held[0] and planner not in ("bitstar", "bit*")
+    space = _state_space(spec, compound)
+    codec = _Codec(spec, compound)
+    si = ob.SpaceInformation(space)
+    keep: list[object] = [space, si]
+    si.setStateValidityChecker(lambda s: checker.state_free(codec.array(s)))
+    if naive:  # OMPL's DiscreteMotionValidator: one validity callback per sampled state
+        si.setStateValidityCheckingResolution(_naive_resolution(spec, space, compound))
+    else:
+        validator = SegmentMotionValidator(si, codec, checker)
+        si.setMotionValidator(validator)
+        keep.append(validator)
+    si.setup()
+    if planner == "kpiece" and compound:
+        space.registerDefaultProjection(ob.SubspaceProjectionEvaluator(space, 0))
+    algorithm = PLANNERS[planner](si)
+    if planner in ("rrtconnect", "rrt", "kpiece"):
+        algorithm.setRange(RANGE_FRACTION * space.getMaximumExtent())
+    if planner in ("bitstar", "bit*"):
+        algorithm.setStopOnSolnImprovement(True)
+    ss = og.SimpleSetup(si)
+    ss.setPlanner(algorithm)
+    ss.setStartAndGoalStates(codec.fill(space, query.start), codec.fill(space, query.goal))
+    keep.append(algorithm)
+    return ss, codec, keep
+
+
+def _solve(query: Query, planner: str, naive: bool, deadline: Deadline) -> FloatArray | None:
+    """One OMPL run within the deadline; the raw path (N, D) or None."""
+    ss, codec, _keep = _setup(query, planner, naive)
+    ptc = ob.timedPlannerTerminationCondition(deadline.remaining())
+    with _quiet():
+        status = ss.solve(ptc)
+    if status.getStatus() != ob.PlannerStatus.EXACT_SOLUTION or not ss.haveExactSolutionPath():
+        return None
+    path = ss.getSolutionPath()
+    return np.array([codec.array(path.getState(i)) for i in range(path.getStateCount())])
+
+
+def _segment_fn(
+    query: Query, naive: bool, clearance: float = 0.0
+) -> Callable[[FloatArray, FloatArray], bool]:
+    """Batched segment checks, or one check call per sample for the naive baseline."""
+    checker, spec = query.checker, query.spec
+    if not naive:
+        return lambda a, b: checker.segment_free(a, b, clearance)
+
+    def per_state(a: FloatArray, b: FloatArray) -> bool:
+        return all(
+            checker.clearance_status(s[None, :], clearance)[0] == FREE if clearance > 0.0
+            else checker.state_free(s)
+            for s in spec.extend(a, b)
+        )  # fmt: skip
+
+    return per_state
+
+
+def plan_ompl(
+    problem_model: RobotModel,
+    scene: Scene,
+    start: Sequence[float] | FloatArray,
+    goal: Sequence[float] | FloatArray,
+    *,
+    planner: str = "rrtconnect",
+    budget_s: float,
+    seed: int,
+    naive: bool = False,
+    shortcut_s: float = 0.25,
+) -> PlanResult:
+    """Plan start → goal with an OMPL planner; SOLVED paths passed certified validation."""
+    deadline = Deadline(budget_s)
+    name = planner.strip().lower()
+    if name not in PLANNERS:
+        valid = ", ".join(sorted(PLANNERS))
+        return PlanResult(PlannerStatus.ERROR, message=f"unknown planner {planner!r}; use {valid}")
+    began = time.perf_counter()
+    prepared = prepare_query(problem_model, scene, start, goal)
+    if isinstance(prepared, PlanResult):
+        return prepared
+    query = prepared
+    seed_ompl(seed)
+    rng = np.random.default_rng(seed)
+    validator = TrajectoryValidator(problem_model, scene)
+    endpoints_ms = (time.perf_counter() - began) * 1e3
+    stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms, "attempts": 0.0}
+    stats["straight"] = 0.0
+    message = "no path found within the time budget"
+    status = PlannerStatus.TIMEOUT
+    for attempt in range(MAX_ATTEMPTS):
+        if attempt and deadline.expired():
+            break
+        stats["attempts"] += 1
+        plan_began = time.perf_counter()
+        segment_free = _segment_fn(query, naive)
+        if attempt == 0 and segment_free(query.start, query.goal):
+            raw: FloatArray | None = np.stack([query.start, query.goal])
+            stats["straight"] = 1.0
+        else:
+            raw = _solve(query, name, naive, deadline) if not deadline.expired() else None
+        stats["plan_ms"] += (time.perf_counter() - plan_began) * 1e3
+        if raw is None:
+            break
+        finished = shortcut_and_certify(
+            list(raw),
+            segment_free_fn=_segment_fn(query, naive, SHORTCUT_CLEARANCE_M),
+            distance_fn=query.spec.distance,
+            interpolate_fn=query.spec.interpolate,
+            validate_fn=lambda p: _certify(validator, p),
+            budget_s=shortcut_s,
+            rng=rng,
+        )
+        stats.update(finished.stats)
+        if finished.path is not None:
+            stats.update(query.checker.stats())
+            stats["total_ms"] = (time.perf_counter() - began) * 1e3
+            return PlanResult(PlannerStatus.SOLVED, finished.path, stats=stats)
+        status, message = PlannerStatus.TIMEOUT, finished.message
+        query = query.finer()
+    stats.update(query.checker.stats())
+    stats["total_ms"] = (time.perf_counter() - began) * 1e3
+    return PlanResult(status, message=message, stats=stats)
+
+
+def _certify(validator: TrajectoryValidator, path: FloatArray) -> tuple[bool, str]:
+    result = validator.validate(path)
+    return result.valid, result.message or result.status.value
+
+
+def planner_names() -> list[str]:
+    """The planner names `plan_ompl` accepts."""
+    return sorted(PLANNERS)
+
+
+__all__ = ["PLANNERS", "SegmentMotionValidator", "plan_ompl", "planner_names", "seed_ompl"]

@@ -1,0 +1,265 @@
+"""RRIS — Recursive Random Intermediate State (Medvid & Yakovyna 2025), the paper's planner.
+
+As implemented here:
+1. If the straight segment start → goal is free, the path is [start, goal].
+2. Otherwise a colliding segment a → b is split at an intermediate state m. Candidates are
+   drawn around the segment's midpoint (Gaussian, std = `spread` × |b − a|, at least
+   `min_radius`) plus a share of uniform samples from the whole space; candidates in collision
+   are dropped, and the one whose two halves a → m and m → b have the fewest colliding samples
+   in total wins (ties: the shorter detour). `plan_with_rris` counts on every 4th sample (all
+   candidates' halves in one batched call) and confirms a half at full resolution before it
+   keeps it as free.
+3. Each half that still collides is split the same way, recursively; a free half is kept as it
+   is (early exit). Deeper than `max_depth`, or out of time, the attempt fails.
+4. A failed attempt is repeated from scratch (`restarts`), each time with a wider spread (the
+   spread grows by `spread_growth` per restart, cycling back after four), until a path is
+   found or the budget runs out.
+
+The function is pure: geometry comes in as callables, time as a Deadline, randomness as a
+numpy Generator; failure is None. `plan_with_rris` wires it to a robot model and a scene.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.scene import Scene
+from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.validation import TrajectoryValidator
+from trajcache.planning.deadline import Deadline
+from trajcache.planning.problem import PlannerStatus, PlanResult
+from trajcache.planning.shortcut import shortcut_and_certify
+from trajcache.planning.space import SHORTCUT_CLEARANCE_M, Query, prepare_query
+
+SegmentFn = Callable[[FloatArray, FloatArray], bool]
+SegmentCountFn = Callable[[FloatArray, FloatArray], int]
+SegmentsCountFn = Callable[[FloatArray, FloatArray], NDArray[np.int64]]
+StatesFreeFn = Callable[[FloatArray], NDArray[np.bool_]]
+SampleFn = Callable[[np.random.Generator], FloatArray]
+SampleNearFn = Callable[[FloatArray, float, np.random.Generator], FloatArray]
+InterpolateFn = Callable[[FloatArray, FloatArray, float], FloatArray]
+DistanceFn = Callable[[FloatArray, FloatArray], float]
+
+MAX_ATTEMPTS = 3  # search again, with a finer motion check, when certification fails
+SCORE_STRIDE = 4  # candidates are scored on every 4th sample of their two halves
+
+
+def _linear(a: FloatArray, b: FloatArray, t: float) -> FloatArray:
+    start = np.asarray(a, dtype=float)
+    return start + t * (np.asarray(b, dtype=float) - start)
+
+
+def _euclidean(a: FloatArray, b: FloatArray) -> float:
+    return float(np.linalg.norm(np.asarray(b, dtype=float) - np.asarray(a, dtype=float)))
+
+
+@dataclass
+class _Search:
+    """The callables and settings of one RRIS run (so the recursion stays small)."""
+
+    segment_free: SegmentFn
+    segment_counts: SegmentsCountFn
+    counts_exact: bool
+    states_free: StatesFreeFn
+    sample: SampleFn
+    sample_near: SampleNearFn
+    interpolate: InterpolateFn
+    distance: DistanceFn
+    budget: Deadline
+    rng: np.random.Generator
+    max_depth: int
+    samples: int
+    uniform_share: float
+    min_radius: float
+
+    def split(self, a: FloatArray, b: FloatArray, depth: int, spread: float) -> list[FloatArray]:
+        """Waypoints a … b whose segments are free, or [] when this attempt fails."""
+        if depth >= self.max_depth or self.budget.expired():
+            return []
+        radius = max(spread * self.distance(a, b), self.min_radius)
+        mid = self.interpolate(a, b, 0.5)
+        uniform = round(self.samples * self.uniform_share)
+        candidates = np.array(
+            [self.sample_near(mid, radius, self.rng) for _ in range(self.samples - uniform)]
+            + [self.sample(self.rng) for _ in range(uniform)]
+        )
+        candidates = candidates[self.states_free(candidates)]
+        if len(candidates) == 0:
+            return []
+        k = len(candidates)
+        counts = self.segment_counts(
+            np.concatenate([np.repeat(a[None, :], k, 0), candidates]),
+            np.concatenate([candidates, np.repeat(b[None, :], k, 0)]),
+        )
+        left, right = counts[:k], counts[k:]
+        detour = np.array([self.distance(a, m) + self.distance(m, b) for m in candidates])
+        best = int(np.lexsort((detour, left + right))[0])
+        m = candidates[best]
+        head = [a, m] if self._free(a, m, left[best]) else self.split(a, m, depth + 1, spread)
+        if not head:
+            return []
+        tail = [m, b] if self._free(m, b, right[best]) else self.split(m, b, depth + 1, spread)
+        if not tail:
+            return []
+        return head + tail[1:]
+
+    def _free(self, a: FloatArray, b: FloatArray, count: int) -> bool:
+        """A half with no counted collision is free (confirmed when counts are approximate)."""
+        return count == 0 and (self.counts_exact or self.segment_free(a, b))
+
+
+def plan_rris(
+    start: FloatArray,
+    goal: FloatArray,
+    *,
+    segment_free_fn: SegmentFn,
+    segment_collisions_fn: SegmentCountFn,
+    sample_fn: SampleFn,
+    budget: Deadline,
+    rng: np.random.Generator,
+    sample_near_fn: SampleNearFn | None = None,
+    interpolate_fn: InterpolateFn = _linear,
+    distance_fn: DistanceFn = _euclidean,
+    states_free_fn: StatesFreeFn | None = None,
+    segments_collisions_fn: SegmentsCountFn | None = None,
+    counts_exact: bool = True,
+    max_depth: int = 6,
+    samples_per_split: int = 8,
+    uniform_share: float = 0.25,
+    spread: float = 0.3,
+    spread_growth: float = 1.6,
+    min_radius: float = 0.05,
+    restarts: int = 1000,
+) -> list[FloatArray] | None:
+    """Waypoints start … goal with free straight segments between them, or None.
+
+    The batched variants `states_free_fn` and `segments_collisions_fn` are used when given;
+    without them candidates are checked one by one (`segment_collisions_fn(m, m)` checks m).
+    `counts_exact=False` says the counts only look at some samples (a cheaper score): a half
+    with a zero count is then confirmed with `segment_free_fn` before it is kept.
+    """
+    a, b = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+    if segment_free_fn(a, b):
+        return [a, b]
+
+    def near(center: FloatArray, radius: float, g: np.random.Generator) -> FloatArray:
+        return np.asarray(center, dtype=float) + g.normal(0.0, radius, len(center))
+
+    def counts(starts: FloatArray, ends: FloatArray) -> NDArray[np.int64]:
+        return np.array([segment_collisions_fn(s, e) for s, e in zip(starts, ends, strict=True)])
+
+    def free(states: FloatArray) -> NDArray[np.bool_]:
+        return np.array([segment_collisions_fn(s, s) == 0 for s in states], dtype=bool)
+
+    search = _Search(
+        segment_free=segment_free_fn,
+        segment_counts=segments_collisions_fn or counts,
+        counts_exact=counts_exact or segments_collisions_fn is None,
+        states_free=states_free_fn or free,
+        sample=sample_fn,
+        sample_near=sample_near_fn or near,
+        interpolate=interpolate_fn,
+        distance=distance_fn,
+        budget=budget,
+        rng=rng,
+        max_depth=max_depth,
+        samples=max(1, samples_per_split),
+        uniform_share=uniform_share,
+        min_radius=min_radius,
+    )
+    for attempt in range(restarts):
+        if budget.expired():
+            return None
+        path = search.split(a, b, 0, spread * spread_growth ** (attempt % 4))
+        if path:
+            return path
+    return None
+
+
+def plan_with_rris(
+    model: RobotModel,
+    scene: Scene,
+    start: Sequence[float] | FloatArray,
+    goal: Sequence[float] | FloatArray,
+    *,
+    budget_s: float,
+    seed: int,
+    shortcut_s: float = 0.25,
+) -> PlanResult:
+    """Plan with RRIS for a robot in a scene; SOLVED paths passed certified validation.
+
+    A path that fails certification (a collision between two checked samples) is searched
+    again with motion checks at half the step, while the budget lasts.
+    """
+    deadline = Deadline(budget_s)
+    began = time.perf_counter()
+    prepared = prepare_query(model, scene, start, goal)
+    if isinstance(prepared, PlanResult):
+        return prepared
+    query = prepared
+    rng = np.random.default_rng(seed)
+    validator = TrajectoryValidator(model, scene)
+
+    def certify(p: FloatArray) -> tuple[bool, str]:
+        result = validator.validate(p)
+        return result.valid, result.message or result.status.value
+
+    endpoints_ms = (time.perf_counter() - began) * 1e3
+    stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms, "attempts": 0.0}
+    message = f"RRIS found no path within {budget_s:.3g} s"
+    for attempt in range(MAX_ATTEMPTS):
+        if attempt and deadline.expired():
+            break
+        stats["attempts"] += 1
+        plan_began = time.perf_counter()
+        path = _search(query, deadline, rng)
+        stats["plan_ms"] += (time.perf_counter() - plan_began) * 1e3
+        if path is None:
+            break
+        stats["straight"] = float(len(path) == 2)
+        finished = shortcut_and_certify(
+            path,
+            segment_free_fn=partial(query.checker.segment_free, clearance=SHORTCUT_CLEARANCE_M),
+            distance_fn=query.spec.distance,
+            interpolate_fn=query.spec.interpolate,
+            validate_fn=certify,
+            budget_s=shortcut_s,
+            rng=rng,
+        )
+        stats.update(finished.stats)
+        if finished.path is not None:
+            stats.update(query.checker.stats())
+            stats["total_ms"] = (time.perf_counter() - began) * 1e3
+            return PlanResult(PlannerStatus.SOLVED, finished.path, stats=stats)
+        message = finished.message
+        query = query.finer()
+    stats.update(query.checker.stats())
+    stats["total_ms"] = (time.perf_counter() - began) * 1e3
+    return PlanResult(PlannerStatus.TIMEOUT, message=message, stats=stats)
+
+
+def _search(query: Query, deadline: Deadline, rng: np.random.Generator) -> list[FloatArray] | None:
+    """RRIS on a prepared query, with the batched checks of its MotionChecker."""
+    spec, checker = query.spec, query.checker
+    return plan_rris(
+        query.start,
+        query.goal,
+        segment_free_fn=checker.segment_free,
+        segment_collisions_fn=checker.segment_collisions,
+        sample_fn=spec.sample,
+        budget=deadline,
+        rng=rng,
+        sample_near_fn=spec.sample_near,
+        interpolate_fn=spec.interpolate,
+        distance_fn=spec.distance,
+        states_free_fn=checker.states_free,
+        segments_collisions_fn=partial(checker.segments_collisions, stride=SCORE_STRIDE),
+        counts_exact=SCORE_STRIDE == 1,
+    )

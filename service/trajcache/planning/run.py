@@ -1,0 +1,147 @@
+"""The planning task that worker processes run: picklable problem in, picklable result out.
+
+`run_planning` never touches a database and never raises. Each worker process keeps the robot
+models it rebuilt (LRU by model id) and the scenes it parsed (LRU by scene hash), so repeated
+queries against the same robot and scene skip URDF parsing and scene parsing.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import traceback
+from collections import OrderedDict
+from typing import Generic, TypeVar
+
+from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.scene import Scene, parse_scene
+from trajcache.geometry.urdf import load_robot_model
+from trajcache.planning.ompl_planner import plan_ompl
+from trajcache.planning.problem import (
+    ModelSource,
+    PlannerStatus,
+    PlanningProblem,
+    PlanResult,
+    SceneSource,
+)
+from trajcache.planning.rris import plan_with_rris
+
+MODEL_CACHE_SIZE = 8
+SCENE_CACHE_SIZE = 64
+RRIS = "rris"
+
+K = TypeVar("K")
+V = TypeVar("V")
+
+
+class LRUCache(Generic[K, V]):
+    """A small thread-safe LRU map that counts hits and misses."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.hits = 0
+        self.misses = 0
+        self._items: OrderedDict[K, V] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: K) -> V | None:
+        """The cached value (now most recent), or None."""
+        with self._lock:
+            value = self._items.get(key)
+            if value is None:
+                self.misses += 1
+                return None
+            self.hits += 1
+            self._items.move_to_end(key)
+            return value
+
+    def put(self, key: K, value: V) -> None:
+        """Store a value, evicting the least recently used beyond the size."""
+        with self._lock:
+            self._items[key] = value
+            self._items.move_to_end(key)
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+
+    def __contains__(self, key: object) -> bool:
+        with self._lock:
+            return key in self._items
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._items)
+
+    def clear(self) -> None:
+        """Forget everything (tests)."""
+        with self._lock:
+            self._items.clear()
+            self.hits = self.misses = 0
+
+
+MODELS: LRUCache[str, RobotModel] = LRUCache(MODEL_CACHE_SIZE)
+SCENES: LRUCache[str, Scene] = LRUCache(SCENE_CACHE_SIZE)
+
+
+def model_from_source(source: ModelSource) -> RobotModel:
+    """The RobotModel of `source`, rebuilt once per process and model id."""
+    model = MODELS.get(source.model_id)
+    if model is None:
+        model = load_robot_model(
+            source.urdf,
+            files=source.files,
+            base=source.base,
+            joint_names=source.joint_names,
+            allowed_pairs=source.allowed_pairs,
+        )
+        MODELS.put(source.model_id, model)
+    return model
+
+
+def scene_from_source(source: SceneSource) -> Scene:
+    """The parsed scene of `source`, parsed once per process and scene hash."""
+    scene = SCENES.get(source.hash) if source.hash else None
+    if scene is None:
+        scene = parse_scene(source.payload)
+        if source.hash:
+            SCENES.put(source.hash, scene)
+    return scene
+
+
+def run_planning(problem: PlanningProblem) -> PlanResult:
+    """Plan one problem with the planner it names ("rris" or an OMPL planner); never raises."""
+    began = time.perf_counter()
+    try:
+        model = model_from_source(problem.model)
+        scene = scene_from_source(problem.scene)
+        setup_ms = (time.perf_counter() - began) * 1e3
+        name = problem.planner.strip().lower()
+        if name == RRIS:
+            result = plan_with_rris(
+                model,
+                scene,
+                problem.start,
+                problem.goal,
+                budget_s=problem.budget_s,
+                seed=problem.seed,
+                shortcut_s=problem.shortcut_s,
+            )
+        else:
+            result = plan_ompl(
+                model,
+                scene,
+                problem.start,
+                problem.goal,
+                planner=name,
+                budget_s=problem.budget_s,
+                seed=problem.seed,
+                shortcut_s=problem.shortcut_s,
+            )
+    except Exception as exc:  # a worker task must answer, whatever happened
+        detail = traceback.format_exception_only(type(exc), exc)[-1].strip()
+        result = PlanResult(PlannerStatus.ERROR, message=f"planning failed: {detail}")
+        setup_ms = 0.0
+    result.stats.setdefault("plan_ms", 0.0)
+    result.stats.setdefault("shortcut_ms", 0.0)
+    result.stats["setup_ms"] = setup_ms
+    result.stats["run_ms"] = (time.perf_counter() - began) * 1e3
+    return result

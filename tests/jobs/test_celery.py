@@ -1,0 +1,334 @@
+"""PlannerPool on the Celery backend, against a real worker process and the local Redis."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import redis
+from typer.testing import CliRunner
+
+from tests.conftest import REDIS_URL, require_service
+from tests.jobs.test_pool import make_problem, runs, submit_all, two_link_problem
+from trajcache.core.config import Settings
+from trajcache.jobs.celery_app import TASK_FN_ENV, CeleryBackend
+from trajcache.jobs.pool import PlannerPool
+from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPTED = "tests.jobs.test_pool:scripted_task"
+pytestmark = pytest.mark.redis
+
+
+class Worker:
+    """A Celery worker in its own process, consuming a queue of its own."""
+
+    def __init__(
+        self, command: list[str], queue: str, log: Path, redis_url: str, task_fn: str | None
+    ) -> None:
+        self.queue = queue
+        self.log = log
+        self.redis_url = redis_url
+        env = {
+            **os.environ,
+            "TRAJCACHE_CELERY_BROKER_URL": redis_url,
+            "TRAJCACHE_CELERY_RESULT_BACKEND": redis_url,
+            "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+        }
+        env.pop(TASK_FN_ENV, None)
+        if task_fn is not None:
+            env[TASK_FN_ENV] = task_fn
+        if os.geteuid() == 0:  # CI containers run as root; Celery refuses pickle as root
+            env["C_FORCE_ROOT"] = "1"
+        with log.open("wb") as out:
+            self.process = subprocess.Popen(
+                command, cwd=ROOT, env=env, stdout=out, stderr=subprocess.STDOUT
+            )
+
+    def stop(self) -> None:
+        self.process.terminate()
+        try:
+            self.process.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        client = redis.Redis.from_url(self.redis_url)
+        keys = list(client.scan_iter(f"*{self.queue}*"))  # the queue and its kombu bindings
+        if keys:
+            client.delete(*keys)
+        client.close()
+
+    def log_tail(self) -> str:
+        return self.log.read_text(errors="replace")[-3000:]
+
+
+def celery_pool(redis_url: str, queue: str) -> PlannerPool:
+    settings = Settings(
+        worker_backend="celery", celery_broker_url=redis_url, celery_result_backend=redis_url
+    )
+    return PlannerPool(CeleryBackend(settings, queue=queue), negative_cache_ttl_s=0.0)
+
+
+def wait_for_worker(pool: PlannerPool, worker: Worker, ping: PlanningProblem) -> None:
+    """Submit until the worker answers (it discards the expired attempts)."""
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline:
+        assert worker.process.poll() is None, f"worker exited:\n{worker.log_tail()}"
+        if pool.submit(ping).solved:
+            return
+    pytest.fail(f"the Celery worker did not answer within 30 s:\n{worker.log_tail()}")
+
+
+def start_worker(
+    command: list[str], queue: str, tmp_path: Path, *, task_fn: str | None = SCRIPTED
+) -> tuple[Worker, PlannerPool]:
+    """Start a worker and wait until it plans; the real planner when `task_fn` is None."""
+    worker = Worker(command, queue, tmp_path / "worker.log", REDIS_URL, task_fn)
+    pool = celery_pool(REDIS_URL, queue)
+    ping = make_problem(tmp_path, scene="ping", budget_s=1.0)
+    if task_fn is None:
+        ping = replace(two_link_problem((2.0, 1.0)), budget_s=1.0)
+    try:
+        wait_for_worker(pool, worker, ping)
+    except BaseException:
+        pool.close()
+        worker.stop()
+        raise
+    return worker, pool
+
+
+@pytest.fixture(scope="module")
+def celery_worker(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Worker, PlannerPool]]:
+    """A prefork worker started with `celery -A trajcache.jobs.celery_app worker`."""
+    require_service("Redis", "127.0.0.1", 6379)
+    queue = f"plan-test-{uuid.uuid4().hex[:8]}"
+    command = [
+        sys.executable,
+        "-m",
+        "celery",
+        "-A",
+        "trajcache.jobs.celery_app",
+        "worker",
+        "--pool=prefork",
+        "-c",
+        "2",
+        "-Q",
+        queue,
+        "-n",
+        f"{queue}@%h",
+        "--loglevel=INFO",
+        "--without-gossip",
+        "--without-mingle",
+        "--without-heartbeat",
+    ]
+    worker, pool = start_worker(command, queue, tmp_path_factory.mktemp("celery"))
+    yield worker, pool
+    pool.close()
+    worker.stop()
+
+
+def parent_pid(pid: int) -> int:
+    return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+
+
+def test_plans_in_the_worker_process(
+    celery_worker: tuple[Worker, PlannerPool], redis_url: str, tmp_path: Path
+) -> None:
+    worker, pool = celery_worker
+    result = pool.submit(make_problem(tmp_path, start=(0.5, -0.5)))
+    assert result.status is PlannerStatus.SOLVED, result.message
+    assert result.path is not None and result.path.tolist() == [[0.5, -0.5], [1.0, 1.0]]
+    pid = int(result.stats["pid"])
+    assert pid != os.getpid()
+    assert parent_pid(pid) == worker.process.pid  # a prefork child of the worker we started
+    assert runs(tmp_path) == 1
+
+
+def test_concurrent_requests_and_coalescing(
+    celery_worker: tuple[Worker, PlannerPool], redis_url: str, tmp_path: Path
+) -> None:
+    _, pool = celery_worker
+    distinct = [make_problem(tmp_path, scene=f"s{i}", sleep=0.2) for i in range(4)]
+    same = [make_problem(tmp_path, scene="same", sleep=1.0)] * 4
+    results = submit_all(pool, distinct + same)
+    assert all(r.solved for r in results), [r.message for r in results]
+    assert [runs(tmp_path, f"s{i}") for i in range(4)] == [1] * 4
+    assert runs(tmp_path, "same") == 1
+    assert all(r is results[4] for r in results[4:])
+
+
+def test_task_exception_is_an_error_result(
+    celery_worker: tuple[Worker, PlannerPool], redis_url: str, tmp_path: Path
+) -> None:
+    _, pool = celery_worker
+    result = pool.submit(make_problem(tmp_path, explode=True))
+    assert result.status is PlannerStatus.ERROR
+    assert "failed in the worker" in result.message and "planner exploded" in result.message
+
+
+def test_crashed_worker_process_is_an_error_result(
+    celery_worker: tuple[Worker, PlannerPool], redis_url: str, tmp_path: Path
+) -> None:
+    _, pool = celery_worker
+    began = time.monotonic()
+    result = pool.submit(make_problem(tmp_path, budget_s=10.0, exit=True))
+    assert time.monotonic() - began < 5.0
+    assert result.status is PlannerStatus.ERROR and "WorkerLostError" in result.message
+    assert pool.submit(make_problem(tmp_path, scene="after")).solved
+
+
+def test_budget_is_enforced(
+    celery_worker: tuple[Worker, PlannerPool], redis_url: str, tmp_path: Path
+) -> None:
+    _, pool = celery_worker
+    began = time.monotonic()
+    result = pool.submit(make_problem(tmp_path, budget_s=0.3, sleep=2.0))
+    assert time.monotonic() - began < 2.0
+    assert result.status is PlannerStatus.TIMEOUT and "overran" in result.message
+    time.sleep(2.0)  # let the worker finish, so the next test finds it free
+
+
+def test_cli_worker_runs_the_real_planner(redis_url: str, tmp_path: Path) -> None:
+    queue = f"plan-cli-{uuid.uuid4().hex[:8]}"
+    code = "import typer; from trajcache.jobs.worker_cli import worker; typer.run(worker)"
+    command = [sys.executable, "-c", code, "--concurrency", "1", "--queues", queue]
+    worker, pool = start_worker(command, queue, tmp_path, task_fn=None)
+    try:
+        result = pool.submit(replace(two_link_problem((-1.0, 2.0)), seed=3))
+        assert result.solved, result.message
+        assert result.path is not None
+        assert np.allclose(result.path[[0, -1]], [[0.0, 0.0], [-1.0, 2.0]])
+        assert "run_ms" in result.stats  # run_planning's own statistics
+        blocked = pool.submit(two_link_problem((1.5708, 0.0)))
+        assert blocked.status is PlannerStatus.INVALID_GOAL, blocked.message
+    finally:
+        pool.close()
+        worker.stop()
+
+
+def test_worker_cli_arguments(monkeypatch: pytest.MonkeyPatch) -> None:
+    import typer
+
+    from trajcache.jobs import celery_app, worker_cli
+
+    seen: list[list[str]] = []
+    monkeypatch.setattr(celery_app.celery_app, "worker_main", seen.append)
+    app = typer.Typer()
+    app.command()(worker_cli.worker)
+    result = CliRunner().invoke(app, ["--concurrency", "3", "--queues", "plan,other"])
+    assert result.exit_code == 0, result.output
+    assert seen == [["worker", "--concurrency=3", "--loglevel=info", "--queues=plan,other"]]
+    monkeypatch.setenv("TRAJCACHE_WORKER_PROCESSES", "5")
+    from trajcache.core.config import get_settings
+
+    get_settings.cache_clear()
+    try:
+        assert CliRunner().invoke(app, []).exit_code == 0
+    finally:
+        get_settings.cache_clear()
+    assert seen[-1][1] == "--concurrency=5"
+
+
+# --- an unreachable broker ---
+
+
+def test_unreachable_broker_is_an_error_result_quickly(tmp_path: Path) -> None:
+    pool = celery_pool("redis://127.0.0.1:1/0", "plan")
+    try:
+        for _ in range(2):
+            began = time.monotonic()
+            result = pool.submit(make_problem(tmp_path, budget_s=10.0))
+            assert time.monotonic() - began < 5.0
+            assert result.status is PlannerStatus.ERROR
+            assert result.message.startswith("worker backend unavailable:")
+        assert pool.stats().negative_hits == 0
+    finally:
+        pool.close()
+
+
+class TcpProxy:
+    """Forwards a local port to Redis; stopping it looks like Redis going down."""
+
+    def __init__(self, target: tuple[str, int]) -> None:
+        self.target = target
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            self.port = probe.getsockname()[1]
+        self._sockets: list[socket.socket] = []
+        self._running = False
+
+    def start(self) -> None:
+        server = socket.create_server(("127.0.0.1", self.port))
+        server.settimeout(0.1)
+        self._running = True
+        self._sockets = [server]
+        threading.Thread(target=self._accept, args=(server,), daemon=True).start()
+
+    def _accept(self, server: socket.socket) -> None:
+        while self._running:
+            try:
+                client, _ = server.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            upstream = socket.create_connection(self.target)
+            client.settimeout(None)
+            self._sockets += [client, upstream]
+            for src, dst in ((client, upstream), (upstream, client)):
+                threading.Thread(target=self._pump, args=(src, dst), daemon=True).start()
+
+    @staticmethod
+    def _pump(src: socket.socket, dst: socket.socket) -> None:
+        try:
+            while data := src.recv(65536):
+                dst.sendall(data)
+        except OSError:
+            pass
+
+    def stop(self) -> None:
+        self._running = False
+        for sock in self._sockets:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+            sock.close()
+
+
+def test_recovers_when_redis_comes_back(
+    celery_worker: tuple[Worker, PlannerPool], redis_url: str, tmp_path: Path
+) -> None:
+    worker, _ = celery_worker
+    proxy = TcpProxy(("127.0.0.1", 6379))
+    proxied = REDIS_URL.replace("127.0.0.1:6379", f"127.0.0.1:{proxy.port}")
+    assert proxied != REDIS_URL
+    pool = celery_pool(proxied, worker.queue)  # created while "Redis" is down
+
+    def plan(scene: str) -> PlanResult:
+        began = time.monotonic()
+        result = pool.submit(make_problem(tmp_path, scene=scene, budget_s=3.0))
+        assert time.monotonic() - began < 4.0
+        return result
+
+    try:
+        for cycle in range(2):
+            down = plan(f"down-{cycle}")
+            assert down.status is PlannerStatus.ERROR and "unavailable" in down.message
+            proxy.start()
+            up = plan(f"up-{cycle}")
+            assert up.solved, up.message
+            proxy.stop()
+        assert pool.stats().negative_hits == 0
+    finally:
+        pool.close()
+        proxy.stop()

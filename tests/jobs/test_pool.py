@@ -1,0 +1,383 @@
+"""PlannerPool on the local process pool: budget, crashes, coalescing, negative cache."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from trajcache.core.config import Settings
+from trajcache.jobs.pool import LocalBackend, PlannerPool, coalescing_key, make_pool
+from trajcache.planning.problem import (
+    ModelSource,
+    PlannerStatus,
+    PlanningProblem,
+    PlanResult,
+    SceneSource,
+)
+
+# --- stand-in task functions (top level, so they pickle by reference into the workers) ---
+
+
+def scripted_task(problem: PlanningProblem) -> PlanResult:
+    """Do what the scene payload says: log the run, report the pid, sleep, crash, fail."""
+    script: dict[str, Any] = problem.scene.payload
+    with open(script["log"], "a") as log:
+        log.write(f"{os.getpid()}\n")
+    if "pid_file" in script:
+        Path(script["pid_file"]).write_text(str(os.getpid()))
+    time.sleep(script.get("sleep", 0.0))
+    if script.get("exit"):
+        os._exit(1)
+    if script.get("explode"):
+        raise RuntimeError("planner exploded")
+    status = PlannerStatus(script.get("status", "solved"))
+    path = np.array([problem.start, problem.goal]) if status is PlannerStatus.SOLVED else None
+    return PlanResult(
+        status, path, message=f"scripted {status.value}", stats={"pid": float(os.getpid())}
+    )
+
+
+def make_problem(
+    tmp_path: Path,
+    *,
+    start: tuple[float, ...] = (0.0, 0.0),
+    goal: tuple[float, ...] = (1.0, 1.0),
+    budget_s: float = 3.0,
+    scene: str = "scene-a",
+    **script: Any,
+) -> PlanningProblem:
+    model = ModelSource("model-1", "<robot name='r'/>", "fixed", ("j1", "j2"), ())
+    payload = {"log": str(tmp_path / f"{scene}.log"), **script}
+    return PlanningProblem(model, SceneSource(scene, payload), start, goal, budget_s=budget_s)
+
+
+TWO_LINK_URDF = """<robot name="two_link">
+  <link name="base"/>
+  <link name="upper"><collision><origin xyz="0.15 0 0"/>
+    <geometry><box size="0.26 0.04 0.04"/></geometry></collision></link>
+  <link name="fore"><collision><origin xyz="0.12 0 0"/>
+    <geometry><box size="0.16 0.04 0.04"/></geometry></collision></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="fore"/>
+    <origin xyz="0.3 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5" effort="1"
+    velocity="1"/></joint>
+</robot>"""
+WALL = {
+    "objects": [
+        {
+            "id": "wall",
+            "type": "box",
+            "size": [0.1, 0.1, 0.5],
+            "pose": {"position": [0.0, 0.45, 0.0]},
+        }
+    ]
+}
+
+
+def two_link_problem(goal: tuple[float, float]) -> PlanningProblem:
+    """A real problem for `run_planning`: a planar two-link arm next to a wall."""
+    model = ModelSource("two-link", TWO_LINK_URDF, "fixed", ("shoulder", "elbow"), ())
+    return PlanningProblem(model, SceneSource("wall", WALL), (0.0, 0.0), goal, budget_s=2.0)
+
+
+def runs(tmp_path: Path, scene: str = "scene-a") -> int:
+    log = tmp_path / f"{scene}.log"
+    return len(log.read_text().splitlines()) if log.exists() else 0
+
+
+def make_local_pool(processes: int = 2, ttl: float = 30.0, grace: float = 5.0) -> PlannerPool:
+    backend = LocalBackend(scripted_task, processes=processes, overrun_grace_s=grace)
+    return PlannerPool(backend, negative_cache_ttl_s=ttl, overhead_s=1.0)
+
+
+@pytest.fixture
+def pool() -> Iterator[PlannerPool]:
+    with make_local_pool() as planner_pool:
+        yield planner_pool
+
+
+def submit_all(pool: PlannerPool, problems: list[PlanningProblem]) -> list[PlanResult]:
+    """Submit from one thread per problem, all released at once."""
+    results: list[PlanResult | None] = [None] * len(problems)
+    barrier = threading.Barrier(len(problems))
+
+    def one(i: int) -> None:
+        barrier.wait()
+        results[i] = pool.submit(problems[i])
+
+    threads = [threading.Thread(target=one, args=(i,)) for i in range(len(problems))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=30)
+    assert all(r is not None for r in results), "a submission hung"
+    return [r for r in results if r is not None]
+
+
+def wait_until(condition: Any, timeout: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    stat = Path(f"/proc/{pid}/stat")  # a killed child may linger as a zombie until reaped
+    return not (stat.exists() and stat.read_text().split(") ")[1].startswith("Z"))
+
+
+# --- the worker process ---
+
+
+def test_plans_in_another_process(pool: PlannerPool, tmp_path: Path) -> None:
+    result = pool.submit(make_problem(tmp_path))
+    assert result.status is PlannerStatus.SOLVED, result.message
+    assert result.path is not None and result.path.tolist() == [[0.0, 0.0], [1.0, 1.0]]
+    assert result.stats["pid"] != os.getpid()
+    stats = pool.stats()
+    assert (stats.submitted, stats.completed, stats.solved, stats.queue_depth) == (1, 1, 1, 0)
+
+
+def test_task_exception_is_an_error_result(pool: PlannerPool, tmp_path: Path) -> None:
+    result = pool.submit(make_problem(tmp_path, explode=True))
+    assert result.status is PlannerStatus.ERROR
+    assert "planner exploded" in result.message
+    assert pool.submit(make_problem(tmp_path, scene="ok")).solved
+
+
+# --- the budget ---
+
+
+def test_budget_is_enforced_and_an_overrunning_worker_is_recycled(tmp_path: Path) -> None:
+    pid_file = tmp_path / "pid"
+    with make_local_pool(grace=0.5) as pool:
+        began = time.monotonic()
+        result = pool.submit(make_problem(tmp_path, budget_s=0.5, sleep=5.0, pid_file=pid_file))
+        elapsed = time.monotonic() - began
+        assert elapsed < 2.0, f"waited {elapsed:.1f} s for a 0.5 s budget"
+        assert result.status is PlannerStatus.TIMEOUT
+        assert "budget of 0.5 s" in result.message
+        stuck = int(pid_file.read_text())
+        assert wait_until(lambda: pool.stats().recycles == 1, timeout=3.0)
+        assert wait_until(lambda: not pid_alive(stuck), timeout=3.0), "stuck worker not killed"
+        assert pool.submit(make_problem(tmp_path, scene="after")).solved
+        assert pool.stats().crashes == 0
+
+
+def test_waiting_for_a_free_worker_is_bounded_too(tmp_path: Path) -> None:
+    with make_local_pool(processes=1) as pool:
+        busy = threading.Thread(
+            target=pool.submit, args=(make_problem(tmp_path, scene="busy", sleep=2.5),)
+        )
+        busy.start()
+        time.sleep(0.3)
+        began = time.monotonic()
+        result = pool.submit(make_problem(tmp_path, scene="queued", budget_s=0.3))
+        assert time.monotonic() - began < 2.0
+        assert result.status is PlannerStatus.ERROR
+        assert "no planning worker became free" in result.message
+        busy.join()
+        assert runs(tmp_path, "queued") == 0  # cancelled before it started
+
+
+# --- crashes ---
+
+
+def test_crashed_worker_gives_an_error_and_the_pool_recovers(
+    pool: PlannerPool, tmp_path: Path
+) -> None:
+    result = pool.submit(make_problem(tmp_path, exit=True))
+    assert result.status is PlannerStatus.ERROR
+    assert "planning worker crashed" in result.message
+    later = [pool.submit(make_problem(tmp_path, scene=f"later-{i}")) for i in range(3)]
+    assert all(r.solved for r in later), [r.message for r in later]
+    stats = pool.stats()
+    assert (stats.crashes, stats.recycles, stats.queue_depth) == (1, 1, 0)
+
+
+def test_worker_killed_mid_request(pool: PlannerPool, tmp_path: Path) -> None:
+    pid_file = tmp_path / "pid"
+    problem = make_problem(tmp_path, budget_s=20.0, sleep=20.0, pid_file=pid_file)
+    killed: list[int] = []
+
+    def kill_the_worker() -> None:
+        assert wait_until(lambda: pid_file.exists() and pid_file.read_text() != "")
+        killed.append(int(pid_file.read_text()))
+        os.kill(killed[0], signal.SIGKILL)
+
+    killer = threading.Thread(target=kill_the_worker)
+    killer.start()
+    began = time.monotonic()
+    result = pool.submit(problem)
+    killer.join()
+    assert time.monotonic() - began < 10.0
+    assert killed, "the task never reported its pid"
+    assert result.status is PlannerStatus.ERROR and "crashed" in result.message
+    assert pool.submit(make_problem(tmp_path, scene="next")).solved
+
+
+def test_concurrent_victims_of_one_crash_rebuild_the_pool_once(tmp_path: Path) -> None:
+    with make_local_pool(processes=3) as pool:
+        problems = [make_problem(tmp_path, scene=f"slow-{i}", sleep=1.0) for i in range(2)]
+        problems.append(make_problem(tmp_path, scene="crash", sleep=0.3, exit=True))
+        results = submit_all(pool, problems)
+        assert results[2].status is PlannerStatus.ERROR
+        assert (pool.stats().crashes, pool.stats().recycles) == (1, 1)
+        assert pool.submit(make_problem(tmp_path, scene="next")).solved
+
+
+# --- coalescing ---
+
+
+def test_identical_concurrent_requests_plan_once(pool: PlannerPool, tmp_path: Path) -> None:
+    results = submit_all(pool, [make_problem(tmp_path, sleep=1.0)] * 8)
+    assert runs(tmp_path) == 1
+    assert all(r is results[0] for r in results)
+    assert results[0].solved
+    assert (pool.stats().coalesced, pool.stats().completed) == (7, 1)
+
+
+def test_near_identical_starts_coalesce(pool: PlannerPool, tmp_path: Path) -> None:
+    problems = [make_problem(tmp_path, start=(0.0 + 1e-5 * i, 0.0), sleep=1.0) for i in range(4)]
+    results = submit_all(pool, problems)
+    assert runs(tmp_path) == 1
+    assert all(r.solved for r in results)
+
+
+def test_different_starts_do_not_coalesce(pool: PlannerPool, tmp_path: Path) -> None:
+    problems = [make_problem(tmp_path, start=(0.01 * i, 0.0), sleep=0.5) for i in range(2)]
+    results = submit_all(pool, problems)
+    assert runs(tmp_path) == 2
+    assert [r.path[0][0] for r in results if r.path is not None] == [0.0, 0.01]
+    assert pool.stats().coalesced == 0
+
+
+def test_coalescing_key() -> None:
+    base = make_problem(Path("/tmp"), start=(0.1, 0.2))
+    near = make_problem(Path("/tmp"), start=(0.1 + 2e-4, 0.2 - 2e-4))
+    assert coalescing_key(base) == coalescing_key(near)
+    for other in (
+        make_problem(Path("/tmp"), start=(0.102, 0.2)),
+        make_problem(Path("/tmp"), start=(0.1, 0.2), scene="scene-b"),
+        make_problem(Path("/tmp"), start=(0.1, 0.2), goal=(1.0, 0.99)),
+    ):
+        assert coalescing_key(other) != coalescing_key(base)
+
+
+# --- negative cache ---
+
+
+@pytest.mark.parametrize("status", ["timeout", "invalid_start", "invalid_goal"])
+def test_failed_query_fails_fast_until_the_ttl(tmp_path: Path, status: str) -> None:
+    with make_local_pool(ttl=1.0) as pool:
+        first = pool.submit(make_problem(tmp_path, status=status, sleep=0.3))
+        assert first.status.value == status and runs(tmp_path) == 1
+        began = time.monotonic()
+        second = pool.submit(make_problem(tmp_path, status=status, sleep=0.3))
+        assert time.monotonic() - began < 0.1
+        assert second.status.value == status and "negative cache" in second.message
+        assert runs(tmp_path) == 1 and pool.stats().negative_hits == 1
+        assert pool.submit(make_problem(tmp_path, scene="other", status=status)).status.value == (
+            status
+        )
+        assert runs(tmp_path, "other") == 1  # another scene is another query
+        time.sleep(1.1)
+        pool.submit(make_problem(tmp_path, status=status))
+        assert runs(tmp_path) == 2
+
+
+def test_errors_are_not_negatively_cached(pool: PlannerPool, tmp_path: Path) -> None:
+    for _ in range(2):
+        assert pool.submit(make_problem(tmp_path, status="error")).status is PlannerStatus.ERROR
+    assert pool.submit(make_problem(tmp_path, scene="crash", exit=True)).status is (
+        PlannerStatus.ERROR
+    )
+    assert pool.submit(make_problem(tmp_path, scene="crash", exit=True)).status is (
+        PlannerStatus.ERROR
+    )
+    assert runs(tmp_path) == 2 and runs(tmp_path, "crash") == 2
+    assert pool.stats().negative_hits == 0
+
+
+def test_a_longer_budget_retries_a_timed_out_query(pool: PlannerPool, tmp_path: Path) -> None:
+    pool.submit(make_problem(tmp_path, status="timeout", budget_s=1.0))
+    pool.submit(make_problem(tmp_path, status="timeout", budget_s=1.0))
+    assert runs(tmp_path) == 1
+    pool.submit(make_problem(tmp_path, status="timeout", budget_s=2.0))
+    assert runs(tmp_path) == 2
+
+
+def test_zero_ttl_disables_the_negative_cache(tmp_path: Path) -> None:
+    with make_local_pool(ttl=0.0) as pool:
+        for _ in range(2):
+            pool.submit(make_problem(tmp_path, status="timeout"))
+        assert runs(tmp_path) == 2
+
+
+# --- lifecycle and configuration ---
+
+
+def test_closed_pool_answers_with_an_error(tmp_path: Path) -> None:
+    pool = make_local_pool()
+    pool.close()
+    result = pool.submit(make_problem(tmp_path))
+    assert result.status is PlannerStatus.ERROR and "closed" in result.message
+    assert runs(tmp_path) == 0
+
+
+def test_budget_is_capped_by_the_settings(tmp_path: Path) -> None:
+    settings = Settings(worker_processes=1, plan_budget_s=0.2, plan_budget_max_s=0.3)
+    with make_pool(settings, task_fn=scripted_task) as pool:
+        assert isinstance(pool.backend, LocalBackend) and pool.backend.processes == 1
+        began = time.monotonic()
+        result = pool.submit(make_problem(tmp_path, budget_s=10.0, sleep=3.0))
+        assert time.monotonic() - began < 2.0
+        assert result.status is PlannerStatus.TIMEOUT and "budget of 0.3 s" in result.message
+
+
+def test_real_planner_through_make_pool() -> None:
+    with make_pool(Settings(worker_processes=1)) as pool:  # the default task: run_planning
+        assert isinstance(pool.backend, LocalBackend) and pool.backend.wait_ready(30.0)
+        solved = pool.submit(two_link_problem((2.0, 1.0)))
+        assert solved.solved, solved.message
+        assert solved.path is not None
+        assert np.allclose(solved.path[[0, -1]], [[0.0, 0.0], [2.0, 1.0]])
+        blocked = pool.submit(two_link_problem((1.5708, 0.0)))  # the arm would be in the wall
+        assert blocked.status is PlannerStatus.INVALID_GOAL, blocked.message
+        again = pool.submit(two_link_problem((1.5708, 0.0)))
+        assert again.status is PlannerStatus.INVALID_GOAL and "negative cache" in again.message
+
+
+def test_make_pool_picks_the_celery_backend() -> None:
+    from trajcache.jobs.celery_app import CeleryBackend
+
+    settings = Settings(worker_backend="celery", celery_broker_url="redis://127.0.0.1:1/0")
+    with make_pool(settings) as pool:
+        assert isinstance(pool.backend, CeleryBackend)
+    with pytest.raises(ValueError, match="task_fn"):
+        make_pool(settings, task_fn=scripted_task)
+
+
+def test_recycling_lets_the_other_requests_finish(tmp_path: Path) -> None:
+    with make_local_pool(grace=0.3) as pool:
+        stuck = make_problem(tmp_path, scene="stuck", budget_s=0.3, sleep=6.0)
+        innocent = make_problem(tmp_path, scene="innocent", budget_s=4.0, sleep=2.5)
+        results = submit_all(pool, [stuck, innocent])
+        assert results[0].status is PlannerStatus.TIMEOUT
+        assert results[1].solved, results[1].message
+        assert pool.stats().recycles == 1

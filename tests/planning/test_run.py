@@ -1,0 +1,101 @@
+"""The worker task: picklable end to end, cached per process, never raising."""
+
+from __future__ import annotations
+
+import multiprocessing
+import pickle
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from tests.planning.test_ompl_planner import DOWN, FORWARD
+from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
+from trajcache.geometry.reference.robot import reference_model, reference_urdf
+from trajcache.geometry.scene import scene_to_payload
+from trajcache.planning import run
+from trajcache.planning.problem import (
+    ModelSource,
+    PlannerStatus,
+    PlanningProblem,
+    PlanResult,
+    SceneSource,
+)
+from trajcache.planning.run import LRUCache, run_planning
+
+
+@pytest.fixture(scope="module")
+def problem() -> PlanningProblem:
+    model = reference_model()
+    scene = restroom_scene(doors=45.0)
+    station = restroom_layout().station("stall_2")
+    base = (station.x, station.y, station.theta)
+    source = ModelSource(
+        model_id=model.model_id,
+        urdf=reference_urdf(),
+        base=model.base.value,
+        joint_names=model.joint_names,
+        allowed_pairs=tuple(sorted(model.allowed_pairs)),
+    )
+    return PlanningProblem(
+        model=source,
+        scene=SceneSource(scene.hash, scene_to_payload(scene)),
+        start=base + DOWN,
+        goal=base + FORWARD,
+        budget_s=2.0,
+        seed=1,
+    )
+
+
+def cache_sizes() -> tuple[int, int, int, int]:
+    """(models cached, model cache hits, scenes cached, scene cache hits) in this process."""
+    return len(run.MODELS), run.MODELS.hits, len(run.SCENES), run.SCENES.hits
+
+
+def test_run_planning_in_a_worker_process(problem: PlanningProblem) -> None:
+    restored = pickle.loads(pickle.dumps(problem))
+    context = multiprocessing.get_context("spawn")  # a fresh interpreter, as in production
+    with ProcessPoolExecutor(max_workers=1, mp_context=context) as pool:
+        first = pool.submit(run_planning, restored).result(timeout=120)
+        second = pool.submit(run_planning, replace(restored, seed=2)).result(timeout=120)
+        models, model_hits, scenes, scene_hits = pool.submit(cache_sizes).result(timeout=60)
+    for result in (first, second):
+        assert isinstance(result, PlanResult)
+        assert result.status is PlannerStatus.SOLVED, result.message
+        assert result.path is not None and np.allclose(result.path[0], problem.start)
+        for key in ("plan_ms", "shortcut_ms", "length_before", "length_after", "checks"):
+            assert key in result.stats
+    assert (models, model_hits, scenes, scene_hits) == (1, 1, 1, 1)
+    # the second call skipped URDF loading and scene parsing
+    assert second.stats["setup_ms"] < first.stats["setup_ms"] / 5
+    assert pickle.loads(pickle.dumps(first)).status is PlannerStatus.SOLVED
+
+
+def test_rris_is_dispatched_by_name(problem: PlanningProblem) -> None:
+    result = run_planning(replace(problem, planner="RRIS"))
+    assert result.status is PlannerStatus.SOLVED, result.message
+    assert result.stats["length_after"] <= result.stats["length_before"] + 1e-9
+
+
+def test_failures_are_results_not_exceptions(problem: PlanningProblem) -> None:
+    broken = replace(problem, model=replace(problem.model, model_id="broken", urdf="<robot"))
+    result = run_planning(broken)
+    assert result.status is PlannerStatus.ERROR and "planning failed" in result.message
+    bad_scene = replace(problem, scene=SceneSource("bad", {"objects": [{"id": 1}]}))
+    assert run_planning(bad_scene).status is PlannerStatus.ERROR
+    unknown = run_planning(replace(problem, planner="dijkstra"))
+    assert unknown.status is PlannerStatus.ERROR and "rrtconnect" in unknown.message
+    short = run_planning(replace(problem, start=problem.start[:5]))
+    assert short.status is PlannerStatus.INVALID_START
+
+
+def test_lru_cache_evicts_the_least_recently_used() -> None:
+    cache: LRUCache[str, int] = LRUCache(2)
+    cache.put("a", 1)
+    cache.put("b", 2)
+    assert cache.get("a") == 1  # "a" is now the most recent
+    cache.put("c", 3)
+    assert "b" not in cache and "a" in cache and "c" in cache
+    assert cache.get("b") is None
+    assert (cache.hits, cache.misses) == (1, 1)
