@@ -2,8 +2,11 @@
 
 Reference robot in the restroom scene. Both checkers run over the same interpolated samples of
 collision-free trajectories (every sample checked) and of trajectories that collide late (both
-stop at the first collision). Verdicts are compared state by state, without padding, over
-random states. The last line printed is one JSON object.
+stop at the first collision); a third row takes the motions of a reference cleaning run (start
+to goal of each call whose straight motion is free, in that call's scene: what the cache mostly
+holds). "certified ms" is the validator's time per trajectory, what a cache hit pays. Verdicts
+are compared state by state, without padding, over random states. The last line printed is
+one JSON object.
 
     python bench/validation.py            # full size
     python bench/validation.py --smoke    # seconds, for CI
@@ -27,6 +30,7 @@ from trajcache.geometry.reference.robot import reference_model
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.validation import Resolution, TrajectoryValidator, interpolate
+from trajcache.workload.cleaning import cleaning_run
 
 
 class NaiveChecker:
@@ -115,14 +119,40 @@ def make_trajectories(
     return free, late
 
 
-def timed(fn: Callable[[], object], repeats: int) -> float:
-    """Median wall time of `fn` in seconds."""
-    times = []
+def workload_motions(
+    model: RobotModel, seed: int, count: int
+) -> list[tuple[np.ndarray, TrajectoryValidator, TrajectoryValidator, NaiveChecker]]:
+    """Free straight motions of a cleaning run, each with the checkers of its call's scene."""
+    run = cleaning_run(seed)
+    by_scene: dict[str, tuple[TrajectoryValidator, TrajectoryValidator, NaiveChecker]] = {}
+    motions = []
+    for call in run.calls:
+        scene = run.scene_for(call)
+        if scene.hash not in by_scene:
+            by_scene[scene.hash] = (
+                TrajectoryValidator(model, scene, certified=True),
+                TrajectoryValidator(model, scene, certified=False),
+                NaiveChecker(model, scene),
+            )
+        certified, plain, naive = by_scene[scene.hash]
+        key = np.stack([call.start, call.goal])
+        if certified.validate(key).valid:
+            motions.append((key, certified, plain, naive))
+        if len(motions) == count:
+            break
+    return motions
+
+
+def timed(fns: list[Callable[[], object]], repeats: int) -> list[float]:
+    """Median wall time of each of `fns` in seconds, taking turns so that a change in the
+    machine's load hits them alike."""
+    times: list[list[float]] = [[] for _ in fns]
     for _ in range(repeats):
-        began = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - began)
-    return statistics.median(times)
+        for fn, spent in zip(fns, times, strict=True):
+            began = time.perf_counter()
+            fn()
+            spent.append(time.perf_counter() - began)
+    return [statistics.median(t) for t in times]
 
 
 def main() -> None:
@@ -147,13 +177,31 @@ def main() -> None:
     for label, trajs in (("collision-free", free), ("collides late", late)):
         samples = [interpolate(k, model, Resolution()) for k in trajs]
         total = sum(len(s) for s in samples)
-        t_naive = timed(lambda s=samples: [naive.validate(x) for x in s], repeats)
-        t_plain = timed(lambda t=trajs: [plain.validate(k) for k in t], repeats)
-        t_cert = timed(lambda t=trajs: [certified.validate(k) for k in t], repeats)
-        rows.append((label, len(trajs), total, total / t_naive, total / t_plain, total / t_cert))
+        t_naive, t_plain, t_cert = timed(
+            [
+                lambda s=samples: [naive.validate(x) for x in s],
+                lambda t=trajs: [plain.validate(k) for k in t],
+                lambda t=trajs: [certified.validate(k) for k in t],
+            ],
+            repeats,
+        )
+        rows.append((label, len(trajs), total, t_naive, t_plain, t_cert))
+    motions = workload_motions(model, args.seed, n_traj * 3)
+    samples = [interpolate(k, model, Resolution()) for k, *_ in motions]
+    t_naive, t_plain, t_cert = timed(
+        [
+            lambda: [m[3].validate(x) for m, x in zip(motions, samples, strict=True)],
+            lambda: [p.validate(k) for k, _, p, _ in motions],
+            lambda: [c.validate(k) for k, c, _, _ in motions],
+        ],
+        repeats,
+    )
+    rows.append(("workload", len(motions), sum(len(x) for x in samples), t_naive, t_plain, t_cert))
+    for label, count, total, t_naive, t_plain, t_cert in rows:
         figures[label] = total / t_naive
         figures[label + "/plain"] = total / t_plain
         figures[label + "/certified"] = total / t_cert
+        figures[label + "/ms"] = t_cert / count * 1e3
 
     states = random_states(model, rng, n_states)
     began = time.perf_counter()
@@ -166,10 +214,14 @@ def main() -> None:
 
     print(
         f"{'trajectories':<16}{'count':>6}{'states':>8}{'naive st/s':>12}{'plain st/s':>12}"
-        f"{'certified st/s':>16}{'ratio':>8}"
+        f"{'certified st/s':>16}{'ratio':>8}{'certified ms':>14}"
     )
-    for label, count, total, a, b, c in rows:
-        print(f"{label:<16}{count:>6}{total:>8}{a:>12.0f}{b:>12.0f}{c:>16.0f}{c / a:>8.2f}")
+    for label, count, total, *_ in rows:
+        a, c = figures[label], figures[label + "/certified"]
+        print(
+            f"{label:<16}{count:>6}{total:>8}{a:>12.0f}{figures[label + '/plain']:>12.0f}"
+            f"{c:>16.0f}{c / a:>8.2f}{figures[label + '/ms']:>14.2f}"
+        )
     print(
         f"random states: {n_states}, colliding {int(ours.sum())}, mismatches {mismatches}; "
         f"per-state batch check {n_states / t_ours_states:.0f} st/s vs naive "
@@ -182,6 +234,9 @@ def main() -> None:
         "ratio": round(figures["collision-free/certified"] / figures["collision-free"], 2),
         "ratio_plain": round(figures["collision-free/plain"] / figures["collision-free"], 2),
         "ratio_late": round(figures["collides late/certified"] / figures["collides late"], 2),
+        "ratio_workload": round(figures["workload/certified"] / figures["workload"], 2),
+        "validator_ms_per_trajectory": round(figures["collision-free/ms"], 3),
+        "workload_ms_per_trajectory": round(figures["workload/ms"], 3),
         "mismatches": mismatches,
         "verdict_states": n_states,
         "smoke": args.smoke,

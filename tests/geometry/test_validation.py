@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from trajcache.geometry.errors import StateError
+from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
 from trajcache.geometry.scene import Scene, SceneObject
 from trajcache.geometry.shapes import Shape, ShapeKind
 from trajcache.geometry.urdf import load_robot_model
@@ -82,14 +83,31 @@ def test_thin_obstacle_between_samples_is_missed_by_plain_and_caught_by_certifie
     assert certified.contacts[0].other == "plate"
 
 
-def test_near_contact_motion_is_certified_not_rejected(swing) -> None:  # type: ignore[no-untyped-def]
-    # A plate just past the rod's tip: 3 mm clearance along the whole sweep.
+@pytest.mark.parametrize("clearance", [3e-3, 1e-3, 3e-4])
+def test_near_contact_motion_is_certified_not_rejected(swing, clearance: float) -> None:  # type: ignore[no-untyped-def]
+    # The plate's near end is `clearance` past the rod's tip, which moves 3.5 cm per sample:
+    # padding each sample by its motion would call every one of these motions a collision.
     key = np.array([[0.0], [1.0]])
-    scene = _plate(0.5, 1.0 + 0.01 + 0.003 + 0.05)
-    result = TrajectoryValidator(swing, scene).validate(key)
-    assert result.status is ValidationStatus.VALID
-    assert result.subdivisions > 0  # it had to refine, and refining proved it safe
-    assert not _dense_collides(TrajectoryValidator(swing, scene), key)
+    scene = _plate(0.5, 1.0 + clearance + 0.05)
+    validator = TrajectoryValidator(swing, scene)
+    step = float(np.max(np.abs(np.diff(interpolate(key, swing, Resolution())[:, 0]))))
+    assert clearance < step * 1.0 / 10  # the tip (1 m out) moves far more than the clearance
+    result = validator.validate(key)
+    assert result.status is ValidationStatus.VALID, result.message
+    assert result.subdivisions > 0  # it had to advance between samples, and that proved it safe
+    assert not _dense_collides(validator, key)
+
+
+def test_closer_than_certifiable_is_too_close_and_names_the_pair(swing) -> None:  # type: ignore[no-untyped-def]
+    key = np.array([[0.0], [1.0]])
+    scene = _plate(0.5, 1.0 + 5e-5 + 0.05)  # 50 µm: below the 0.1 mm that can be certified
+    validator = TrajectoryValidator(swing, scene)
+    result = validator.validate(key)
+    assert result.status is ValidationStatus.TOO_CLOSE
+    assert not _dense_collides(validator, key)  # not a collision, just too close to prove
+    assert [(c.link, c.other) for c in result.contacts] == [("rod", "plate")]
+    assert "rod" in result.message and "plate" in result.message
+    assert result.state is not None and 0.45 < result.state[0] < 0.55
 
 
 def test_certified_never_accepts_a_colliding_segment(swing) -> None:  # type: ignore[no-untyped-def]
@@ -127,3 +145,15 @@ def test_start_in_collision_reports_first_sample(swing) -> None:  # type: ignore
     result = TrajectoryValidator(swing, scene).validate(np.array([[0.0], [1.0]]))
     assert result.status is ValidationStatus.COLLISION
     assert result.state is not None and result.state[0] == pytest.approx(0.0)
+
+
+def test_one_segment_is_sampled_as_the_start_of_a_longer_trajectory() -> None:
+    model = reference_model()
+    a = np.array([0.0, 0.0, 3.1, *STOWED_ARM])
+    b = a.copy()
+    b[0], b[2], b[4] = 1.0, -3.1, b[4] + 0.35  # θ takes the short way through ±π
+    one = interpolate(np.stack([a, b]), model, Resolution())
+    two = interpolate(np.stack([a, b, a]), model, Resolution())
+    np.testing.assert_array_equal(one, two[: len(one)])
+    np.testing.assert_array_equal(one[-1], b)
+    assert np.all(np.abs(np.diff(one[:, 0])) <= 0.04 + 1e-12)

@@ -1,35 +1,56 @@
 """Batched collision checking of robot states against a scene and against the robot itself.
 
-A check runs in two phases. The broad phase is vectorized over every state, element and
-obstacle at once: each collision element is bounded by a sphere around its frame origin and
-each scene object by its oriented box, so one numpy pass gives a lower bound on every
-element-object and element-element distance. Only pairs whose bound falls below the required
-clearance reach FCL's narrow phase, one call per pair.
+A check bounds every (state, element, object) and (state, element pair) distance from below in
+numpy (the levels of `clearance.py`: element balls, then support-function slabs for the rows
+the balls cannot settle, when there are enough of them to pay off) and asks FCL only about the
+rows no bound clears.
+The verdict is FCL's own collision test for those rows, so it agrees with a per-state FCL loop.
 
-Clearance: with `pad` > 0 a pair counts as AMBIGUOUS when its true distance is in (0, pad];
-the certified validator resolves those by subdividing the motion.
+Clearance, for planners: with `pad` > 0 a row counts as AMBIGUOUS when no bound clears it by
+more than the pad, FCL's distance is at most the pad and FCL finds no contact. That is a
+heuristic (FCL's distances can be too large); certified validation does not use pads.
 """
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 from enum import Enum
 
-import fcl
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.kinematics import element_transforms, link_transforms
+from trajcache.geometry.bodies import (
+    Posed,
+    RobotGeometry,
+    SceneGeometry,
+    robot_geometry,
+    scene_geometry,
+)
+from trajcache.geometry.clearance import Clearance
+from trajcache.geometry.kinematics import check_states
+from trajcache.geometry.narrow import Narrow
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
 
+__all__ = [
+    "AMBIGUOUS",
+    "COLLIDING",
+    "FREE",
+    "BatchVerdict",
+    "CollisionChecker",
+    "Contact",
+    "ContactKind",
+    "RobotGeometry",
+    "SceneGeometry",
+    "robot_geometry",
+    "scene_geometry",
+]
+
 IntArray = NDArray[np.int64]
 
 FREE, AMBIGUOUS, COLLIDING = 1, 0, -1
-_CACHE_SIZE = 64
+_FEW_ROWS = 48  # fewer candidate rows than this go straight to FCL
 
 
 class ContactKind(str, Enum):
@@ -53,106 +74,6 @@ class Contact:
         return f"link '{self.link}' hits {what} '{self.other}'"
 
 
-class RobotGeometry:
-    """FCL geometry of a model's collision elements; built once per model and shared."""
-
-    def __init__(self, model: RobotModel) -> None:
-        self.model = model
-        elements = model.elements
-        self.geometries = [e.shape.to_fcl() for e in elements]
-        self.element_link = np.array([e.link for e in elements], dtype=np.int64)
-        self.radius = np.array([e.shape.bounding_radius() for e in elements], dtype=float)
-        allowed = model.allowed_pairs
-        pairs = [
-            (i, j)
-            for i in range(len(elements))
-            for j in range(i + 1, len(elements))
-            if elements[i].link != elements[j].link
-            and (min(elements[i].link, elements[j].link), max(elements[i].link, elements[j].link))
-            not in allowed
-        ]
-        self.pair_i = np.array([p[0] for p in pairs], dtype=np.int64)
-        self.pair_j = np.array([p[1] for p in pairs], dtype=np.int64)
-        self._local = threading.local()
-
-    def objects(self) -> list[fcl.CollisionObject]:
-        """This thread's FCL objects (transforms are mutated during a check)."""
-        objs: list[fcl.CollisionObject] | None = getattr(self._local, "objects", None)
-        if objs is None:
-            objs = [fcl.CollisionObject(g, fcl.Transform()) for g in self.geometries]
-            self._local.objects = objs
-        return objs
-
-
-class SceneGeometry:
-    """FCL objects and oriented bounding boxes of one scene version; shared and read-only."""
-
-    def __init__(self, scene: Scene) -> None:
-        self.scene = scene
-        self.ids = [o.id for o in scene.objects]
-        self.objects = [
-            fcl.CollisionObject(o.shape.to_fcl(), fcl.Transform(o.pose[:3, :3], o.pose[:3, 3]))
-            for o in scene.objects
-        ]
-        count = len(scene.objects)
-        self.rotation = np.array([o.pose[:3, :3] for o in scene.objects]).reshape(count, 3, 3)
-        self.position = np.array([o.pose[:3, 3] for o in scene.objects]).reshape(count, 3)
-        self.half = np.array([o.shape.half_extents() for o in scene.objects]).reshape(count, 3)
-        # local = Rᵀ(c − t) for every object in one matmul: c @ [R_0 | R_1 | …] − tᵀR.
-        self.rotation_cat = np.ascontiguousarray(self.rotation.transpose(1, 0, 2).reshape(3, -1))
-        self.offset = np.einsum("mj,mji->mi", self.position, self.rotation)
-        reach = np.einsum("mij,mj->mi", np.abs(self.rotation), self.half)
-        self.aabb_lo, self.aabb_hi = self.position - reach, self.position + reach
-
-
-class _LRU:
-    """A small thread-safe LRU map used for per-model and per-scene geometry."""
-
-    def __init__(self, size: int) -> None:
-        self._size = size
-        self._items: OrderedDict[str, object] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, key: str) -> object | None:
-        with self._lock:
-            item = self._items.get(key)
-            if item is not None:
-                self._items.move_to_end(key)
-            return item
-
-    def put(self, key: str, value: object) -> None:
-        with self._lock:
-            self._items[key] = value
-            self._items.move_to_end(key)
-            while len(self._items) > self._size:
-                self._items.popitem(last=False)
-
-
-_robots = _LRU(_CACHE_SIZE)
-_scenes = _LRU(_CACHE_SIZE)
-
-
-def robot_geometry(model: RobotModel) -> RobotGeometry:
-    """The shared RobotGeometry of a model (cached by model id)."""
-    cached = _robots.get(model.model_id)
-    if isinstance(cached, RobotGeometry) and cached.model is model:
-        return cached
-    built = RobotGeometry(model)
-    _robots.put(model.model_id, built)
-    return built
-
-
-def scene_geometry(scene: Scene) -> SceneGeometry:
-    """The shared SceneGeometry of a scene version (cached by content hash)."""
-    key = scene.hash or f"id:{id(scene)}"
-    cached = _scenes.get(key)
-    if isinstance(cached, SceneGeometry):
-        return cached
-    built = SceneGeometry(scene)
-    _scenes.put(key, built)
-    return built
-
-
 @dataclass
 class BatchVerdict:
     """Per-state outcome of a batch check: FREE, AMBIGUOUS or COLLIDING, and the first contact."""
@@ -170,11 +91,22 @@ class CollisionChecker:
         self.model = model
         self.robot = robot_geometry(model)
         self.scene = scene_geometry(scene)
-        self.narrow_checks = 0
+        self.clearance = Clearance(self.robot, self.scene)
+        self.narrow = Narrow(self.robot, self.scene, self.clearance)
+        self._contacts: dict[tuple[int, int], Contact] = {}  # (element, object) or (pair, -1)
+
+    @property
+    def narrow_checks(self) -> int:
+        """FCL calls made by this thread so far."""
+        return self.narrow.fcl_calls
+
+    def pose(self, states: FloatArray) -> Posed:
+        """Forward kinematics of a batch of states, as the bounds use it."""
+        return Posed.build(self.robot, check_states(self.model, states))
 
     def element_poses(self, states: FloatArray) -> FloatArray:
         """World poses (N, E, 4, 4) of every collision element."""
-        return element_transforms(self.model, link_transforms(self.model, states))
+        return self.pose(states).elements
 
     def check(
         self,
@@ -183,137 +115,93 @@ class CollisionChecker:
         element_pad: FloatArray | None = None,
         pair_pad: FloatArray | None = None,
         stop_at_first: bool = True,
+        every_contact: bool = False,
     ) -> BatchVerdict:
-        """Classify each state; pads are (N, E) per element and (N, P) per self-collision pair."""
-        poses = self.element_poses(states)
-        n, e = poses.shape[:2]
-        epad = np.zeros((n, e)) if element_pad is None else element_pad
+        """Classify each state; pads are (N, E) per element and (N, P) per self-collision pair.
+
+        A colliding state's contacts are all of its contacts with `every_contact`, else the
+        first one FCL finds.
+        """
+        posed = self.pose(states)
+        n = len(posed.states)
+        before = self.narrow.fcl_calls
+        cl = self.clearance
+        padded = element_pad is not None or pair_pad is not None
+        epad = np.zeros((n, len(self.robot.radius))) if element_pad is None else element_pad
         ppad = np.zeros((n, len(self.robot.pair_i))) if pair_pad is None else pair_pad
-        centers = poses[:, :, :3, 3]
-        scene_near = self._scene_candidates(centers, epad)
-        self_near = self._self_candidates(centers, ppad)
-        return self._narrow_phase(poses, epad, ppad, scene_near, self_near, stop_at_first)
-
-    def _scene_candidates(self, centers: FloatArray, pad: FloatArray) -> IntArray:
-        """(K, 3) rows (state, element, object) whose bounding distance is within the pad."""
-        sg = self.scene
-        if len(sg.ids) == 0:
-            return np.empty((0, 3), dtype=np.int64)
-        n, e = centers.shape[:2]
-        # Cull objects far from everything this batch does: one AABB around all padded spheres.
-        grow = (self.robot.radius[None, :] + pad)[..., None]
-        lo, hi = (centers - grow).min(axis=(0, 1)), (centers + grow).max(axis=(0, 1))
-        near = np.flatnonzero(np.all((sg.aabb_lo <= hi) & (sg.aabb_hi >= lo), axis=1))
-        if len(near) == 0:
-            return np.empty((0, 3), dtype=np.int64)
-        rot = sg.rotation_cat.reshape(3, -1, 3)[:, near].reshape(3, -1)
-        local = (centers.reshape(-1, 3) @ rot).reshape(n, e, len(near), 3) - sg.offset[near]
-        outside = np.maximum(np.abs(local) - sg.half[near], 0.0)
-        sq = outside[..., 0] ** 2 + outside[..., 1] ** 2 + outside[..., 2] ** 2
-        bound = np.sqrt(sq) - self.robot.radius[None, :, None]
-        rows = np.argwhere(bound <= pad[:, :, None])
-        rows[:, 2] = near[rows[:, 2]]
-        return rows
-
-    def _self_candidates(self, centers: FloatArray, pad: FloatArray) -> IntArray:
-        """(K, 2) rows (state, pair) whose bounding-sphere distance is within the pad."""
-        rg = self.robot
-        if len(rg.pair_i) == 0:
-            return np.empty((0, 2), dtype=np.int64)
-        gap = np.linalg.norm(centers[:, rg.pair_i] - centers[:, rg.pair_j], axis=-1)
-        bound = gap - rg.radius[rg.pair_i] - rg.radius[rg.pair_j]
-        return np.argwhere(bound <= pad)
-
-    def _narrow_phase(
-        self,
-        poses: FloatArray,
-        epad: FloatArray,
-        ppad: FloatArray,
-        scene_near: IntArray,
-        self_near: IntArray,
-        stop_at_first: bool,
-    ) -> BatchVerdict:
-        n = poses.shape[0]
+        scene_rows = cl.scene_ball_rows(posed, np.asarray(epad, dtype=float))
+        self_rows = np.argwhere(cl.self_balls(posed) <= ppad)
         status = np.full(n, FREE, dtype=np.int8)
-        # Merge both candidate lists in state order so that the first collision stops the scan.
-        rows = np.concatenate(
-            [
-                np.column_stack([scene_near, np.zeros(len(scene_near), dtype=np.int64)]),
-                np.column_stack(
-                    [
-                        self_near[:, 0],
-                        self_near[:, 1],
-                        np.full(len(self_near), -1),
-                        np.ones(len(self_near), dtype=np.int64),
-                    ]
-                ).astype(np.int64),
-            ]
+        if len(scene_rows) == 0 and len(self_rows) == 0:
+            return BatchVerdict(status, -1, [], 0)
+        scene_pad = epad[scene_rows[:, 0], scene_rows[:, 1]]
+        self_pad = ppad[self_rows[:, 0], self_rows[:, 1]]
+        if len(scene_rows) >= _FEW_ROWS:
+            scene_rows, scene_pad = self._filter(posed, scene_rows, scene_pad)
+        if len(self_rows) >= _FEW_ROWS:
+            self_rows, self_pad = self._filter(posed, self_rows, self_pad)
+        if len(scene_rows) == 0 and len(self_rows) == 0:
+            return BatchVerdict(status, -1, [], self.narrow.fcl_calls - before)
+        hit_scene, hit_self, near_scene, near_self = self.narrow.first_collision(
+            posed,
+            scene_rows,
+            self_rows,
+            stop_at_first=stop_at_first,
+            every_contact=every_contact,
+            pads=(scene_pad, self_pad) if padded else None,
         )
-        rows = rows[np.argsort(rows[:, 0], kind="stable")]
-        objs = self.robot.objects()
-        rg, sg = self.robot, self.scene
-        dreq, creq = fcl.DistanceRequest(), fcl.CollisionRequest()
-        contacts: list[Contact] = []
-        checks = 0
-        first = -1
-        posed = [-1] * len(objs)  # the state each element's FCL object is currently posed at
-        for s, a, b, is_self in rows.tolist():
-            if is_self:
-                i, j = int(rg.pair_i[a]), int(rg.pair_j[a])
-                for k in (i, j):
-                    if posed[k] != s:
-                        _set_pose(objs[k], poses[s, k])
-                        posed[k] = s
-                pad = float(ppad[s, a])
-                other = objs[j]
-                first_obj = objs[i]
-            else:
-                if posed[a] != s:
-                    _set_pose(objs[a], poses[s, a])
-                    posed[a] = s
-                pad = float(epad[s, a])
-                other = sg.objects[b]
-                first_obj = objs[a]
-            checks += 1
-            if pad <= 0.0:
-                hit = fcl.collide(first_obj, other, creq, fcl.CollisionResult()) > 0
-                verdict = COLLIDING if hit else FREE
-            else:
-                dist = fcl.distance(first_obj, other, dreq, fcl.DistanceResult())
-                verdict = COLLIDING if dist < 0.0 else (AMBIGUOUS if dist <= pad else FREE)
-            if verdict == COLLIDING:
-                status[s] = COLLIDING
-                contacts.append(self._contact(a, b, bool(is_self)))
-                if first < 0:
-                    first = s
-                if stop_at_first:
-                    break
-            elif verdict == AMBIGUOUS:
-                status[s] = AMBIGUOUS
-        self.narrow_checks += checks
+        status[scene_rows[near_scene, 0]] = AMBIGUOUS
+        status[self_rows[near_self, 0]] = AMBIGUOUS
+        status[scene_rows[hit_scene, 0]] = COLLIDING
+        status[self_rows[hit_self, 0]] = COLLIDING
+        colliding = np.flatnonzero(status == COLLIDING)
+        first = int(colliding[0]) if len(colliding) else -1
+        if stop_at_first and first >= 0:
+            status[first + 1 :] = FREE  # not looked at past the first collision
+        contacts = [self._contact(r, scene=True) for r in scene_rows[hit_scene]]
+        contacts += [self._contact(r, scene=False) for r in self_rows[hit_self]]
+        contacts.sort(key=lambda item: item[0])
         return BatchVerdict(
-            status=status, first_collision=first, contacts=contacts, narrow_checks=checks
+            status=status,
+            first_collision=first,
+            contacts=[c for _, c in contacts],
+            narrow_checks=self.narrow.fcl_calls - before,
         )
 
-    def _contact(self, a: int, b: int, is_self: bool) -> Contact:
-        names = self.model.link_names
-        rg = self.robot
-        if is_self:
-            li, lj = rg.element_link[rg.pair_i[a]], rg.element_link[rg.pair_j[a]]
-            return Contact(link=names[li], other=names[lj], kind=ContactKind.SELF)
-        return Contact(
-            link=names[rg.element_link[a]], other=self.scene.ids[b], kind=ContactKind.SCENE
-        )
+    def _filter(self, posed: Posed, rows: IntArray, pad: FloatArray) -> tuple[IntArray, FloatArray]:
+        """Level 2: the rows (and their pads) whose slab bounds stay within the pad. It pays off
+        for more than a few rows (below that FCL takes them all); level 3 settles too few of
+        what is left to pay for itself here."""
+        cl = self.clearance
+        bound = cl.scene_slabs(posed, rows) if rows.shape[1] == 3 else cl.self_slabs(posed, rows)
+        keep = bound <= pad
+        return rows[keep], pad[keep]
+
+    def _contact(self, row: IntArray, *, scene: bool) -> tuple[int, Contact]:
+        key = (int(row[1]), int(row[2])) if scene else (int(row[1]), -1)
+        found = self._contacts.get(key)
+        if found is None:
+            names = self.model.link_names
+            rg = self.robot
+            if scene:
+                link = names[rg.element_link[key[0]]]
+                found = Contact(link=link, other=self.scene.ids[key[1]], kind=ContactKind.SCENE)
+            else:
+                li, lj = rg.element_link[rg.pair_i[key[0]]], rg.element_link[rg.pair_j[key[0]]]
+                found = Contact(link=names[li], other=names[lj], kind=ContactKind.SELF)
+            self._contacts[key] = found
+        return int(row[0]), found
+
+    def contact(self, row: IntArray, *, scene: bool) -> Contact:
+        """The contact a scene row (state, element, object) or pair row (state, pair) names."""
+        return self._contact(row, scene=scene)[1]
 
     def state_contacts(self, state: FloatArray) -> list[Contact]:
         """Every contact of one state (for error messages naming links and objects)."""
-        verdict = self.check(np.asarray(state, dtype=float)[None, :], stop_at_first=False)
+        verdict = self.check(
+            np.asarray(state, dtype=float)[None, :], stop_at_first=False, every_contact=True
+        )
         unique: dict[tuple[str, str], Contact] = {}
         for c in verdict.contacts:
             unique.setdefault((c.link, c.other), c)
         return list(unique.values())
-
-
-def _set_pose(obj: fcl.CollisionObject, pose: FloatArray) -> None:
-    obj.setTranslation(pose[:3, 3])
-    obj.setRotation(pose[:3, :3])

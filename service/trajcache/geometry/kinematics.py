@@ -19,11 +19,21 @@ _LIMIT_TOL = 1e-9
 
 @dataclass(frozen=True)
 class _Tables:
-    """Per-model arrays precomputed once for the hot paths."""
+    """Per-model arrays precomputed once for the hot paths.
+
+    Every joint's parent → child transform at value q is `fixed + sin(q)·sine +
+    (1 − cos(q))·versine + q·slide` (Rodrigues' formula folded into the joint origin; `slide`
+    moves a prismatic joint along its axis), so one expression gives all joints at once.
+    """
 
     element_link: IntArray  # (E,)
     element_origin: FloatArray  # (E, 4, 4)
-    held_local: tuple[FloatArray | None, ...]  # per joint: constant local transform, or None
+    value_index: IntArray  # (J,) state column of each joint, or -1 when held at its default
+    default: FloatArray  # (J,) value of held joints
+    fixed: FloatArray  # (J, 4, 4)
+    sine: FloatArray  # (J, 4, 4)
+    versine: FloatArray  # (J, 4, 4)
+    slide: FloatArray  # (J, 4, 4)
 
 
 _TABLES: weakref.WeakKeyDictionary[RobotModel, _Tables] = weakref.WeakKeyDictionary()
@@ -32,40 +42,32 @@ _TABLES: weakref.WeakKeyDictionary[RobotModel, _Tables] = weakref.WeakKeyDiction
 def _tables(model: RobotModel) -> _Tables:
     tables = _TABLES.get(model)
     if tables is None:
-        held = tuple(
-            None
-            if joint.index >= 0
-            else _joint_local(joint.kind, joint.origin, joint.axis, np.array([joint.default]))[0]
-            for joint in model.joints
-        )
+        count = len(model.joints)
+        fixed = np.array([j.origin for j in model.joints], dtype=float).reshape(count, 4, 4)
+        sine, versine, slide = (np.zeros((count, 4, 4)) for _ in range(3))
+        for k, joint in enumerate(model.joints):
+            rot = joint.origin[:3, :3]
+            if joint.kind in ("revolute", "continuous"):
+                x, y, z = joint.axis
+                cross = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+                sine[k, :3, :3] = rot @ cross
+                versine[k, :3, :3] = rot @ cross @ cross
+            elif joint.kind == "prismatic":
+                slide[k, :3, 3] = rot @ joint.axis
         tables = _Tables(
             element_link=np.array([e.link for e in model.elements], dtype=np.int64),
             element_origin=np.array([e.origin for e in model.elements], dtype=float).reshape(
                 -1, 4, 4
             ),
-            held_local=held,
+            value_index=np.array([j.index for j in model.joints], dtype=np.int64),
+            default=np.array([j.default for j in model.joints], dtype=float),
+            fixed=fixed,
+            sine=sine,
+            versine=versine,
+            slide=slide,
         )
         _TABLES[model] = tables
     return tables
-
-
-def _rotations(axis: FloatArray, angles: FloatArray) -> FloatArray:
-    """(N, 3, 3) rotations by `angles` about the unit `axis` (Rodrigues)."""
-    x, y, z = axis
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    s = np.sin(angles)[:, None, None]
-    c = np.cos(angles)[:, None, None]
-    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
-
-
-def _joint_local(kind: str, origin: FloatArray, axis: FloatArray, q: FloatArray) -> FloatArray:
-    """(N, 4, 4) parent → child transforms of one joint at the values `q`."""
-    local = np.broadcast_to(origin, (len(q), 4, 4)).copy()
-    if kind in ("revolute", "continuous"):
-        local[:, :3, :3] = origin[:3, :3] @ _rotations(axis, q)
-    elif kind == "prismatic":
-        local[:, :3, 3] += (origin[:3, :3] @ axis)[None, :] * q[:, None]
-    return local
 
 
 def check_states(model: RobotModel, states: ArrayLike, *, name: str = "state") -> FloatArray:
@@ -117,7 +119,11 @@ def check_limits(model: RobotModel, states: ArrayLike, *, name: str = "state") -
 
 def link_transforms(model: RobotModel, states: ArrayLike) -> FloatArray:
     """World pose of every link for every state, shape (N, L, 4, 4); a (D,) state gives N = 1."""
-    q = check_states(model, states)
+    return forward_kinematics(model, check_states(model, states))
+
+
+def forward_kinematics(model: RobotModel, q: FloatArray) -> FloatArray:
+    """`link_transforms` of states already checked: a finite (N, D) float array."""
     n = q.shape[0]
     tables = _tables(model)
     tf = np.empty((n, len(model.link_names), 4, 4))
@@ -127,18 +133,18 @@ def link_transforms(model: RobotModel, states: ArrayLike) -> FloatArray:
         root[:, 0, 0], root[:, 0, 1], root[:, 1, 0], root[:, 1, 1] = c, -s, s, c
         root[:, 0, 3], root[:, 1, 3] = q[:, 0], q[:, 1]
     tf[:, 0] = root
-    for joint, held in zip(model.joints, tables.held_local, strict=True):
-        parent = tf[:, joint.parent]
-        if held is not None:
-            tf[:, joint.child] = parent @ held
-            continue
-        frame = parent @ joint.origin
-        values = q[:, joint.index]
-        if joint.kind == "prismatic":
-            frame[:, :3, 3] += (frame[:, :3, :3] @ joint.axis) * values[:, None]
-        else:
-            frame[:, :3, :3] = frame[:, :3, :3] @ _rotations(joint.axis, values)
-        tf[:, joint.child] = frame
+    if not model.joints:
+        return tf
+    held = tables.value_index < 0
+    values = np.where(held, tables.default, q[:, np.maximum(tables.value_index, 0)])  # (N, J)
+    local = (
+        tables.fixed
+        + np.sin(values)[..., None, None] * tables.sine
+        + (1.0 - np.cos(values))[..., None, None] * tables.versine
+        + values[..., None, None] * tables.slide
+    )
+    for k, joint in enumerate(model.joints):
+        np.matmul(tf[:, joint.parent], local[:, k], out=tf[:, joint.child])
     return tf
 
 

@@ -65,6 +65,12 @@ class RobotModel:
     upper: FloatArray
     velocity_limits: FloatArray  # per state value
     allowed_pairs: frozenset[tuple[int, int]] = field(default_factory=frozenset)  # (i < j) links
+    # Configuration given at registration: acceleration and jerk limits per planning joint
+    # (joint_names order; NaN or None: the service default) and the end-effector link (None: the
+    # tip of the longest kinematic chain).
+    acceleration_limits: FloatArray | None = None
+    jerk_limits: FloatArray | None = None
+    end_effector_link: str | None = None
 
     @property
     def state_names(self) -> tuple[str, ...]:

@@ -4,18 +4,21 @@ The paper interpolates a trajectory with steps of at most 0.04 m (base position)
 orientation) and 0.035 rad (each joint) and checks every sample. A thin obstacle can still hide
 between two samples. Certified mode closes that gap.
 
-The bound. For two consecutive samples a and b, `link_motion_bounds` gives per link l a number
-δ_l = Σ_d c[l, d]·|b_d − a_d| (θ difference wrapped) that no point of the link's geometry moves
-more than along the straight segment from a to b. A point p(t) on that segment lies within
-t·δ_l of p(0) and within (1 − t)·δ_l of p(1), so within δ_l/2 of one of them. Hence if at both
-samples the link is farther than δ_l/2 from an obstacle, the swept volume is free. For a pair of
-links the distance between them changes by at most δ_i + δ_j, so (δ_i + δ_j)/2 at both ends
-certifies the pair.
+The bound. Along the straight segment between two consecutive samples, every point of the robot
+moves at most a computed distance (`motion.py`: for each dof, the change times the point's
+largest distance from that dof's axis over the segment, from the configurations at both ends).
+For an element and a scene object (or two robot elements, counting only the dofs that move one
+of them and not the other) with distance lower bounds d_a, d_b at the two samples and motion
+bound M, the distance anywhere on the segment is at least (d_a + d_b − M)/2, so d_a + d_b > M
+certifies the segment for that pair (`certify.py`). The lower bounds are sound at every level
+(`clearance.py`: element balls, sphere covers, support-function slabs; FCL only supplies a
+direction and the final collision test, never a distance).
 
-Near-contact motions are not thrown away: a sample closer than its pad but not touching makes
-the segments around it ambiguous, and those segments alone are split in half (δ halves with
-them) until every piece is certified, a sample actually collides, or the pad falls below
-`min_pad` (then the motion passes within a tenth of a millimetre and is rejected).
+Near-contact motions are not thrown away for being near: a pair no bound certifies is resolved
+by conservative advancement, splitting only the part of its segment that neither end certifies,
+until every piece is certified, a state actually collides, or a piece's motion bound falls below
+`min_pad` (then the motion passes within about that distance of something and is TOO_CLOSE).
+With `certified=False` only the samples are checked, with FCL's verdicts.
 """
 
 from __future__ import annotations
@@ -29,10 +32,12 @@ from typing import Protocol
 
 import numpy as np
 
-from trajcache.geometry.collision import AMBIGUOUS, CollisionChecker, Contact
-from trajcache.geometry.kinematics import check_states, link_motion_bounds
+from trajcache.geometry.certify import SegmentCertifier
+from trajcache.geometry.collision import CollisionChecker, Contact, ContactKind
+from trajcache.geometry.kinematics import check_states
 from trajcache.geometry.robot import BaseType, RobotModel
 from trajcache.geometry.scene import Scene
+from trajcache.geometry.segments import Finding, SegmentStatus
 from trajcache.geometry.shapes import FloatArray
 
 _CHUNK = 256
@@ -97,11 +102,16 @@ def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolutio
     off = model.arm_offset
     steps = np.zeros(len(delta))
     if planar:
-        steps = np.maximum(steps, np.linalg.norm(delta[:, :2], axis=1) / resolution.position_m)
+        steps = np.hypot(delta[:, 0], delta[:, 1]) / resolution.position_m
         steps = np.maximum(steps, np.abs(delta[:, 2]) / resolution.orientation_rad)
     if delta.shape[1] > off:
-        steps = np.maximum(steps, np.max(np.abs(delta[:, off:]), axis=1) / resolution.joint_rad)
+        steps = np.maximum(steps, np.abs(delta[:, off:]).max(axis=1) / resolution.joint_rad)
     counts = np.maximum(np.ceil(steps - 1e-9).astype(np.int64), 1)
+    if len(counts) == 1:  # one segment, the usual cached motion
+        frac = np.arange(counts[0] + 1) / counts[0]
+        out = key[0] + frac[:, None] * delta[0]
+        out[-1] = key[-1]
+        return np.asarray(out)
     seg = np.repeat(np.arange(len(delta)), counts)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     frac = (np.arange(counts.sum()) - np.repeat(starts, counts)) / np.repeat(counts, counts)
@@ -120,18 +130,18 @@ class TrajectoryValidator:
         resolution: Resolution | None = None,
         certified: bool = True,
         min_pad: float = 1e-4,
-        max_depth: int = 12,
+        max_depth: int = 24,
     ) -> None:
         self.model = model
         self.checker = CollisionChecker(model, scene)
         self.resolution = resolution or Resolution()
         self.certified = certified
-        self.min_pad = min_pad
-        self.max_depth = max_depth
-        rg = self.checker.robot
-        bounds = link_motion_bounds(model)
-        self._element_bounds = bounds[rg.element_link]  # (E, D)
-        self._pair_bounds = self._element_bounds[rg.pair_i] + self._element_bounds[rg.pair_j]
+        self.certifier = SegmentCertifier(
+            self.checker,
+            planar=model.base is BaseType.PLANAR,
+            min_pad=min_pad,
+            max_depth=max_depth,
+        )
 
     def validate(self, key_states: FloatArray) -> ValidationResult:
         """Check limits and collisions along the whole trajectory; stops at the first collision."""
@@ -145,113 +155,76 @@ class TrajectoryValidator:
     def _validate_samples(self, samples: FloatArray) -> ValidationResult:
         bad = self._limit_violation(samples)
         if bad is not None:
-            return ValidationResult(
+            state = samples[bad]
+            return _result(
                 ValidationStatus.OUT_OF_LIMITS,
-                len(samples),
-                0,
-                state=samples[bad],
-                message=self._limit_message(samples[bad]),
+                samples,
+                state=state,
+                message=self._limit_message(state),
             )
-        planar = self.model.base is BaseType.PLANAR
-        abs_delta = np.abs(segment_deltas(samples, planar=planar))
-        seg_elem = abs_delta @ self._element_bounds.T if self.certified else None  # (N-1, E)
-        seg_pair = abs_delta @ self._pair_bounds.T if self.certified else None  # (N-1, P)
-        checks = 0
-        ambiguous_segments: list[int] = []
-        for lo in range(0, len(samples), _CHUNK):
-            hi = min(lo + _CHUNK, len(samples))
-            epad = ppad = None
-            if seg_elem is not None and seg_pair is not None:
-                epad = _sample_pads(seg_elem, lo, hi) / 2.0
-                ppad = _sample_pads(seg_pair, lo, hi) / 2.0
-            verdict = self.checker.check(samples[lo:hi], element_pad=epad, pair_pad=ppad)
-            checks += verdict.narrow_checks
-            if verdict.first_collision >= 0:
-                index = lo + verdict.first_collision
-                return self._collision(samples, index, checks, verdict.contacts)
-            for local in np.flatnonzero(verdict.status == AMBIGUOUS):
-                index = lo + int(local)
-                ambiguous_segments.extend(
-                    s for s in (index - 1, index) if 0 <= s < len(samples) - 1
-                )
-        if not ambiguous_segments:
-            return ValidationResult(ValidationStatus.VALID, len(samples), checks)
-        return self._refine(samples, sorted(set(ambiguous_segments)), checks)
+        before = self.checker.narrow_checks
+        if not self.certified or len(samples) < 2:
+            for lo in range(0, len(samples), _CHUNK):
+                verdict = self.checker.check(samples[lo : lo + _CHUNK])
+                if verdict.first_collision >= 0:
+                    state = samples[lo + verdict.first_collision]
+                    checks = self.checker.narrow_checks - before
+                    return _result(
+                        ValidationStatus.COLLISION,
+                        samples,
+                        checks,
+                        state=state,
+                        contacts=verdict.contacts,
+                    )
+            return _result(ValidationStatus.VALID, samples, self.checker.narrow_checks - before)
+        probes = 0
+        for lo in range(0, len(samples) - 1, _CHUNK):
+            chunk = samples[lo : lo + _CHUNK + 1]  # consecutive chunks share their end sample
+            found = self.certifier.certify(chunk)
+            probes += found.subdivisions
+            if found.status is not SegmentStatus.FREE:
+                checks = self.checker.narrow_checks - before
+                return self._finding(samples, chunk, lo, found, checks, probes)
+        return _result(ValidationStatus.VALID, samples, self.checker.narrow_checks - before, probes)
 
-    def _refine(self, samples: FloatArray, segments: list[int], checks: int) -> ValidationResult:
-        """Split ambiguous segments in half until certified, colliding, or too close to call."""
-        planar = self.model.base is BaseType.PLANAR
-        pending = np.stack([samples[segments], samples[np.asarray(segments) + 1]], axis=1)
-        subdivisions = 0
-        for _depth in range(self.max_depth):
-            starts, ends = pending[:, 0], pending[:, 1]
-            delta = _steps(starts, ends, planar=planar)
-            mids = starts + delta / 2.0
-            half = np.abs(delta) / 2.0
-            epad = half @ self._element_bounds.T / 2.0  # pad of each half-segment
-            ppad = half @ self._pair_bounds.T / 2.0
-            seg_pad = np.maximum(epad.max(axis=1, initial=0.0), ppad.max(axis=1, initial=0.0))
-            if np.any(seg_pad < self.min_pad):
-                break
-            points = np.concatenate([starts, mids, ends])
-            verdict = self.checker.check(
-                points, element_pad=np.tile(epad, (3, 1)), pair_pad=np.tile(ppad, (3, 1))
-            )
-            checks += verdict.narrow_checks
-            subdivisions += len(pending)
-            if verdict.first_collision >= 0:
-                return self._collision(
-                    points,
-                    verdict.first_collision,
-                    checks,
-                    verdict.contacts,
-                    samples=len(samples),
-                    subdivisions=subdivisions,
-                )
-            k = len(pending)
-            amb = verdict.status == AMBIGUOUS
-            a_start, a_mid, a_end = amb[:k], amb[k : 2 * k], amb[2 * k :]
-            left = a_start | a_mid
-            right = a_mid | a_end
-            pending = np.concatenate(
-                [
-                    np.stack([starts[left], mids[left]], axis=1),
-                    np.stack([mids[right], ends[right]], axis=1),
-                ]
-            )
-            if len(pending) == 0:
-                return ValidationResult(ValidationStatus.VALID, len(samples), checks, subdivisions)
-        state = pending[0, 0]
-        return ValidationResult(
-            ValidationStatus.TOO_CLOSE,
-            len(samples),
-            checks,
-            subdivisions,
-            state=state,
-            contacts=self.checker.state_contacts(state),
-            message="the motion passes closer to an obstacle than can be certified",
-        )
-
-    def _collision(
+    def _finding(
         self,
-        states: FloatArray,
-        index: int,
+        samples: FloatArray,
+        chunk: FloatArray,
+        lo: int,
+        found: Finding,
         checks: int,
-        contacts: list[Contact],
-        *,
-        samples: int | None = None,
-        subdivisions: int = 0,
+        probes: int,
     ) -> ValidationResult:
-        state = states[index]
-        text = "; ".join(c.describe() for c in contacts) or "collision"
-        return ValidationResult(
-            ValidationStatus.COLLISION,
-            samples if samples is not None else len(states),
+        """The result for what certification stopped at, `lo` samples into the trajectory."""
+        state = chunk[found.segment]
+        if found.at > 0.0:
+            planar = self.model.base is BaseType.PLANAR
+            delta = _steps(state[None], chunk[found.segment + 1][None], planar=planar)[0]
+            state = state + found.at * delta
+        if found.status is SegmentStatus.COLLISION:
+            return _result(
+                ValidationStatus.COLLISION,
+                samples,
+                checks,
+                probes,
+                state=state,
+                contacts=found.contacts,
+            )
+        near = "; ".join(
+            f"link '{c.link}' near {'object' if c.kind is ContactKind.SCENE else 'link'} "
+            f"'{c.other}'"
+            for c in found.contacts
+        )
+        return _result(
+            ValidationStatus.TOO_CLOSE,
+            samples,
             checks,
-            subdivisions,
+            probes,
             state=state,
-            contacts=contacts,
-            message=text,
+            contacts=found.contacts,
+            message=f"the motion passes closer than can be certified ({near}) "
+            f"between samples {lo + found.segment} and {lo + found.segment + 1}",
         )
 
     def _limit_violation(self, samples: FloatArray) -> int | None:
@@ -273,12 +246,29 @@ class TrajectoryValidator:
         return "; ".join(parts)
 
 
-def _sample_pads(seg: FloatArray, lo: int, hi: int) -> FloatArray:
-    """Per-sample pad: the larger bound of the two segments that meet at the sample."""
-    zero = np.zeros((1, seg.shape[1]))
-    padded = np.vstack([zero, seg, zero])  # row k + 1 holds segment k
-    idx = np.arange(lo, hi)
-    return np.maximum(padded[idx], padded[idx + 1])
+def _result(
+    status: ValidationStatus,
+    samples: FloatArray,
+    checks: int = 0,
+    subdivisions: int = 0,
+    *,
+    state: FloatArray | None = None,
+    contacts: list[Contact] | None = None,
+    message: str | None = None,
+) -> ValidationResult:
+    """Every ValidationResult is built here; a collision's message names its contacts."""
+    contacts = contacts or []
+    if message is None and status is ValidationStatus.COLLISION:
+        message = "; ".join(c.describe() for c in contacts) or "collision"
+    return ValidationResult(
+        status,
+        len(samples),
+        checks,
+        subdivisions,
+        state=state,
+        contacts=contacts,
+        message=message or "",
+    )
 
 
 class ValidationSettings(Protocol):

@@ -1,0 +1,213 @@
+"""Collision bodies: a model's elements and a scene's objects as FCL objects and bound tables.
+
+Both are built once (per model, per scene version) and shared read-only between threads; only
+the robot's FCL objects, whose transforms a check mutates, are per thread. `Posed` holds a batch
+of states posed by forward kinematics, everything the distance bounds need.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import fcl
+import numpy as np
+from numpy.typing import NDArray
+
+from trajcache.geometry.kinematics import forward_kinematics
+from trajcache.geometry.motion import MotionBounds, motion_bounds
+from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.scene import Scene
+from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.support import SupportTable, sphere_cover
+
+IntArray = NDArray[np.int64]
+_CACHE_SIZE = 64
+
+
+class RobotGeometry:
+    """FCL geometry, bounding balls, sphere covers and self-collision pairs of a model."""
+
+    def __init__(self, model: RobotModel) -> None:
+        self.model = model
+        self.motion: MotionBounds = motion_bounds(model)
+        elements = model.elements
+        self.geometries = [e.shape.to_fcl() for e in elements]
+        self.element_link = np.array([e.link for e in elements], dtype=np.int64)
+        self.element_origin = np.array([e.origin for e in elements], dtype=float).reshape(-1, 4, 4)
+        self.support = SupportTable.build([e.shape for e in elements])
+        # Level 1: a ball around each element's origin.
+        self.radius = np.array([e.shape.bounding_radius() for e in elements], dtype=float)
+        local_origin = self.element_origin[:, :3, 3]
+        self.centre_coef = self.motion.coefficients(
+            self.element_link, np.linalg.norm(local_origin, axis=1)
+        )
+        # Level 2: sphere covers, in link frames, padded to a common count by repeating a ball.
+        covers = [sphere_cover(e.shape) for e in elements]
+        width = max((len(c[1]) for c in covers), default=1)
+        self.sphere_count = np.array([len(c[1]) for c in covers], dtype=np.int64)
+        self.sphere_local = np.zeros((len(elements), width, 3))
+        self.sphere_radius = np.zeros((len(elements), width))
+        for k, (centres, radii) in enumerate(covers):
+            fill = np.r_[np.arange(len(radii)), np.zeros(width - len(radii), dtype=np.int64)]
+            placed = centres @ self.element_origin[k, :3, :3].T + local_origin[k]
+            self.sphere_local[k], self.sphere_radius[k] = placed[fill], radii[fill]
+        self.sphere_coef = self.motion.coefficients(
+            self.element_link[:, None], np.linalg.norm(self.sphere_local, axis=-1)
+        )
+        allowed = model.allowed_pairs
+        pairs = [
+            (i, j)
+            for i in range(len(elements))
+            for j in range(i + 1, len(elements))
+            if elements[i].link != elements[j].link
+            and (min(elements[i].link, elements[j].link), max(elements[i].link, elements[j].link))
+            not in allowed
+        ]
+        self.pair_i = np.array([p[0] for p in pairs], dtype=np.int64)
+        self.pair_j = np.array([p[1] for p in pairs], dtype=np.int64)
+        # Dofs that move both elements of a pair alike do not change their distance.
+        anc = self.motion.ancestors
+        li, lj = self.element_link[self.pair_i], self.element_link[self.pair_j]
+        self.pair_mask = ~(anc[li] & anc[lj])  # (P, D)
+        self._local = threading.local()
+
+    def objects(self) -> list[fcl.CollisionObject]:
+        """This thread's FCL objects (transforms are mutated during a check)."""
+        objs: list[fcl.CollisionObject] | None = getattr(self._local, "objects", None)
+        if objs is None:
+            objs = [fcl.CollisionObject(g, fcl.Transform()) for g in self.geometries]
+            self._local.objects = objs
+        return objs
+
+
+class SceneGeometry:
+    """FCL objects, oriented bounding boxes and support tables of one scene version."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.ids = [o.id for o in scene.objects]
+        self.objects = [
+            fcl.CollisionObject(o.shape.to_fcl(), fcl.Transform(o.pose[:3, :3], o.pose[:3, 3]))
+            for o in scene.objects
+        ]
+        count = len(scene.objects)
+        self.rotation = np.array([o.pose[:3, :3] for o in scene.objects]).reshape(count, 3, 3)
+        self.position = np.array([o.pose[:3, 3] for o in scene.objects]).reshape(count, 3)
+        self.half = np.array([o.shape.half_extents() for o in scene.objects]).reshape(count, 3)
+        self.support = SupportTable.build([o.shape for o in scene.objects])
+        # local = Rᵀ(c − t) for every object in one matmul: c @ [R_0 | R_1 | …] − tᵀR.
+        self.rotation_cat = np.ascontiguousarray(self.rotation.transpose(1, 0, 2).reshape(3, -1))
+        self.offset = np.einsum("mj,mji->mi", self.position, self.rotation)
+        reach = np.einsum("mij,mj->mi", np.abs(self.rotation), self.half)
+        self.aabb_lo, self.aabb_hi = self.position - reach, self.position + reach
+
+
+@dataclass
+class Posed:
+    """A batch of states posed by forward kinematics, with what every bound level needs."""
+
+    robot: RobotGeometry
+    states: FloatArray  # (N, D)
+    links: FloatArray  # (N, L, 4, 4)
+    centres: FloatArray  # (N, E, 3) element origins: the centres of the level-1 balls
+
+    @classmethod
+    def build(cls, robot: RobotGeometry, states: FloatArray) -> Posed:
+        """Forward kinematics of checked `states` (N, D), once for every use."""
+        links = forward_kinematics(robot.model, states)
+        frames = links[:, robot.element_link]  # (N, E, 4, 4)
+        local = robot.element_origin[:, :3, 3]
+        centres = (
+            frames[..., :3, 0] * local[:, 0, None]
+            + frames[..., :3, 1] * local[:, 1, None]
+            + frames[..., :3, 2] * local[:, 2, None]
+            + frames[..., :3, 3]
+        )
+        return cls(robot, states, links, centres)
+
+    @functools.cached_property
+    def axes(self) -> tuple[FloatArray, FloatArray]:
+        """World origins and directions (N, R, 3) of the revolute axes (for motion bounds)."""
+        return self.robot.motion.axes(self.links)
+
+    @property
+    def axis_origins(self) -> FloatArray:
+        """(N, R, 3) points on the revolute axes."""
+        return self.axes[0]
+
+    @property
+    def axis_dirs(self) -> FloatArray:
+        """(N, R, 3) unit directions of the revolute axes."""
+        return self.axes[1]
+
+    def pose(self, sample: IntArray, element: IntArray) -> FloatArray:
+        """World poses (K, 4, 4) of `element` at `sample` (both (K,))."""
+        rg = self.robot
+        return np.asarray(self.links[sample, rg.element_link[element]] @ rg.element_origin[element])
+
+    @functools.cached_property
+    def elements(self) -> FloatArray:
+        """World poses (N, E, 4, 4) of every element at every state."""
+        rg = self.robot
+        return np.asarray(self.links[:, rg.element_link] @ rg.element_origin[None])
+
+    def spheres(self, sample: IntArray, element: IntArray, robot: RobotGeometry) -> FloatArray:
+        """World centres (K, S, 3) of the sphere covers of `element` at `sample` (both (K,)).
+
+        S is the largest cover among these elements; smaller covers repeat their first ball.
+        """
+        width = int(robot.sphere_count[element].max(initial=1))
+        frame = self.links[sample, robot.element_link[element]]  # (K, 4, 4)
+        local = robot.sphere_local[element, :width]  # (K, S, 3)
+        return np.asarray(local @ frame[:, :3, :3].transpose(0, 2, 1) + frame[:, None, :3, 3])
+
+
+class _LRU:
+    """A small thread-safe LRU map used for per-model and per-scene geometry."""
+
+    def __init__(self, size: int) -> None:
+        self._size = size
+        self._items: OrderedDict[str, object] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: str) -> object | None:
+        with self._lock:
+            item = self._items.get(key)
+            if item is not None:
+                self._items.move_to_end(key)
+            return item
+
+    def put(self, key: str, value: object) -> None:
+        with self._lock:
+            self._items[key] = value
+            self._items.move_to_end(key)
+            while len(self._items) > self._size:
+                self._items.popitem(last=False)
+
+
+_robots = _LRU(_CACHE_SIZE)
+_scenes = _LRU(_CACHE_SIZE)
+
+
+def robot_geometry(model: RobotModel) -> RobotGeometry:
+    """The shared RobotGeometry of a model (cached by model id)."""
+    cached = _robots.get(model.model_id)
+    if isinstance(cached, RobotGeometry) and cached.model is model:
+        return cached
+    built = RobotGeometry(model)
+    _robots.put(model.model_id, built)
+    return built
+
+
+def scene_geometry(scene: Scene) -> SceneGeometry:
+    """The shared SceneGeometry of a scene version (cached by content hash)."""
+    key = scene.hash or f"id:{id(scene)}"
+    cached = _scenes.get(key)
+    if isinstance(cached, SceneGeometry):
+        return cached
+    built = SceneGeometry(scene)
+    _scenes.put(key, built)
+    return built

@@ -1,0 +1,286 @@
+"""Certifying that the straight motions between consecutive samples are free of collision.
+
+For one segment and one pair (an element and a scene object, or two robot elements), let d_a and
+d_b be lower bounds on the pair's distance at the two samples and M a bound on how far any point
+of the pair moves relative to the other over the segment (`motion.py`). At a fraction t of the
+segment the distance is at least max(d_a − t·M, d_b − (1 − t)·M) ≥ (d_a + d_b − M) / 2, so
+
+    d_a + d_b > M  certifies the pair on the whole segment.
+
+Pairs are settled level by level, dense and cheap first (`clearance.py`): element balls with the
+motion of their centre; slabs with the motion of the whole element (its centre's, plus its ball
+radius times the turn of the dofs that move it); every ball of the sphere covers with its own
+motion; the slab along FCL's nearest-point direction. The dense first level uses the
+configuration-independent motion bound (one matrix product); the configuration-dependent one
+is computed for the pairs it leaves. Before going further, FCL's collision test runs where a
+pair's bound at a sample is not positive: a colliding sample ends the search at once, as in the
+plain check. A pair no level settles is conservative advancement's job (`advance.py`), which
+ends in a certificate, a colliding state, or TOO_CLOSE.
+
+Every bound is a true bound (FCL supplies directions and the collision test, never a distance),
+so a certified motion has no collision anywhere along it. A sample in collision always reaches
+FCL's collision test: there d = 0, the other end's d ≤ M, and no level certifies its segments.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trajcache.geometry.advance import Advancer
+from trajcache.geometry.bodies import Posed
+from trajcache.geometry.collision import CollisionChecker
+from trajcache.geometry.segments import Finding, OpenPairs, SegmentStatus
+from trajcache.geometry.shapes import FloatArray
+
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+
+class SegmentCertifier:
+    """Certifies the segments between consecutive samples of one model in one scene."""
+
+    def __init__(
+        self, checker: CollisionChecker, *, planar: bool, min_pad: float, max_depth: int
+    ) -> None:
+        self.checker = checker
+        self.robot = checker.robot
+        self.clearance = checker.clearance
+        self.narrow = checker.narrow
+        self.planar = planar
+        self.advancer = Advancer(checker, min_pad=min_pad, max_depth=max_depth)
+        rg = self.robot
+        turning = rg.motion.rotation & rg.motion.ancestors
+        self._turn = turning[rg.element_link].T.astype(float)  # (D, E)
+        # Configuration-independent motion per unit step: element centres (D, E), pairs (D, P).
+        self._centre_coef = rg.centre_coef.T.copy()
+        mask = rg.pair_mask
+        self._pair_coef = ((rg.centre_coef[rg.pair_i] + rg.centre_coef[rg.pair_j]) * mask).T
+        turn_i = (turning[rg.element_link[rg.pair_i]] & mask) * rg.radius[rg.pair_i, None]
+        turn_j = (turning[rg.element_link[rg.pair_j]] & mask) * rg.radius[rg.pair_j, None]
+        self._pair_whole = self._pair_coef + (turn_i + turn_j).T  # whole elements, (D, P)
+
+    def certify(self, states: FloatArray) -> Finding:
+        """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it."""
+        posed = Posed.build(self.robot, states)
+        delta = np.diff(states, axis=0)
+        if self.planar:
+            delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
+        step = self.robot.motion.steps(delta)
+        groups = [self._covers(posed, step, g) for g in self._dense(posed, step)]
+        found = self._sample_collision(posed, groups)
+        if found.status is SegmentStatus.COLLISION:
+            return found
+        probes = 0
+        for group in (self._nearest(posed, g) for g in groups):
+            deeper = self.advancer.advance(states, delta, group)
+            probes += deeper.subdivisions
+            if deeper.position < found.position:
+                found = deeper
+        found.subdivisions = probes
+        return found
+
+    def _dense(self, posed: Posed, step: FloatArray) -> tuple[OpenPairs, OpenPairs]:
+        """Level 1 on every segment at once, with configuration-independent motion bounds.
+
+        Returns what the balls leave, with the (configuration-independent) motion of the whole
+        elements.
+        """
+        rg, cl = self.robot, self.clearance
+        centre = step @ self._centre_coef  # (N − 1, E)
+        whole = centre + rg.radius * (step @ self._turn)
+        grow = np.maximum(np.vstack([whole, whole[-1:]]), np.vstack([whole[:1], whole]))
+        near = cl.near_objects(posed, grow)
+        balls = np.maximum(cl.scene_balls(posed, near), 0.0)
+        k, e, m = np.nonzero(balls[:-1] + balls[1:] <= centre[:, :, None])
+        scene = OpenPairs(
+            True, np.column_stack([k, e, near[m]]), balls[k, e, m], balls[k + 1, e, m], whole[k, e]
+        )
+        gaps = np.maximum(cl.self_balls(posed), 0.0)
+        k, p = np.nonzero(gaps[:-1] + gaps[1:] <= step @ self._pair_coef)
+        pair_whole = step[k] @ self._pair_whole  # (K, P)
+        pairs = OpenPairs(
+            False,
+            np.column_stack([k, p]),
+            gaps[k, p],
+            gaps[k + 1, p],
+            pair_whole[np.arange(len(p)), p],
+        )
+        return scene, pairs
+
+    def _element_motion(self, posed: Posed, step: FloatArray, left: OpenPairs) -> FloatArray:
+        """Configuration-dependent motion (K,) of the whole elements of the pairs `left`."""
+        rg = self.robot
+        seg, index = left.rows[:, 0], left.rows[:, 1]
+        masks: list[FloatArray | None] = [None]
+        elements = [index]
+        if not left.scene:
+            pair_mask = rg.pair_mask[index].astype(float)
+            elements = [rg.pair_i[index], rg.pair_j[index]]
+            masks = [pair_mask, pair_mask]
+        whole = np.zeros(len(seg))
+        for element, mask in zip(elements, masks, strict=True):
+            _, w = self._point_motion(
+                posed,
+                step,
+                seg,
+                posed.centres[seg, element][:, None],
+                posed.centres[seg + 1, element][:, None],
+                element,
+                rg.centre_coef[element][:, None],
+                rg.radius[element][:, None],
+                mask,
+            )
+            whole += w[:, 0]
+        return whole
+
+    def _covers(self, posed: Posed, step: FloatArray, left: OpenPairs) -> OpenPairs:
+        """Levels 2 and 3: the element's slabs, then every cover ball with its own motion.
+
+        Both ends of every segment go through one call per level.
+        """
+        if len(left.rows) == 0:
+            return left
+        cl = self.clearance
+        k = len(left.rows)
+        slabs = cl.scene_slabs if left.scene else cl.self_slabs
+        bound = slabs(posed, np.concatenate([left.rows, left.ends]))
+        left.lower_a = np.maximum(left.lower_a, bound[:k])
+        left.lower_b = np.maximum(left.lower_b, bound[k:])
+        left = left.open()
+        if len(left.rows):
+            left.motion = np.minimum(left.motion, self._element_motion(posed, step, left))
+            left = left.open()
+        k = len(left.rows)
+        if k == 0:
+            return left
+        both = np.concatenate([left.rows, left.ends])
+        seg = left.rows[:, 0]
+        if left.scene:
+            balls = cl.scene_spheres(posed, both)
+            centre, whole = self._ball_motion(
+                posed, step, seg, balls.centres[:k], balls.centres[k:], left.rows[:, 1]
+            )
+            low = np.maximum(balls.lower, 0.0)
+            settled = np.all(low[:k] + low[k:] > centre, axis=1)
+            motion = whole.max(axis=1)
+            lower = low.min(axis=1)
+        else:
+            pairs = cl.self_spheres(posed, both)
+            pair = left.rows[:, 1]
+            mask = self.robot.pair_mask[pair].astype(float)
+            ci, wi = self._ball_motion(
+                posed, step, seg, pairs.first[:k], pairs.first[k:], self.robot.pair_i[pair], mask
+            )
+            cj, wj = self._ball_motion(
+                posed, step, seg, pairs.second[:k], pairs.second[k:], self.robot.pair_j[pair], mask
+            )
+            low = np.maximum(pairs.lower, 0.0)
+            settled = np.all(low[:k] + low[k:] > ci[:, :, None] + cj[:, None, :], axis=(1, 2))
+            motion = wi.max(axis=1) + wj.max(axis=1)
+            lower = low.min(axis=(1, 2))
+        left.lower_a = np.maximum(left.lower_a, lower[:k])
+        left.lower_b = np.maximum(left.lower_b, lower[k:])
+        left.motion = np.minimum(left.motion, motion)
+        open_ = np.concatenate([~settled, ~settled])
+        rows = both[open_]
+        if left.scene:
+            cover = cl.scene_cover_slabs(posed, rows, balls.subset(open_))
+        else:
+            cover = cl.self_cover_slabs(posed, rows, pairs.subset(open_))
+        left = left.take(~settled)
+        k = len(left.rows)
+        left.lower_a = np.maximum(left.lower_a, cover[:k])
+        left.lower_b = np.maximum(left.lower_b, cover[k:])
+        return left.open()
+
+    def _ball_motion(
+        self,
+        posed: Posed,
+        step: FloatArray,
+        seg: IntArray,
+        centres_a: FloatArray,
+        centres_b: FloatArray,
+        element: IntArray,
+        mask: FloatArray | None = None,
+    ) -> tuple[FloatArray, FloatArray]:
+        """Per cover ball (K, S): the motion of its centre, and of any of its points."""
+        rg = self.robot
+        width = centres_a.shape[1]
+        return self._point_motion(
+            posed,
+            step,
+            seg,
+            centres_a,
+            centres_b,
+            element,
+            rg.sphere_coef[element, :width],
+            rg.sphere_radius[element, :width],
+            mask,
+        )
+
+    def _point_motion(
+        self,
+        posed: Posed,
+        step: FloatArray,
+        seg: IntArray,
+        at_a: FloatArray,
+        at_b: FloatArray,
+        element: IntArray,
+        coef: FloatArray,
+        radius: FloatArray,
+        mask: FloatArray | None,
+    ) -> tuple[FloatArray, FloatArray]:
+        """Motion (K, S) over segments `seg` of points at_a → at_b (K, S, 3) of `element`, and
+        of any point within `radius` (K, S) of them; with `mask` (K, D) only those dofs count."""
+        motion = self.robot.motion
+        if mask is not None and not np.any(
+            mask * motion.ancestors[self.robot.element_link[element]]
+        ):
+            zero = np.zeros(at_a.shape[:2])  # only dofs moving both alike: the pair's frame
+            return zero, zero
+        axes_a = (posed.axis_origins[seg, None], posed.axis_dirs[seg, None])
+        axes_b = (posed.axis_origins[seg + 1, None], posed.axis_dirs[seg + 1, None])
+        r_a = motion.axis_distances(at_a, axes_a)
+        r_b = motion.axis_distances(at_b, axes_b)
+        levers = motion.levers(r_a, r_b, coef, step[seg, None])
+        turn = motion.turn(self.robot.element_link[element], step[seg])
+        if mask is not None:
+            levers, turn = levers * mask[:, None], turn * mask
+        ones = np.ones(levers.shape[-1])
+        centre = levers @ ones
+        return centre, centre + radius * (turn @ ones)[:, None]
+
+    def _sample_collision(self, posed: Posed, groups: list[OpenPairs]) -> Finding:
+        """FCL's collision test at the ends where no bound is positive; the earliest hit wins.
+
+        Like the plain check, a colliding sample ends the search at once: what lies between
+        earlier samples is not looked at.
+        """
+        touching = []
+        for group in groups:
+            ends = np.concatenate(
+                [group.rows[group.lower_a <= 0.0], group.ends[group.lower_b <= 0.0]]
+            )
+            touching.append(np.unique(ends, axis=0) if len(ends) else ends)
+        hit_scene, hit_self, *_ = self.narrow.first_collision(posed, *touching, stop_at_first=True)
+        hits = [(int(r[0]), self.checker.contact(r, scene=True)) for r in touching[0][hit_scene]]
+        hits += [(int(r[0]), self.checker.contact(r, scene=False)) for r in touching[1][hit_self]]
+        if not hits:
+            return Finding(SegmentStatus.FREE)
+        sample = min(s for s, _ in hits)
+        return Finding(SegmentStatus.COLLISION, sample, 0.0, [c for s, c in hits if s == sample])
+
+    def _nearest(self, posed: Posed, group: OpenPairs) -> OpenPairs:
+        """Level 4 at the ends of the pairs left (each end once)."""
+        count = len(group.rows)
+        if count == 0:
+            return group
+        both = np.concatenate([group.rows, group.ends])
+        unique, where = np.unique(both, axis=0, return_inverse=True)
+        where = where.reshape(-1)
+        nearest = self.narrow.scene_nearest if group.scene else self.narrow.self_nearest
+        bound = nearest(posed, unique)
+        group.lower_a = np.maximum(group.lower_a, bound[where[:count]])
+        group.lower_b = np.maximum(group.lower_b, bound[where[count:]])
+        return group.open()

@@ -1,0 +1,68 @@
+"""What certifying segments works on and finds: the pairs left open, and where it stopped."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trajcache.geometry.collision import Contact
+from trajcache.geometry.shapes import FloatArray
+
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+
+class SegmentStatus(str, Enum):
+    """What certifying the segments of a piece of trajectory found."""
+
+    FREE = "free"
+    COLLISION = "collision"
+    TOO_CLOSE = "too_close"
+
+
+@dataclass
+class Finding:
+    """Where certification stopped: segment `segment` at fraction `at`, and the pairs involved."""
+
+    status: SegmentStatus
+    segment: int = -1
+    at: float = 0.0
+    contacts: list[Contact] = field(default_factory=list)
+    subdivisions: int = 0  # probe states conservative advancement looked at
+
+    @property
+    def position(self) -> float:
+        """Position along the samples (segment + fraction), for picking the earliest finding."""
+        return self.segment + self.at if self.segment >= 0 else np.inf
+
+
+@dataclass
+class OpenPairs:
+    """Pairs left open on segments: rows at the segment start, distance lower bounds at both
+    ends and a bound on the pair's relative motion over the segment."""
+
+    scene: bool
+    rows: IntArray  # (K, 3) (segment, element, object) or (K, 2) (segment, pair)
+    lower_a: FloatArray  # (K,)
+    lower_b: FloatArray
+    motion: FloatArray  # (K,) bound on the relative motion of any point over the segment
+
+    def take(self, keep: BoolArray) -> OpenPairs:
+        """The pairs where `keep` is True."""
+        return OpenPairs(
+            self.scene, self.rows[keep], self.lower_a[keep], self.lower_b[keep], self.motion[keep]
+        )
+
+    def open(self) -> OpenPairs:
+        """The pairs their bounds do not certify."""
+        return self.take(self.lower_a + self.lower_b <= self.motion)
+
+    @property
+    def ends(self) -> IntArray:
+        """The rows moved to the segment's end sample."""
+        shift = np.zeros(self.rows.shape[1], dtype=np.int64)
+        shift[0] = 1
+        return self.rows + shift

@@ -1,0 +1,159 @@
+"""Support functions and sphere covers of collision shapes, the raw material of distance bounds.
+
+Every primitive is a Minkowski sum, about a local centre c, of an axis-aligned box (half extents
+b), a disk of radius r_d in the local xy plane and a ball of radius r_b: a box is (b, 0, 0), a
+cylinder (0, 0, L/2; r, 0), a capsule (0, 0, L/2; 0, r), a sphere (0; 0, r). Support functions
+add over Minkowski sums, so for a unit local direction n
+
+    h(n) = max over the shape of n·x = n·c + |n|·b + r_d·|n_xy| + r_b
+
+in one vectorized expression for any mix of shapes. A mesh uses its convex hull's vertices
+(h(n) = max over hull vertices of n·v), which bounds the mesh from outside. For any unit world
+direction n and shapes A, B posed at (R_A, t_A), (R_B, t_B),
+
+    dist(A, B) ≥ n·t_B − h_B(−R_Bᵀ n) − n·t_A − h_A(R_Aᵀ n)
+
+(a separating slab of that width), whatever n is; a good n makes it tight.
+
+A sphere cover is a set of balls whose union contains the shape, used for cheap vectorized
+bounds: dist(ball, X) ≥ dist(centre, X) − radius.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import ConvexHull, QhullError
+
+from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
+
+IntArray = NDArray[np.int64]
+
+# A cylinder is cut into slabs no longer than one radius (each slab's ball is then at most
+# √(1 + 0.5²) ≈ 1.12 radii), and into no more than _MAX_SLABS slabs.
+_SLAB_RADII = 1.0
+_MAX_SLABS = 12
+_BOX_CELLS = 3  # a box is cut into at most this many cells along its longest side
+_EPS = 1e-9  # grows covers and shrinks nothing: round-off never makes a bound unsound
+
+
+@dataclass(frozen=True)
+class SupportTable:
+    """Support parameters of an indexed list of shapes (arrays over the shapes)."""
+
+    centre: FloatArray  # (K, 3)
+    half: FloatArray  # (K, 3) box part
+    disk: FloatArray  # (K,)
+    ball: FloatArray  # (K,)
+    hulls: tuple[FloatArray | None, ...]  # hull vertices of meshes, None for primitives
+    packed: FloatArray  # (K, 5): half, disk, ball, gathered in one go
+    has_centres: bool
+    has_hulls: bool
+
+    @classmethod
+    def build(cls, shapes: Sequence[Shape]) -> SupportTable:
+        """The table of `shapes`, in order."""
+        params = [_params(s) for s in shapes]
+        count = len(params)
+        centre = np.array([p[0] for p in params], dtype=float).reshape(count, 3)
+        half = np.array([p[1] for p in params], dtype=float).reshape(count, 3)
+        disk = np.array([p[2] for p in params], dtype=float).reshape(count)
+        ball = np.array([p[3] for p in params], dtype=float).reshape(count)
+        return cls(
+            centre=centre,
+            half=half,
+            disk=disk,
+            ball=ball,
+            hulls=tuple(p[4] for p in params),
+            packed=np.column_stack([half, disk, ball]),
+            has_centres=bool(np.any(centre)),
+            has_hulls=any(p[4] is not None for p in params),
+        )
+
+    def support(self, index: IntArray, local: FloatArray) -> FloatArray:
+        """h(n) for unit local directions `local` (..., 3) of the shapes `index` (...)."""
+        p = self.packed[index]
+        x, y, z = local[..., 0], local[..., 1], local[..., 2]
+        value = (
+            np.abs(x) * p[..., 0]
+            + np.abs(y) * p[..., 1]
+            + np.abs(z) * p[..., 2]
+            + p[..., 3] * np.sqrt(x * x + y * y)
+            + p[..., 4]
+        )
+        if self.has_centres:
+            c = self.centre[index]
+            value += x * c[..., 0] + y * c[..., 1] + z * c[..., 2]
+        if self.has_hulls:
+            index = np.broadcast_to(index, local.shape[:-1])
+            for k, hull in enumerate(self.hulls):
+                rows = index == k
+                if hull is not None and np.any(rows):
+                    value[rows] = np.max(local[rows] @ hull.T, axis=-1)
+        return np.asarray(value)
+
+
+def _params(shape: Shape) -> tuple[FloatArray, FloatArray, float, float, FloatArray | None]:
+    zero = np.zeros(3)
+    if shape.kind is ShapeKind.BOX:
+        return zero, np.asarray(shape.size, dtype=float) / 2.0, 0.0, 0.0, None
+    if shape.kind is ShapeKind.SPHERE:
+        return zero, zero, 0.0, shape.size[0], None
+    if shape.kind in (ShapeKind.CYLINDER, ShapeKind.CAPSULE):
+        radius, length = shape.size
+        half = np.array([0.0, 0.0, length / 2.0])
+        if shape.kind is ShapeKind.CYLINDER:
+            return zero, half, radius, 0.0, None
+        return zero, half, 0.0, radius, None
+    assert shape.vertices is not None
+    lo, hi = _mesh_box(shape)
+    return (lo + hi) / 2.0, (hi - lo) / 2.0, 0.0, 0.0, _hull(shape.vertices)
+
+
+def _mesh_box(shape: Shape) -> tuple[FloatArray, FloatArray]:
+    assert shape.vertices is not None
+    verts = np.asarray(shape.vertices, dtype=float)
+    return verts.min(axis=0), verts.max(axis=0)
+
+
+def _hull(vertices: FloatArray) -> FloatArray:
+    """Vertices of the convex hull (all vertices when the hull is degenerate, e.g. flat)."""
+    verts = np.asarray(vertices, dtype=float)
+    try:
+        return verts[ConvexHull(verts).vertices]
+    except QhullError:  # flat or tiny point sets: every vertex still gives the same support
+        return verts
+
+
+def sphere_cover(shape: Shape) -> tuple[FloatArray, FloatArray]:
+    """Centres (k, 3) and radii (k,) of balls whose union contains the shape (local frame)."""
+    if shape.kind is ShapeKind.SPHERE:
+        return np.zeros((1, 3)), np.array([shape.size[0] + _EPS])
+    if shape.kind in (ShapeKind.CYLINDER, ShapeKind.CAPSULE):
+        radius, length = shape.size
+        if shape.kind is ShapeKind.CAPSULE:
+            length += 2.0 * radius  # a capsule lies inside the cylinder through its cap tips
+        count = min(max(1, math.ceil(length / (_SLAB_RADII * radius))), _MAX_SLABS)
+        slab = length / count
+        z = -length / 2.0 + slab * (np.arange(count) + 0.5)
+        centres = np.column_stack([np.zeros(count), np.zeros(count), z])
+        return centres, np.full(count, math.hypot(radius, slab / 2.0) + _EPS)
+    if shape.kind is ShapeKind.BOX:
+        lo, hi = -np.asarray(shape.size) / 2.0, np.asarray(shape.size) / 2.0
+    else:
+        lo, hi = _mesh_box(shape)
+    return _box_cover(lo, hi)
+
+
+def _box_cover(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
+    size = hi - lo
+    cell = max(float(size.max()) / _BOX_CELLS, 1e-9)
+    counts = np.maximum(np.ceil(size / cell - 1e-9).astype(int), 1)
+    step = size / counts
+    axes = [lo[i] + step[i] * (np.arange(counts[i]) + 0.5) for i in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return grid, np.full(len(grid), float(np.linalg.norm(step)) / 2.0 + _EPS)

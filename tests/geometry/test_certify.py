@@ -1,0 +1,218 @@
+"""Certified validation beyond one arm and one plate: self-collisions, the base, chunks, a
+property test on the reference robot, and stopping at the first collision."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from trajcache.geometry import validation
+from trajcache.geometry.collision import COLLIDING, ContactKind
+from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
+from trajcache.geometry.reference.robot import BASE_SIZE, STOWED_ARM, reference_model
+from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.scene import Scene, SceneObject, make_scene
+from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.urdf import load_robot_model
+from trajcache.geometry.validation import (
+    Resolution,
+    TrajectoryValidator,
+    ValidationStatus,
+    interpolate,
+)
+
+STEP = Resolution().joint_rad
+
+
+def _dense_collides(validator: TrajectoryValidator, key: FloatArray, factor: int = 50) -> bool:
+    res = Resolution(0.04 / factor, 0.04 / factor, STEP / factor)
+    fine = interpolate(key, validator.model, res)
+    return bool(validator.checker.check(fine).first_collision >= 0)
+
+
+def _rod_and_plate(angle: float) -> RobotModel:
+    """A 1 m rod turning about z, and a thin plate on another link of the same robot (on a
+    carriage, so that the two are not adjacent and their pair is checked)."""
+    c, s = math.cos(angle), math.sin(angle)
+    return load_robot_model(
+        f"""<robot name="rod_and_plate">
+  <link name="root"/>
+  <link name="rod"><collision><origin xyz="0.5 0 0" rpy="0 1.5707963267948966 0"/>
+    <geometry><cylinder radius="0.01" length="1.0"/></geometry></collision></link>
+  <link name="carriage"/>
+  <link name="plate"><collision><geometry><box size="0.1 0.002 0.2"/></geometry></collision></link>
+  <joint name="turn" type="revolute"><parent link="root"/><child link="rod"/>
+    <origin xyz="0 0 0.5"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="shift" type="prismatic"><parent link="root"/><child link="carriage"/>
+    <axis xyz="0 0 1"/><limit lower="0" upper="0.01" effort="1" velocity="1"/></joint>
+  <joint name="mount" type="fixed"><parent link="carriage"/><child link="plate"/>
+    <origin xyz="{0.9 * c} {0.9 * s} 0.5" rpy="0 0 {angle}"/></joint>
+</robot>""",
+        acm_samples=0,
+    )
+
+
+def test_a_self_collision_between_samples_is_caught() -> None:
+    key = np.array([[0.0, 0.0], [1.0, 0.0]])
+    samples = interpolate(key, _rod_and_plate(0.0), Resolution())
+    model = _rod_and_plate(float(samples[10, 0] + samples[11, 0]) / 2.0)
+    empty = make_scene([])
+    plain = TrajectoryValidator(model, empty, certified=False).validate(key)
+    certified = TrajectoryValidator(model, empty).validate(key)
+    assert plain.status is ValidationStatus.VALID  # the samples straddle the plate
+    assert _dense_collides(TrajectoryValidator(model, empty), key)
+    assert certified.status is ValidationStatus.COLLISION
+    assert [(c.link, c.other, c.kind) for c in certified.contacts] == [
+        ("rod", "plate", ContactKind.SELF)
+    ]
+    assert certified.state is not None and samples[10, 0] < certified.state[0] < samples[11, 0]
+
+
+def _post(x: float, y: float) -> Scene:
+    pose = np.eye(4)
+    pose[:3, 3] = [x, y, 0.5]
+    return make_scene([SceneObject("post", Shape(ShapeKind.CYLINDER, (0.001, 1.0)), pose)])
+
+
+def test_a_turning_base_sweeps_a_thin_post_between_samples() -> None:
+    model = reference_model()
+    start = np.array([0.0, 0.0, 0.0, *STOWED_ARM])
+    goal = start.copy()
+    goal[2] = 1.0
+    key = np.stack([start, goal])
+    heading = interpolate(key, model, Resolution())[:, 2]
+    corner = math.atan2(BASE_SIZE[1] / 2, BASE_SIZE[0] / 2)
+    between = float(heading[10] + heading[11]) / 2.0 + corner
+    radius = 0.99 * math.hypot(BASE_SIZE[0] / 2, BASE_SIZE[1] / 2)  # just inside the corner
+    scene = _post(radius * math.cos(between), radius * math.sin(between))
+    plain = TrajectoryValidator(model, scene, certified=False).validate(key)
+    certified = TrajectoryValidator(model, scene).validate(key)
+    assert plain.status is ValidationStatus.VALID
+    assert _dense_collides(TrajectoryValidator(model, scene), key)
+    assert certified.status is ValidationStatus.COLLISION
+    assert ("base_link", "post") in {(c.link, c.other) for c in certified.contacts}
+
+
+def test_a_collision_where_two_chunks_meet_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(validation, "_CHUNK", 8)  # chunks share their end sample
+    key = np.array([[0.0, 0.0], [1.0, 0.0]])
+    samples = interpolate(key, _rod_and_plate(0.0), Resolution())
+    for pair in (7, 8):  # the segment ending a chunk, the one starting the next
+        model = _rod_and_plate(float(samples[pair, 0] + samples[pair + 1, 0]) / 2.0)
+        result = TrajectoryValidator(model, make_scene([])).validate(key)
+        assert result.status is ValidationStatus.COLLISION, pair
+        assert result.state is not None
+        assert samples[pair, 0] < result.state[0] < samples[pair + 1, 0]
+
+
+def _plates(*angles: float) -> Scene:
+    objects = []
+    for k, angle in enumerate(angles):
+        pose = np.eye(4)
+        c, s = math.cos(angle), math.sin(angle)
+        pose[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+        pose[:3, 3] = [0.9 * c, 0.9 * s, 0.5]
+        objects.append(SceneObject(f"plate{k}", Shape(ShapeKind.BOX, (0.1, 0.05, 0.2)), pose))
+    return make_scene(objects)
+
+
+def test_the_first_collision_stops_validation() -> None:
+    model = _rod_and_plate(-2.0)  # its own plate is out of the way
+    key = np.array([[0.0, 0.0], [1.0, 0.0]])
+    result = TrajectoryValidator(model, _plates(0.8, 0.3)).validate(key)
+    assert result.status is ValidationStatus.COLLISION
+    assert [c.other for c in result.contacts] == ["plate1"]  # at 0.3 rad, before 0.8
+    assert result.state is not None and result.state[0] < 0.3
+    samples = interpolate(key, model, Resolution())
+    assert result.narrow_checks < len(samples)
+
+
+def _near_motions(
+    model: RobotModel, scene: Scene, rng: np.random.Generator, count: int
+) -> list[FloatArray]:
+    """Short arm motions at the stations, from free states, many of them grazing something."""
+    validator = TrajectoryValidator(model, scene, certified=False)
+    stations = np.array([s.pose for s in restroom_layout().stations])
+    off = model.arm_offset
+    lower, upper = np.maximum(model.lower[off:], -np.pi), np.minimum(model.upper[off:], np.pi)
+    motions: list[FloatArray] = []
+    while len(motions) < count:
+        start = np.concatenate([stations[rng.integers(len(stations))], rng.uniform(lower, upper)])
+        if validator.checker.check(start[None]).status[0] == COLLIDING:
+            continue
+        goal = start.copy()
+        goal[off:] = np.clip(goal[off:] + rng.normal(0.0, 0.4, size=len(lower)), lower, upper)
+        motions.append(np.stack([start, goal]))
+    return motions
+
+
+def test_certified_never_accepts_what_a_denser_check_rejects() -> None:
+    model = reference_model()
+    scene = restroom_scene(doors=(10, 50, 90), seats=(90, 0, 0))
+    certified = TrajectoryValidator(model, scene)
+    plain = TrajectoryValidator(model, scene, certified=False)
+    outcomes = {"valid": 0, "rejected": 0, "between": 0}
+    for key in _near_motions(model, scene, np.random.default_rng(8), 60):
+        verdict = certified.validate(key)
+        dense = _dense_collides(certified, key, factor=20)
+        if verdict.valid:
+            outcomes["valid"] += 1
+            assert not dense
+        else:
+            outcomes["rejected"] += 1
+            outcomes["between"] += plain.validate(key).valid and dense
+        if not plain.validate(key).valid:
+            assert not verdict.valid  # never laxer than the paper's per-sample check
+    assert outcomes["valid"] > 10 and outcomes["rejected"] > 10, outcomes
+
+
+def _mesh_plate(angle: float, radius: float, thickness: float) -> Scene:
+    """The plate of `test_validation` as a triangle mesh (its box's 8 corners, 12 triangles)."""
+    size = np.array([0.1, thickness, 0.2]) / 2.0
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * size
+    faces = np.array(
+        [
+            [0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+            [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3],
+        ]
+    )  # fmt: skip
+    c, s = math.cos(angle), math.sin(angle)
+    pose = np.eye(4)
+    pose[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    pose[:3, 3] = [radius * c, radius * s, 0.5]
+    mesh = Shape(ShapeKind.MESH, vertices=corners, faces=faces)
+    return make_scene([SceneObject("mesh_plate", mesh, pose)])
+
+
+def test_mesh_obstacles_are_certified_like_primitives() -> None:
+    model = _rod_and_plate(-2.0)
+    key = np.array([[0.0, 0.0], [1.0, 0.0]])
+    samples = interpolate(key, model, Resolution())
+    thin = _mesh_plate(float(samples[10, 0] + samples[11, 0]) / 2.0, 0.9, 0.002)
+    assert TrajectoryValidator(model, thin, certified=False).validate(key).valid
+    caught = TrajectoryValidator(model, thin).validate(key)
+    assert caught.status is ValidationStatus.COLLISION
+    assert [c.other for c in caught.contacts] == ["mesh_plate"]
+    near = _mesh_plate(0.5, 1.0 + 0.003 + 0.05, 0.002)  # 3 mm past the rod's tip
+    passed = TrajectoryValidator(model, near).validate(key)
+    assert passed.status is ValidationStatus.VALID, passed.message
+    assert not _dense_collides(TrajectoryValidator(model, near), key)
+
+
+def test_degenerate_inputs_validate() -> None:
+    ghost = load_robot_model(
+        """<robot name="ghost"><link name="a"/><link name="b"/>
+  <joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>""",
+        acm_samples=0,
+    )
+    key = np.array([[0.0], [1.0]])
+    assert TrajectoryValidator(ghost, restroom_scene()).validate(key).valid  # no geometry
+    model = _rod_and_plate(-2.0)
+    lone = np.array([[0.3, 0.0]])  # a single state: nothing between samples to certify
+    assert TrajectoryValidator(model, _plates(0.8)).validate(lone).valid
+    hit = TrajectoryValidator(model, _plates(0.3)).validate(lone)
+    assert hit.status is ValidationStatus.COLLISION and hit.samples == 1
