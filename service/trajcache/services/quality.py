@@ -1,0 +1,242 @@
+"""Quality and timing of trajectories: at store time, and for answers when a request asks."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from enum import Enum
+from typing import Any
+
+import numpy as np
+import sqlalchemy as sa
+
+from trajcache.core.config import Settings
+from trajcache.db import models as tables
+from trajcache.geometry.robot import BaseType, RobotModel
+from trajcache.geometry.scene import Scene
+from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.validation import TrajectoryValidator, validator_for
+from trajcache.quality import Quality, ee_path_length, min_clearance, motion_bound, path_length
+from trajcache.services.context import ServiceContext
+from trajcache.services.errors import NotFoundError
+from trajcache.services.models import get_model
+from trajcache.services.robots import current_scene
+from trajcache.timing import (
+    PathShape,
+    Samples,
+    TimedTrajectory,
+    TimingMethod,
+    kinematic_limits,
+    time_trajectory,
+)
+
+
+class QualityLevel(str, Enum):
+    """Which quality metrics an answer carries."""
+
+    BASIC = "basic"  # path lengths (state space, end effector), and duration when timed: cheap
+    FULL = "full"  # also clearance to the scene and duration (default timing if none asked)
+
+
+@dataclass(frozen=True)
+class TimingRequest:
+    """How a request wants its answer timed."""
+
+    method: TimingMethod = TimingMethod.TOPPRA
+    path: PathShape = PathShape.SPLINE
+    velocity_scaling: float = 1.0
+    acceleration_scaling: float = 1.0
+    sample_period_s: float | None = None
+
+
+@dataclass
+class AnswerDetails:
+    """What an answer adds to the states: quality, and the timed trajectory if asked for."""
+
+    quality: Quality
+    joint_names: tuple[str, ...] = ()
+    timed: TimedTrajectory | None = None
+    samples: Samples | None = None
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+
+def time_states(
+    model: RobotModel,
+    states: FloatArray,
+    settings: Settings,
+    request: TimingRequest,
+    *,
+    validator_fn: Callable[[], TrajectoryValidator | None] | None = None,
+) -> TimedTrajectory:
+    """Time `states`; a spline is certified with the validator `validator_fn` gives (lazily)."""
+    limits = kinematic_limits(
+        model,
+        settings,
+        velocity_scaling=request.velocity_scaling,
+        acceleration_scaling=request.acceleration_scaling,
+    )
+
+    def certify_fn(samples: FloatArray) -> bool:
+        validator = validator_fn() if validator_fn is not None else None
+        return validator is not None and validator.validate(samples).valid
+
+    return time_trajectory(
+        states,
+        planar=model.base is BaseType.PLANAR,
+        limits=limits,
+        method=request.method,
+        path=request.path,
+        certify_fn=certify_fn,
+        motion_bound=motion_bound(model),
+    )
+
+
+def trajectory_quality(
+    model: RobotModel,
+    states: FloatArray,
+    settings: Settings,
+    *,
+    scene: Scene | None = None,
+) -> tuple[Quality, dict[str, Any]]:
+    """Every metric of `states`, clearance only with a scene; also details for the JSON column."""
+    validator = validator_for(model, scene, settings) if scene is not None else None
+    timed = time_states(model, states, settings, TimingRequest(), validator_fn=lambda: validator)
+    clearance = None
+    if validator is not None:
+        clearance = min_clearance(validator.checker, states, resolution=validator.resolution)
+    quality = Quality(
+        path_length=path_length(states, planar=model.base is BaseType.PLANAR),
+        ee_path_length=ee_path_length(model, states),
+        min_clearance=None if clearance is None else clearance.distance,
+        duration_s=timed.duration,
+    )
+    details: dict[str, Any] = {"timing": {"method": timed.method.value, "path": timed.path.value}}
+    if clearance is not None:
+        details["clearance"] = {
+            "link": clearance.link,
+            "object": clearance.object,
+            "exact": clearance.exact,
+        }
+    return quality, details
+
+
+def answer_details(
+    *,
+    ctx: ServiceContext,
+    robot_id: str,
+    states: FloatArray,
+    timing: TimingRequest | None,
+    level: QualityLevel,
+) -> AnswerDetails:
+    """Quality of an answered trajectory, and its timing when `timing` asks for it.
+
+    The basic level is cheap (about 0.1 ms): path lengths from the robot's model, which comes
+    from a short-lived per-process cache (`ROBOT_MODEL_TTL_S`). Timing and the full level read
+    the robot's model from the database, and its scene when a spline is to be certified or
+    clearance measured; they cost milliseconds.
+    """
+    timed_wanted = timing is not None and timing.method is not TimingMethod.NONE
+    cheap = not timed_wanted and level is QualityLevel.BASIC
+    began = time.perf_counter()
+    model = _robot_model(ctx, robot_id, cached=cheap)
+    details = AnswerDetails(_basic(model, states), joint_names=model.state_names)
+    if cheap:
+        details.timings_ms["quality"] = (time.perf_counter() - began) * 1e3
+        return details
+    validator_fn = _scene_validator(ctx, robot_id, model)
+    duration = None
+    if timed_wanted:
+        assert timing is not None
+        t = time.perf_counter()
+        details.timed = time_states(model, states, ctx.settings, timing, validator_fn=validator_fn)
+        details.samples = details.timed.sample(
+            timing.sample_period_s, max_points=ctx.settings.timing_max_points
+        )
+        duration = details.timed.duration
+        details.timings_ms["timing"] = (time.perf_counter() - t) * 1e3
+    clearance = None
+    if level is QualityLevel.FULL:
+        if duration is None:
+            default = time_states(
+                model, states, ctx.settings, TimingRequest(), validator_fn=validator_fn
+            )
+            duration = default.duration
+        validator = validator_fn()
+        found = min_clearance(validator.checker, states, resolution=validator.resolution)
+        clearance = None if found is None else found.distance
+    details.quality = replace(details.quality, min_clearance=clearance, duration_s=duration)
+    spent = (time.perf_counter() - began) * 1e3
+    details.timings_ms["quality"] = spent - details.timings_ms.get("timing", 0.0)
+    return details
+
+
+def _scene_validator(
+    ctx: ServiceContext, robot_id: str, model: RobotModel
+) -> Callable[[], TrajectoryValidator]:
+    """A function giving the validator of the robot's current scene, read on first use."""
+    found: list[TrajectoryValidator] = []
+
+    def validator_fn() -> TrajectoryValidator:
+        if not found:
+            with ctx.sessions() as session:
+                _, scene, _ = current_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
+            found.append(validator_for(model, scene, ctx.settings))
+        return found[0]
+
+    return validator_fn
+
+
+def _basic(model: RobotModel, states: FloatArray) -> Quality:
+    array = np.asarray(states, dtype=float)
+    return Quality(
+        path_length(array, planar=model.base is BaseType.PLANAR), ee_path_length(model, array)
+    )
+
+
+ROBOT_MODEL_TTL_S = 5.0  # how long a robot's model id is trusted without a database lookup
+
+
+class _RobotModels:
+    """Per-process robot id → model id, each entry trusted for ROBOT_MODEL_TTL_S seconds.
+
+    Only informational metrics use it (a robot re-pointed to another model shows the old
+    model's path lengths for at most the TTL); timing and clearance always look the model up.
+    """
+
+    def __init__(self, capacity: int = 4096) -> None:
+        self._entries: dict[str, tuple[str, float]] = {}
+        self._capacity = capacity
+        self._lock = threading.Lock()
+
+    def get(self, robot_id: str) -> str | None:
+        with self._lock:
+            entry = self._entries.get(robot_id)
+        if entry is None or time.monotonic() - entry[1] > ROBOT_MODEL_TTL_S:
+            return None
+        return entry[0]
+
+    def put(self, robot_id: str, model_id: str) -> None:
+        with self._lock:
+            if len(self._entries) >= self._capacity:
+                self._entries.clear()
+            self._entries[robot_id] = (model_id, time.monotonic())
+
+
+_ROBOT_MODELS = _RobotModels()
+
+
+def _robot_model(ctx: ServiceContext, robot_id: str, *, cached: bool) -> RobotModel:
+    """The robot's model; from the short-lived cache only when `cached` (informational use)."""
+    model_id = _ROBOT_MODELS.get(robot_id) if cached else None
+    model = ctx.models.get(model_id) if model_id is not None else None
+    if model is not None:
+        return model
+    with ctx.sessions() as session:
+        found = session.scalar(sa.select(tables.Robot.model_id).where(tables.Robot.id == robot_id))
+        if found is None:
+            raise NotFoundError(f"robot {robot_id!r} not found")
+        model = get_model(session=session, registry=ctx.models, model_id=found)
+    _ROBOT_MODELS.put(robot_id, model.model_id)
+    return model
