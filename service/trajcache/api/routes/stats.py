@@ -1,0 +1,151 @@
+"""/v1/stats and /v1/plan-events: plan statistics, the most reused trajectories, plan events."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from datetime import UTC, datetime
+from typing import Annotated
+
+from fastapi import APIRouter, Query
+
+from trajcache.api.deps import SessionDep, SettingsDep
+from trajcache.api.responses import COMMON, errors
+from trajcache.api.stats_schemas import (
+    BucketOut,
+    EventSource,
+    EventStatus,
+    GroupBy,
+    GroupOut,
+    MetricsOut,
+    ModelBasisOut,
+    PlanEventOut,
+    PlanEventPageOut,
+    StatsOut,
+    TopTrajectoryOut,
+)
+from trajcache.services.errors import InvalidInputError
+from trajcache.services.histograms import MAX_RELATIVE_ERROR
+from trajcache.services.plan_events import list_plan_events, top_trajectories
+from trajcache.services.stats import parse_window, plan_stats
+
+router = APIRouter(tags=["stats"], responses=COMMON)
+
+RobotFilter = Annotated[str | None, Query(max_length=128, description="Only this robot.")]
+ModelFilter = Annotated[str | None, Query(max_length=64, description="Only this model.")]
+
+
+@router.get(
+    "/stats",
+    response_model=StatsOut,
+    summary="Hit rate, planner calls, time per step and time saved over a window",
+    description="Totals, one entry per robot, model or source (`group_by`), and a time series "
+    "for charts (`bucket_s` grows with the window: 5 s up to 5 min, 15 s up to 15 min, 1 min "
+    "up to 3 h, 5 min up to 12 h, 1 h up "
+    "to 7 d, 6 h up to 30 d, 1 d up to 90 d, 7 d beyond). Time saved credits each cache hit "
+    "with the median planning time of its model's successful planner calls in the window; "
+    "hits of a model without any are credited nothing and counted in `uncredited_hits`.",
+    responses=errors({422: ("Bad window or group", "query.window: '2w' is not a window like …")}),
+)
+def stats_route(
+    session: SessionDep,
+    window: Annotated[
+        str, Query(max_length=16, description="Length of the window: 30m, 24h, 7d (1m to 366d).")
+    ] = "24h",
+    group_by: Annotated[GroupBy, Query(description="Break the totals down by this.")] = "robot",
+    robot_id: RobotFilter = None,
+    model_id: ModelFilter = None,
+) -> StatsOut:
+    """Statistics of the plan requests of the last `window`."""
+    stats = plan_stats(
+        session=session,
+        window_s=parse_window(window),
+        group_by=group_by,
+        robot_id=robot_id,
+        model_id=model_id,
+    )
+    return StatsOut(
+        window=window.strip(),
+        since=stats.since,
+        until=stats.until,
+        bucket_s=stats.bucket_s,
+        group_by=group_by,
+        percentile_max_relative_error=round(MAX_RELATIVE_ERROR, 4),
+        totals=MetricsOut.model_validate(stats.totals),
+        groups=[GroupOut(key=key, **asdict(m)) for key, m in stats.groups],
+        series=[BucketOut(start=start, **asdict(m)) for start, m in stats.series],
+        time_saved_basis=[ModelBasisOut.model_validate(b) for b in stats.time_saved_basis],
+    )
+
+
+@router.get(
+    "/stats/top-trajectories",
+    response_model=list[TopTrajectoryOut],
+    summary="The most reused trajectories",
+    description="Trajectories by hits (then fewest validation failures), without their states.",
+)
+def top_trajectories_route(
+    session: SessionDep,
+    limit: Annotated[int, Query(ge=1, le=100, description="How many.")] = 10,
+    model_id: ModelFilter = None,
+) -> list[TopTrajectoryOut]:
+    """The `limit` most reused trajectories."""
+    rows = top_trajectories(session=session, limit=limit, model_id=model_id)
+    return [TopTrajectoryOut.model_validate(row) for row in rows]
+
+
+@router.get(
+    "/plan-events",
+    response_model=PlanEventPageOut,
+    summary="Plan events, newest first, filtered, a page at a time",
+    description="Every plan request leaves an event. Filters combine; `since` is inclusive and "
+    "`until` exclusive. Pages follow a cursor: pass `next_cursor` as `cursor` to continue; "
+    "events written meanwhile never shift a page. `next_cursor` is null on the last page.",
+    responses=errors(
+        {422: ("Bad filter, page size or cursor", "query.limit: 5000 is above max_page_size=1000")}
+    ),
+)
+def plan_events_route(
+    session: SessionDep,
+    settings: SettingsDep,
+    limit: Annotated[int, Query(ge=1, description="Page size (at most max_page_size).")] = 100,
+    cursor: Annotated[
+        str | None, Query(max_length=64, description="next_cursor of a page.")
+    ] = None,
+    robot_id: RobotFilter = None,
+    model_id: ModelFilter = None,
+    status: EventStatus | None = None,
+    source: Annotated[
+        EventSource | None, Query(description="`none`: no trajectory was returned.")
+    ] = None,
+    trajectory_id: Annotated[int | None, Query(ge=1, le=2**63 - 1)] = None,
+    since: Annotated[datetime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
+    until: Annotated[datetime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
+) -> PlanEventPageOut:
+    """A page of plan events matching the filters."""
+    if limit > settings.max_page_size:
+        raise InvalidInputError(
+            f"query.limit: {limit} is above max_page_size={settings.max_page_size}"
+        )
+    page = list_plan_events(
+        session=session,
+        limit=limit,
+        cursor=cursor,
+        robot_id=robot_id,
+        model_id=model_id,
+        status=status,
+        source=source,
+        trajectory_id=trajectory_id,
+        since=_utc(since),
+        until=_utc(until),
+    )
+    return PlanEventPageOut(
+        items=[PlanEventOut.model_validate(e) for e in page.items],
+        limit=limit,
+        next_cursor=page.next_cursor,
+    )
+
+
+def _utc(value: datetime | None) -> datetime | None:
+    if value is None or value.tzinfo is not None:
+        return value
+    return value.replace(tzinfo=UTC)

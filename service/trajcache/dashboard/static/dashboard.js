@@ -1,0 +1,384 @@
+// The trajcache admin dashboard: reads /v1/stats, /v1/stats/top-trajectories, /v1/plan-events
+// and /v1/trajectories/{id}, and redraws everything on a timer.
+"use strict";
+
+(() => {
+  const KEY_STORAGE = "trajcache.adminKey";
+  const $ = (id) => document.getElementById(id);
+  const state = { timer: null, busy: false, again: false, stats: null, refreshes: 0, models: new Map(), inspected: null };
+
+  // --- formatting ---------------------------------------------------------------------------
+
+  const pad = (n) => String(n).padStart(2, "0");
+  const fmtInt = (n) => (n === null || n === undefined ? "–" : Math.round(n).toLocaleString("en-US"));
+  const fmtPct = (r) => (r === null || r === undefined ? "–" : `${(r * 100).toFixed(1)} %`);
+  function fmtMs(ms) {
+    if (ms === null || ms === undefined) return "–";
+    if (ms >= 60000) return `${(ms / 60000).toFixed(1)} min`;
+    if (ms >= 1000) return `${(ms / 1000).toFixed(2)} s`;
+    if (ms >= 10) return `${ms.toFixed(0)} ms`;
+    return `${ms.toFixed(ms >= 1 ? 1 : 2)} ms`;
+  }
+  function fmtTime(iso) {
+    const d = new Date(iso);
+    return `${pad(d.getUTCHours())}:${pad(d.getUTCMinutes())}:${pad(d.getUTCSeconds())}`;
+  }
+  function fmtDateTime(iso) {
+    if (!iso) return "–";
+    const d = new Date(iso);
+    return `${d.getUTCFullYear()}-${pad(d.getUTCMonth() + 1)}-${pad(d.getUTCDate())} ${fmtTime(iso)}`;
+  }
+  function fmtSpan(seconds) {
+    if (seconds < 60) return `${seconds} s`;
+    if (seconds < 3600) return `${seconds / 60} min`;
+    if (seconds < 86400) return `${seconds / 3600} h`;
+    return `${seconds / 86400} d`;
+  }
+  const shortId = (id) => (id && id.length > 12 ? `${id.slice(0, 10)}…` : id || "–");
+
+  function timeAxis(bucketS) {
+    const format = (t) => {
+      const d = new Date(t);
+      if (bucketS >= 86400) return `${pad(d.getUTCMonth() + 1)}-${pad(d.getUTCDate())}`;
+      if (bucketS < 60) return fmtTime(d.toISOString());
+      return `${pad(d.getUTCHours())}:${pad(d.getUTCMinutes())}`;
+    };
+    const xTicks = (lo, hi) => {
+      const step = bucketS * 1000;
+      const count = Math.max(1, Math.round((hi - lo) / step));
+      const every = Math.max(1, Math.ceil(count / 6));
+      const out = [];
+      for (let i = 0; i <= count; i += every) out.push(lo + i * step);
+      return out;
+    };
+    return { xFormat: format, xTicks };
+  }
+
+  // --- the API ------------------------------------------------------------------------------
+
+  class AuthNeeded extends Error {}
+
+  async function api(path) {
+    const headers = { Accept: "application/json" };
+    const key = sessionStorage.getItem(KEY_STORAGE);
+    if (key) headers.Authorization = `Bearer ${key}`;
+    const reply = await fetch(path, { headers, cache: "no-store" });
+    if (reply.status === 401 || reply.status === 403) {
+      const body = await reply.json().catch(() => ({}));
+      throw new AuthNeeded(body.detail || "an admin key is required");
+    }
+    if (!reply.ok) {
+      const body = await reply.json().catch(() => ({}));
+      throw new Error(`${path}: ${reply.status} ${body.detail || reply.statusText}`);
+    }
+    return reply.json();
+  }
+
+  async function stateNames(modelId) {
+    if (!state.models.has(modelId)) {
+      const model = await api(`/v1/robot-models/${encodeURIComponent(modelId)}`);
+      state.models.set(modelId, model.state_names);
+    }
+    return state.models.get(modelId);
+  }
+
+  // --- rendering ----------------------------------------------------------------------------
+
+  function cell(tr, text, cls) {
+    const td = document.createElement("td");
+    td.textContent = text;
+    if (cls) td.className = cls;
+    tr.appendChild(td);
+    return td;
+  }
+
+  function trajectoryLink(td, id) {
+    td.textContent = "";
+    if (id === null || id === undefined) { td.textContent = "–"; return; }
+    const a = document.createElement("a");
+    a.className = "traj";
+    a.textContent = `#${id}`;
+    a.addEventListener("click", () => inspect(id));
+    td.appendChild(a);
+  }
+
+  function fillTable(table, rows, columns, emptyText) {
+    const body = table.querySelector("tbody");
+    body.textContent = "";
+    if (!rows.length) {
+      const tr = document.createElement("tr");
+      const td = cell(tr, emptyText, "empty");
+      td.colSpan = columns;
+      body.appendChild(tr);
+      return;
+    }
+    for (const row of rows) body.appendChild(row);
+  }
+
+  function renderKpis(stats) {
+    const t = stats.totals;
+    const uncredited = t.uncredited_hits ? `${fmtInt(t.uncredited_hits)} hits without an estimate` : "median planning time per hit";
+    const items = [
+      ["Requests", fmtInt(t.requests), `in the last ${stats.window}`],
+      ["Hit rate", fmtPct(t.hit_rate), `${fmtInt(t.hits)} served from the cache`],
+      ["Planner calls", fmtInt(t.planner_calls), `planning p50 ${fmtMs(t.plan_ms.p50)}`],
+      ["Failures", fmtInt(t.failures), `${fmtInt(t.misses)} misses`],
+      ["Time saved", fmtMs(t.time_saved_ms), uncredited],
+      ["Lookup + validation p50", fmtMs(sum(t.lookup_ms.p50, t.validate_ms.p50)), `validation p95 ${fmtMs(t.validate_ms.p95)}`],
+    ];
+    const box = $("kpis");
+    box.textContent = "";
+    for (const [label, value, note] of items) {
+      const div = document.createElement("div");
+      div.className = "kpi";
+      div.innerHTML = '<div class="label"></div><div class="value"></div><div class="note"></div>';
+      div.querySelector(".label").textContent = label;
+      div.querySelector(".value").textContent = value;
+      div.querySelector(".note").textContent = note;
+      box.appendChild(div);
+    }
+  }
+
+  function sum(a, b) {
+    return a === null || b === null ? null : a + b;
+  }
+
+  // Time charts share one x axis: buckets from their start to the next one's; points at the middle.
+  function timeFrame(stats) {
+    const step = stats.bucket_s * 1000;
+    const starts = stats.series.map((b) => Date.parse(b.start));
+    return {
+      starts,
+      mids: starts.map((x) => x + step / 2),
+      opts: { ...timeAxis(stats.bucket_s), xMin: starts[0], xMax: starts[starts.length - 1] + step },
+    };
+  }
+
+  function renderCharts(stats) {
+    const { starts, mids, opts } = timeFrame(stats);
+    const P = Charts.PALETTE;
+    const seconds = (v) => `${+v.toFixed(2)} s`;
+    Charts.line(
+      $("chart-hit-rate"),
+      [{ name: "hit rate", color: P[0], points: stats.series.map((b, i) => [mids[i], b.hit_rate === null ? null : b.hit_rate * 100]) }],
+      { ...opts, yMin: 0, yMax: 100, yFormat: (v) => `${v.toFixed(0)} %`, emptyText: "No requests in this window" },
+    );
+    let cumulative = 0;
+    if (!stats.series.some((b) => b.time_saved_ms > 0)) {
+      Charts.empty($("chart-time-saved"), "No time saved in this window");
+    } else Charts.line(
+      $("chart-time-saved"),
+      [
+        { name: "per bucket", color: P[2], points: stats.series.map((b, i) => [mids[i], b.time_saved_ms / 1000]) },
+        { name: "cumulative", color: P[4], points: stats.series.map((b, i) => [mids[i], (cumulative += b.time_saved_ms) / 1000]) },
+      ],
+      { ...opts, yMin: 0, yFormat: seconds, dots: false, legend: true, emptyText: "No time saved in this window" },
+    );
+    Charts.bars(
+      $("chart-calls"),
+      starts,
+      [
+        { name: "hits", color: P[0], values: stats.series.map((b) => b.hits) },
+        { name: "planner calls", color: P[3], values: stats.series.map((b) => b.planner_calls - b.failures) },
+        { name: "failures", color: P[1], values: stats.series.map((b) => b.failures) },
+        { name: "misses", color: P[8], values: stats.series.map((b) => b.misses) },
+      ],
+      { ...opts, yFormat: (v) => fmtInt(v), emptyText: "No requests in this window" },
+    );
+    renderLatency(stats);
+  }
+
+  function renderLatency(stats) {
+    const metric = $("latency-metric").value;
+    const { mids, opts } = timeFrame(stats);
+    const P = Charts.PALETTE;
+    Charts.line(
+      $("chart-latency"),
+      ["p50", "p95", "p99"].map((q, k) => ({
+        name: q,
+        color: [P[2], P[3], P[1]][k],
+        points: stats.series.map((b, i) => [mids[i], b[metric][q]]),
+      })),
+      { ...opts, log: true, yFormat: fmtMs, emptyText: "No timings in this window" },
+    );
+  }
+
+  function renderRobots(stats) {
+    const rows = stats.groups.map((g) => {
+      const tr = document.createElement("tr");
+      cell(tr, g.key);
+      cell(tr, fmtInt(g.requests), "num");
+      cell(tr, fmtPct(g.hit_rate), "num");
+      cell(tr, fmtInt(g.planner_calls), "num");
+      cell(tr, fmtInt(g.failures), "num");
+      cell(tr, fmtMs(g.validate_ms.p95), "num");
+      cell(tr, fmtMs(g.plan_ms.p95), "num");
+      cell(tr, fmtMs(g.time_saved_ms), "num");
+      return tr;
+    });
+    fillTable($("robots-table"), rows, 8, "No robot planned in this window");
+  }
+
+  function renderTop(top) {
+    const rows = top.map((t) => {
+      const tr = document.createElement("tr");
+      trajectoryLink(cell(tr, ""), t.trajectory_id);
+      cell(tr, shortId(t.model_id)).title = t.model_id;
+      cell(tr, t.source);
+      cell(tr, fmtInt(t.hits), "num");
+      cell(tr, fmtInt(t.failures), "num");
+      cell(tr, fmtDateTime(t.last_used_at));
+      return tr;
+    });
+    fillTable($("top-table"), rows, 6, "The cache is empty");
+  }
+
+  function eventRow(e, withTrajectory) {
+    const tr = document.createElement("tr");
+    cell(tr, fmtTime(e.created_at)).title = fmtDateTime(e.created_at);
+    cell(tr, e.robot_id);
+    cell(tr, e.status, `status-${e.status}`).title = e.error || "";
+    cell(tr, e.source || "–");
+    if (withTrajectory) trajectoryLink(cell(tr, ""), e.trajectory_id);
+    cell(tr, String(e.candidates_tried), "num");
+    if (!withTrajectory) cell(tr, fmtMs(e.validate_ms), "num");
+    cell(tr, fmtMs(e.total_ms), "num");
+    return tr;
+  }
+
+  function renderEvents(page) {
+    fillTable($("events-table"), page.items.map((e) => eventRow(e, true)), 7, "No plan events yet");
+  }
+
+  async function inspect(id) {
+    state.inspected = id;
+    $("inspect-id").value = String(id);
+    const svg = $("chart-joints");
+    let detail;
+    try {
+      detail = await api(`/v1/trajectories/${id}`);
+    } catch (err) {
+      if (err instanceof AuthNeeded) throw err;
+      $("inspect-meta").textContent = String(err.message || err);
+      Charts.empty(svg, `Trajectory ${id} is not available`);
+      fillTable($("usage-table"), [], 7, "–");
+      return;
+    }
+    const names = await stateNames(detail.model_id).catch(() => null);
+    const states = detail.states;
+    // x: how far along the path each key state is (cumulative state-space distance, 0…1).
+    const along = [0];
+    for (let i = 1; i < states.length; i += 1) {
+      const step = Math.hypot(...states[i].map((v, d) => v - states[i - 1][d]));
+      along.push(along[i - 1] + step);
+    }
+    const length = along[along.length - 1] || 1;
+    const series = states[0].map((_, d) => ({
+      name: names ? names[d] : `q${d}`,
+      color: Charts.PALETTE[d % Charts.PALETTE.length],
+      points: states.map((s, i) => [along[i] / length, s[d]]),
+    }));
+    Charts.line(svg, series, {
+      xMin: 0, xMax: 1, legend: true,
+      xFormat: (v) => `${Math.round(v * 100)} %`,
+      yFormat: (v) => v.toFixed(2),
+    });
+    $("inspect-meta").textContent =
+      `#${detail.trajectory_id} · ${detail.source} · ${states.length} key states · ${fmtInt(detail.hits)} hits, ` +
+      `${fmtInt(detail.failures)} failures · model ${shortId(detail.model_id)} (x: share of the path, y: rad or m)`;
+    fillTable($("usage-table"), detail.usage_history.map((e) => eventRow(e, false)), 7, "Not used yet");
+  }
+
+  // --- refresh loop -------------------------------------------------------------------------
+
+  function setStatus(text, error) {
+    $("status").textContent = text;
+    $("status").className = error ? "error" : "";
+  }
+
+  async function refresh() {
+    if (state.busy) {
+      state.again = true; // asked for while a refresh runs (e.g. a new window): run once more
+      return;
+    }
+    state.busy = true;
+    clearTimeout(state.timer);
+    const window_ = $("window").value;
+    try {
+      const [stats, top, events] = await Promise.all([
+        api(`/v1/stats?window=${encodeURIComponent(window_)}&group_by=robot`),
+        api("/v1/stats/top-trajectories?limit=10"),
+        api("/v1/plan-events?limit=15"),
+      ]);
+      state.stats = stats;
+      renderKpis(stats);
+      renderCharts(stats);
+      renderRobots(stats);
+      renderTop(top);
+      renderEvents(events);
+      const pick = state.inspected || (top.length ? top[0].trajectory_id : null);
+      if (pick !== null) await inspect(pick);
+      else Charts.empty($("chart-joints"), "Pick a trajectory");
+      state.refreshes += 1;
+      document.body.dataset.state = "ready";
+      document.body.dataset.refreshes = String(state.refreshes);
+      document.body.dataset.window = stats.window;
+      setStatus(`Updated ${fmtTime(new Date().toISOString())} UTC · buckets of ${fmtSpan(stats.bucket_s)}`);
+    } catch (err) {
+      if (err instanceof AuthNeeded) {
+        $("key-panel").hidden = false;
+        $("key-message").textContent = err.message;
+        setStatus("An admin key is needed", true);
+        document.body.dataset.state = "auth";
+        state.busy = false;
+        return; // no auto-refresh until a key is given
+      }
+      setStatus(`Refresh failed: ${err.message || err}`, true);
+      document.body.dataset.state = "error";
+    } finally {
+      state.busy = false;
+    }
+    if (state.again) {
+      state.again = false;
+      refresh();
+      return;
+    }
+    schedule();
+  }
+
+  function schedule() {
+    clearTimeout(state.timer);
+    const every = Number($("refresh-every").value);
+    if (every > 0) state.timer = setTimeout(refresh, every * 1000);
+  }
+
+  function start() {
+    $("refresh").addEventListener("click", refresh);
+    $("window").addEventListener("change", refresh);
+    $("refresh-every").addEventListener("change", schedule);
+    $("latency-metric").addEventListener("change", () => state.stats && renderLatency(state.stats));
+    $("key-button").addEventListener("click", () => { $("key-panel").hidden = !$("key-panel").hidden; });
+    $("key-form").addEventListener("submit", (ev) => {
+      ev.preventDefault();
+      const key = $("key-input").value.trim();
+      if (key) sessionStorage.setItem(KEY_STORAGE, key);
+      $("key-input").value = "";
+      $("key-panel").hidden = true;
+      refresh();
+    });
+    $("key-clear").addEventListener("click", () => {
+      sessionStorage.removeItem(KEY_STORAGE);
+      $("key-message").textContent = "Key forgotten";
+    });
+    $("inspect-form").addEventListener("submit", (ev) => {
+      ev.preventDefault();
+      const id = parseInt($("inspect-id").value, 10);
+      if (id > 0) inspect(id).catch((err) => setStatus(String(err.message || err), true));
+    });
+    const wanted = /trajectory=(\d+)/.exec(location.hash);
+    if (wanted) state.inspected = Number(wanted[1]);
+    refresh();
+  }
+
+  start();
+})();

@@ -1,0 +1,259 @@
+"""Prometheus metrics at `GET /metrics`: plan requests, step latencies, cache size, planner pool.
+
+One process keeps its metrics in the default registry. Several uvicorn workers are one service
+only if their metrics are merged: when `PROMETHEUS_MULTIPROC_DIR` is set, every process writes
+its samples to files there and `/metrics`, whichever worker answers, merges all of them
+(`MultiProcessCollector`). `trajcache serve --workers N` (N > 1) sets the variable before the
+workers start, to a fresh temporary directory, or empties the directory it already names
+(`trajcache.metrics_dir`); set it yourself (e.g. to a volume) to keep it elsewhere. It must be
+set before this module is imported, which is why the command line does it, not the app; run
+`uvicorn --workers N` directly only with the variable set to an empty directory.
+
+The cache size per model is counted in the database at scrape time; the planner pool's queue
+depth and failures are sampled every second by each process (queue depths of live workers add
+up; a worker that exits removes its own).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+from collections.abc import AsyncIterator, Callable, Iterator
+from contextlib import asynccontextmanager
+from typing import TYPE_CHECKING, Any
+
+import sqlalchemy as sa
+from fastapi import FastAPI, Request, Response
+from prometheus_client import (
+    CONTENT_TYPE_LATEST,
+    REGISTRY,
+    CollectorRegistry,
+    Counter,
+    Gauge,
+    Histogram,
+    generate_latest,
+    multiprocess,
+)
+from prometheus_client.core import GaugeMetricFamily, Metric
+from prometheus_client.registry import Collector
+from sqlalchemy.exc import SQLAlchemyError
+
+from trajcache.db.models import Trajectory
+from trajcache.metrics_dir import MULTIPROC_ENV
+
+if TYPE_CHECKING:
+    from trajcache.services.context import ServiceContext
+    from trajcache.services.planning import PlanAnswer
+
+_log = logging.getLogger(__name__)
+SAMPLE_INTERVAL_S = 1.0
+_PLANNER_STATUSES = ("failure", "error")
+# Seconds: from a sub-millisecond lookup to a planner that uses a long budget.
+_BUCKETS = (0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30)
+
+if os.environ.get(MULTIPROC_ENV):  # each metric below opens its file there
+    os.makedirs(os.environ[MULTIPROC_ENV], exist_ok=True)
+
+PLAN_REQUESTS = Counter(
+    "trajcache_plan_requests",
+    "Plan requests answered, by where the trajectory came from (none: no trajectory) and status.",
+    ["source", "status"],
+)
+LOOKUP_SECONDS = Histogram(
+    "trajcache_plan_lookup_seconds", "Time to find cached candidates.", buckets=_BUCKETS
+)
+VALIDATE_SECONDS = Histogram(
+    "trajcache_plan_validate_seconds",
+    "Time to validate cached candidates and planned paths.",
+    buckets=_BUCKETS,
+)
+PLANNING_SECONDS = Histogram(
+    "trajcache_plan_planning_seconds",
+    "Time in the fallback planner, for requests that reached it.",
+    buckets=_BUCKETS,
+)
+TOTAL_SECONDS = Histogram(
+    "trajcache_plan_total_seconds",
+    "Time to answer a plan request, by source.",
+    ["source"],
+    buckets=_BUCKETS,
+)
+POOL_QUEUE_DEPTH = Gauge(
+    "trajcache_pool_queue_depth",
+    "Planning runs submitted to the planner pool and not finished.",
+    multiprocess_mode="livesum",
+)
+POOL_WORKER_CRASHES = Counter(
+    "trajcache_pool_worker_crashes", "Planner worker processes that died during a request."
+)
+POOL_RECYCLES = Counter(
+    "trajcache_pool_recycles", "Planner worker pools replaced after a crash or an overrun."
+)
+POOL_FAILED_RUNS = Counter(
+    "trajcache_pool_failed_runs", "Planning runs that ended without a path (timeouts, errors)."
+)
+_POOL_COUNTERS = {
+    "crashes": POOL_WORKER_CRASHES,
+    "recycles": POOL_RECYCLES,
+    "failures": POOL_FAILED_RUNS,
+}
+
+
+def record_plan(answer: PlanAnswer) -> None:
+    """Count one answered plan request and observe the time of each of its steps."""
+    status = answer.status.value
+    source = answer.source.value if answer.source is not None else "none"
+    timings = answer.timings_ms
+    PLAN_REQUESTS.labels(source=source, status=status).inc()
+    LOOKUP_SECONDS.observe(timings.get("lookup", 0.0) / 1e3)
+    VALIDATE_SECONDS.observe(timings.get("validate", 0.0) / 1e3)
+    if source == "planner" or status in _PLANNER_STATUSES:
+        PLANNING_SECONDS.observe(timings.get("plan", 0.0) / 1e3)
+    TOTAL_SECONDS.labels(source=source).observe(timings.get("total", 0.0) / 1e3)
+
+
+class PoolSampler:
+    """Copies the planner pool's queue depth and failure counters into the metrics."""
+
+    def __init__(self, ctx_fn: Callable[[], ServiceContext | None]) -> None:
+        self._ctx_fn = ctx_fn
+        self._lock = threading.Lock()
+        self._pool: object | None = None
+        self._seen: dict[str, int] = {}
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def sample(self) -> None:
+        """Read the pool's counters now (the pool is not started for this)."""
+        ctx = self._ctx_fn()
+        pool = ctx.planner if ctx is not None else None
+        with self._lock:
+            if pool is None:
+                POOL_QUEUE_DEPTH.set(0)
+                return
+            if pool is not self._pool:  # a new pool counts from zero
+                self._pool, self._seen = pool, {}
+            stats = pool.stats()
+            POOL_QUEUE_DEPTH.set(stats.queue_depth)
+            for name, counter in _POOL_COUNTERS.items():
+                value = int(getattr(stats, name))
+                delta = value - self._seen.get(name, 0)
+                if delta > 0:
+                    counter.inc(delta)
+                self._seen[name] = value
+
+    def start(self, interval_s: float = SAMPLE_INTERVAL_S) -> None:
+        """Sample every `interval_s` in a daemon thread until `stop`."""
+
+        def run() -> None:
+            while not self._stop.wait(interval_s):
+                try:
+                    self.sample()
+                except Exception:  # a pool being replaced or closed; the next tick retries
+                    _log.debug("planner pool sample failed", exc_info=True)
+
+        self._thread = threading.Thread(target=run, name="trajcache-pool-metrics", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop sampling and take a last sample."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        self.sample()
+
+
+class CacheSizeCollector(Collector):
+    """Cached trajectories per model, counted in the database at scrape time."""
+
+    def __init__(self, ctx: ServiceContext) -> None:
+        self._ctx = ctx
+
+    def collect(self) -> Iterator[Metric]:
+        """One sample per model; nothing (not an error) while the database is unreachable."""
+        family = GaugeMetricFamily(
+            "trajcache_cache_trajectories", "Trajectories in the cache, by model.", labels=["model"]
+        )
+        up = GaugeMetricFamily("trajcache_database_up", "Whether /metrics could read the database.")
+        try:
+            with self._ctx.sessions() as session:
+                counts = session.execute(
+                    sa.select(Trajectory.model_id, sa.func.count()).group_by(Trajectory.model_id)
+                ).all()
+        except SQLAlchemyError:
+            up.add_metric([], 0)
+            yield up
+            return
+        for model_id, count in counts:
+            family.add_metric([model_id], int(count))
+        up.add_metric([], 1)
+        yield family
+        yield up
+
+
+def render(ctx: ServiceContext) -> bytes:
+    """The exposition text: this process's metrics, or every process's in multiprocess mode."""
+    database = CollectorRegistry(auto_describe=True)
+    database.register(CacheSizeCollector(ctx))
+    if os.environ.get(MULTIPROC_ENV):
+        merged = CollectorRegistry()
+        multiprocess.MultiProcessCollector(merged)
+        return generate_latest(merged) + generate_latest(database)
+    return generate_latest(REGISTRY) + generate_latest(database)
+
+
+_EXAMPLE = """\
+# HELP trajcache_plan_requests_total Plan requests answered, by where the trajectory came from \
+(none: no trajectory) and status.
+# TYPE trajcache_plan_requests_total counter
+trajcache_plan_requests_total{source="cache",status="success"} 253.0
+trajcache_plan_requests_total{source="planner",status="success"} 19.0
+# HELP trajcache_cache_trajectories Trajectories in the cache, by model.
+# TYPE trajcache_cache_trajectories gauge
+trajcache_cache_trajectories{model="5158592d…"} 1204.0
+"""
+
+
+def install_metrics(app: FastAPI) -> None:
+    """Serve `GET /metrics` and sample the planner pool while the app runs."""
+
+    def metrics(request: Request) -> Response:
+        sampler: PoolSampler | None = getattr(request.app.state, "pool_sampler", None)
+        if sampler is not None:
+            sampler.sample()
+        return Response(render(request.app.state.ctx), media_type=CONTENT_TYPE_LATEST)
+
+    app.add_api_route(
+        "/metrics",
+        metrics,
+        methods=["GET"],
+        tags=["health"],
+        summary="Metrics in the Prometheus text format",
+        description="Plan requests by source and status, lookup/validation/planning latency "
+        "histograms, cached trajectories per model, the planner pool's queue depth and worker "
+        "failures. With several server processes every answer covers all of them.",
+        response_class=Response,
+        responses={
+            200: {
+                "content": {CONTENT_TYPE_LATEST: {"example": _EXAMPLE}},
+                "description": "Metrics",
+            }
+        },
+    )
+    inner = app.router.lifespan_context
+
+    @asynccontextmanager
+    async def lifespan(app_: FastAPI) -> AsyncIterator[Any]:
+        async with inner(app_) as state:
+            sampler = PoolSampler(lambda: getattr(app_.state, "ctx", None))
+            app_.state.pool_sampler = sampler
+            sampler.start()
+            try:
+                yield state
+            finally:
+                sampler.stop()
+                if os.environ.get(MULTIPROC_ENV):
+                    multiprocess.mark_process_dead(os.getpid())
+
+    app.router.lifespan_context = lifespan

@@ -1,0 +1,117 @@
+"""Plan events, newest first: filtered pages with a keyset cursor, and a trajectory's usage.
+
+Pages are ordered by (created_at, id) descending and continue after the last row of the
+previous page (`cursor`), so rows written meanwhile never shift or repeat a page, and a page
+costs the same however deep it is. No total is counted: at millions of events a COUNT of a
+filter would cost more than the page.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session, defer
+
+from trajcache.db.models import PlanEvent, Trajectory
+from trajcache.services.errors import InvalidInputError
+
+STATUSES = ("success", "miss", "failure", "error")
+SOURCES = ("cache", "planner", "none")  # none: no trajectory was returned
+_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
+
+
+@dataclass(frozen=True)
+class PlanEventPage:
+    """A page of plan events and the cursor of the next one (None on the last page)."""
+
+    items: list[PlanEvent]
+    next_cursor: str | None
+
+
+def encode_cursor(event: PlanEvent) -> str:
+    """An opaque cursor that continues after `event`."""
+    micros = (event.created_at - _EPOCH) // timedelta(microseconds=1)
+    return base64.urlsafe_b64encode(f"{micros}:{event.id}".encode()).decode().rstrip("=")
+
+
+def decode_cursor(cursor: str) -> tuple[datetime, int]:
+    """The (created_at, id) a cursor continues after; a 422 for anything else."""
+    try:
+        text = base64.urlsafe_b64decode(cursor + "=" * (-len(cursor) % 4)).decode()
+        micros, event_id = (int(part) for part in text.split(":"))
+        if not 0 < event_id < 2**63:
+            raise ValueError(event_id)
+        return _EPOCH + timedelta(microseconds=micros), event_id
+    except (binascii.Error, UnicodeDecodeError, ValueError, OverflowError):
+        raise InvalidInputError(
+            "query.cursor: not a cursor returned by this endpoint (use next_cursor)"
+        ) from None
+
+
+def list_plan_events(
+    *,
+    session: Session,
+    limit: int,
+    cursor: str | None = None,
+    robot_id: str | None = None,
+    model_id: str | None = None,
+    status: str | None = None,
+    source: str | None = None,
+    trajectory_id: int | None = None,
+    since: datetime | None = None,
+    until: datetime | None = None,
+) -> PlanEventPage:
+    """Events matching every filter given, newest first; `since` inclusive, `until` exclusive."""
+    e = PlanEvent
+    conditions: list[sa.ColumnElement[bool]] = []
+    if since is not None and until is not None and since >= until:
+        raise InvalidInputError("query.since must be before query.until")
+    if status is not None and status not in STATUSES:
+        raise InvalidInputError(f"query.status: {status!r} is not one of {', '.join(STATUSES)}")
+    if source is not None and source not in SOURCES:
+        raise InvalidInputError(f"query.source: {source!r} is not one of {', '.join(SOURCES)}")
+    for column, value in ((e.robot_id, robot_id), (e.model_id, model_id), (e.status, status)):
+        if value is not None:
+            conditions.append(column == value)
+    if source is not None:
+        conditions.append(e.source.is_(None) if source == "none" else e.source == source)
+    if trajectory_id is not None:
+        conditions.append(e.trajectory_id == trajectory_id)
+    if since is not None:
+        conditions.append(e.created_at >= since)
+    if until is not None:
+        conditions.append(e.created_at < until)
+    if cursor is not None:
+        at, event_id = decode_cursor(cursor)
+        conditions.append(sa.or_(e.created_at < at, sa.and_(e.created_at == at, e.id < event_id)))
+    rows = list(
+        session.scalars(
+            sa.select(e)
+            .where(*conditions)
+            .order_by(e.created_at.desc(), e.id.desc())
+            .limit(limit + 1)
+        )
+    )
+    more = len(rows) > limit
+    items = rows[:limit]
+    return PlanEventPage(items=items, next_cursor=encode_cursor(items[-1]) if more else None)
+
+
+def trajectory_usage(*, session: Session, trajectory_id: int, limit: int = 20) -> list[PlanEvent]:
+    """The most recent plan events that returned (or stored) trajectory `trajectory_id`."""
+    return list_plan_events(session=session, limit=limit, trajectory_id=trajectory_id).items
+
+
+def top_trajectories(
+    *, session: Session, limit: int, model_id: str | None = None
+) -> list[Trajectory]:
+    """The most reused trajectories: by hits, then by fewest validation failures, then by id."""
+    query = sa.select(Trajectory).options(defer(Trajectory.states, raiseload=True))
+    if model_id is not None:
+        query = query.where(Trajectory.model_id == model_id)
+    query = query.order_by(Trajectory.hits.desc(), Trajectory.failures, Trajectory.id).limit(limit)
+    return list(session.scalars(query))
