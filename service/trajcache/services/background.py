@@ -1,0 +1,32 @@
+"""Background work of one service process: the seed job scheduler and timed eviction."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from trajcache.services.context import ServiceContext
+from trajcache.services.eviction import EvictionTimer
+from trajcache.services.seeding import SeedScheduler
+
+
+@dataclass
+class Background:
+    """The started background threads; `stop` ends them before the context closes."""
+
+    seeds: SeedScheduler
+    eviction: EvictionTimer | None
+
+    def stop(self) -> None:
+        """Hand running seed jobs back and stop the timers."""
+        if self.eviction is not None:
+            self.eviction.stop()
+        self.seeds.stop()
+
+
+def start_background(ctx: ServiceContext) -> Background:
+    """Start the seed scheduler (it resumes unfinished jobs at once) and timed eviction."""
+    settings = ctx.settings
+    eviction = None
+    if settings.cache_max_per_model > 0 and settings.eviction_interval_s > 0:
+        eviction = EvictionTimer(ctx).start()
+    return Background(seeds=SeedScheduler(ctx).start(), eviction=eviction)

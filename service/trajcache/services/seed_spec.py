@@ -1,0 +1,287 @@
+"""What a seed job plans: its request format, validation, and expansion into work items.
+
+A seed job request (the body of `POST /v1/seed-jobs`, or the file of `trajcache seed`) names a
+model and says which scenes and which queries to plan, in one of these forms:
+
+Scenes (with `queries`)
+- `scenes`: a list of scenes; each is an explicit scene (native `{"objects", "env"}` or a MoveIt
+  world, as `PUT /v1/robots/{id}/scene` takes) or a generator spec (below).
+- `base_scene` with `variants`: each variant is applied to the base. For an explicit base a
+  variant is a scene patch (`{"upsert": [...], "remove": [...], "env": {...}}`, as `PATCH
+  /v1/robots/{id}/scene` takes); for a generator base it is generator parameters that override
+  the base's (`{"doors_deg": 30}`, `{"env": {"stall_2_door": 0.5}}`).
+- `base_scene` with `sweep` (generator base only): `{"param": "doors_deg", "start": 0,
+  "stop": 90, "step": 10}` makes one variant per value, `stop` included. `param` is a generator
+  parameter (`doors_deg`, `seats_deg`) or `env.<name>` (one environment value).
+
+Generator spec, the reference restroom: `{"generator": "restroom", "doors_deg": 30 | [a, b, c],
+"seats_deg": ..., "env": {"stall_1_door": 0.52, "stall_2_seat": 1.57}, "jitter_m": 0.0,
+"jitter_seed": null}`. Angles in degrees (0…90, one for every stall or one per stall); `env`
+sets single values under the names (and in the unit, radians) the scene records them with.
+
+Queries
+- `queries`: `[{"start": [...], "goal": [...], "scene": 2}]`, states ordered as the model's
+  `state_names`; a query with `scene` (an index into the scenes) is planned in that scene
+  only, one without it in every scene.
+- `workload` (instead of `queries` and of any scene): the reference cleaning workload, each call
+  planned in the restroom as it is when the call is made (doors opened, seats raised):
+  `{"name": "cleaning", "seed": 3}` is one cleaning run (`"perturbed": true` the "real robot"
+  one); `{"name": "door_sweep", "seed": 1, "doors_deg": {"start": 0, "stop": 90, "step": 10}}`
+  (or a list of angles) is one run per door angle with every door at that angle throughout (the
+  paper's pre-seeding). `"limit": n` keeps the first n calls of each run.
+
+`options` (`threshold`, `max_candidates`, `budget_s`, `planner`, `match`) are those of a plan
+request; `concurrency` bounds the job's requests in flight (default and maximum: the
+`seed_concurrency` setting).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Annotated, Any, Literal, Self
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from trajcache.core.config import Settings
+from trajcache.geometry.errors import GeometryError
+from trajcache.geometry.kinematics import check_limits, check_states
+from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.scene import Scene
+from trajcache.planning.problem import PLANNER_NAMES
+from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
+from trajcache.services.seed_scenes import build_scenes
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+MAX_LIST = 100_000  # structural bound; the settings bound scenes and work items further
+
+
+class SeedOptions(BaseModel):
+    """Plan options of every request of the job (defaults and bounds from the settings)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    threshold: FiniteFloat | None = Field(default=None, gt=0)
+    max_candidates: int | None = Field(default=None, ge=1)
+    budget_s: FiniteFloat | None = Field(default=None, gt=0)
+    planner: str | None = None
+    match: Literal["full", "arm"] = "full"
+
+    @field_validator("planner")
+    @classmethod
+    def _known_planner(cls, name: str | None) -> str | None:
+        if name is not None and name.strip().lower() not in PLANNER_NAMES:
+            raise ValueError(f"unknown planner {name!r}; use one of {', '.join(PLANNER_NAMES)}")
+        return None if name is None else name.strip().lower()
+
+
+class SeedQuery(BaseModel):
+    """One start/goal pair; `scene` restricts it to one scene (index), else every scene."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    start: list[FiniteFloat] = Field(min_length=1, max_length=64)
+    goal: list[FiniteFloat] = Field(min_length=1, max_length=64)
+    scene: int | None = Field(default=None, ge=0)
+
+
+class ValueRange(BaseModel):
+    """`start`, `start + step`, … up to `stop` (included)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    start: FiniteFloat
+    stop: FiniteFloat
+    step: FiniteFloat = Field(gt=0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.stop < self.start:
+            raise ValueError("stop must not be below start")
+        if (self.stop - self.start) / self.step > MAX_LIST:
+            raise ValueError(f"the range has more than {MAX_LIST} values")
+        return self
+
+    def values(self) -> list[float]:
+        """The values of the range."""
+        count = math.floor((self.stop - self.start) / self.step + 1e-9) + 1
+        return [round(self.start + k * self.step, 9) for k in range(count)]
+
+
+class Sweep(ValueRange):
+    """One variant of a generator base scene per value of `param`."""
+
+    param: str = Field(min_length=1, max_length=120)
+
+
+class Workload(BaseModel):
+    """The reference cleaning workload (see the module docstring)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: Literal["cleaning", "door_sweep"]
+    seed: int = Field(default=0, ge=0, le=2**31 - 1)
+    doors_deg: list[FiniteFloat] | ValueRange | None = None
+    perturbed: bool = False
+    limit: int | None = Field(default=None, ge=1)
+
+    @model_validator(mode="after")
+    def _fits_name(self) -> Self:
+        if self.name == "cleaning" and self.doors_deg is not None:
+            raise ValueError("doors_deg is for the door_sweep workload")
+        if self.name == "door_sweep" and self.perturbed:
+            raise ValueError("perturbed is for the cleaning workload")
+        return self
+
+    def door_angles(self) -> list[float]:
+        """The door angles of a door sweep (default 0…90 in steps of 10)."""
+        if self.doors_deg is None:
+            return [float(a) for a in range(0, 91, 10)]
+        if isinstance(self.doors_deg, ValueRange):
+            return self.doors_deg.values()
+        return [float(a) for a in self.doors_deg]
+
+
+class SeedJobSpec(BaseModel):
+    """A seed job request (see the module docstring for the forms it takes)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    model_id: str = Field(min_length=1, max_length=64)
+    name: str | None = Field(default=None, max_length=200)
+    scenes: list[dict[str, Any]] | None = Field(default=None, min_length=1, max_length=MAX_LIST)
+    base_scene: dict[str, Any] | None = None
+    variants: list[dict[str, Any]] | None = Field(default=None, min_length=1, max_length=MAX_LIST)
+    sweep: Sweep | None = None
+    queries: list[SeedQuery] | None = Field(default=None, min_length=1, max_length=MAX_LIST)
+    workload: Workload | None = None
+    options: SeedOptions = Field(default_factory=SeedOptions)
+    concurrency: int | None = Field(default=None, ge=1)
+
+    @model_validator(mode="after")
+    def _one_form(self) -> Self:
+        if (self.queries is None) == (self.workload is None):
+            raise ValueError("give either queries or a workload")
+        has_scenes = self.scenes is not None or self.base_scene is not None
+        if self.workload is not None and (has_scenes or self.variants or self.sweep):
+            raise ValueError("a workload brings its own scenes: drop scenes/base_scene")
+        if self.queries is not None and (self.scenes is None) == (self.base_scene is None):
+            raise ValueError("give either scenes or a base_scene (with variants or a sweep)")
+        if (self.variants is not None or self.sweep is not None) and self.base_scene is None:
+            raise ValueError("variants and sweep need a base_scene")
+        if self.variants is not None and self.sweep is not None:
+            raise ValueError("give either variants or a sweep, not both")
+        return self
+
+
+@dataclass(frozen=True, eq=False)
+class SeedItem:
+    """One plan request of a job: a scene (index into the job's scenes), start, goal."""
+
+    scene: int
+    start: np.ndarray
+    goal: np.ndarray
+    label: str
+
+
+@dataclass(frozen=True, eq=False)
+class SeedWork:
+    """A job expanded: its scenes and its work items in order."""
+
+    scenes: list[Scene]
+    items: list[SeedItem]
+
+
+def _check_items(total: int, settings: Settings) -> None:
+    if total > settings.seed_max_queries:
+        raise PayloadTooLargeError(
+            f"the job has {total} plan requests, more than "
+            f"seed_max_queries={settings.seed_max_queries}"
+        )
+
+
+def _checked(model: RobotModel, states: Iterable[Any], name: str) -> np.ndarray:
+    try:
+        array = check_states(model, list(states), name=name)
+        check_limits(model, array, name=name)
+    except GeometryError as exc:
+        raise InvalidInputError(str(exc)) from None
+    return array
+
+
+def _query_items(queries: Sequence[SeedQuery], model: RobotModel, n_scenes: int) -> list[SeedItem]:
+    """Every query in its scenes, scene-major (one scene's requests run together)."""
+    for j, query in enumerate(queries):
+        _checked(model, query.start, f"queries[{j}].start")
+        _checked(model, query.goal, f"queries[{j}].goal")
+        if query.scene is not None and query.scene >= n_scenes:
+            raise InvalidInputError(
+                f"queries[{j}].scene: {query.scene} is not a scene index (0..{n_scenes - 1})"
+            )
+    items: list[SeedItem] = []
+    for s in range(n_scenes):
+        for j, query in enumerate(queries):
+            if query.scene is None or query.scene == s:
+                start, goal = np.asarray(query.start, float), np.asarray(query.goal, float)
+                items.append(SeedItem(s, start, goal, f"scene {s}, query {j}"))
+    return items
+
+
+def _workload_items(workload: Workload, model: RobotModel) -> SeedWork:
+    from trajcache.workload.cleaning import cleaning_run, door_sweep_run
+
+    if workload.name == "cleaning":
+        runs = [("", cleaning_run(workload.seed, perturbed=workload.perturbed))]
+    else:
+        angles = workload.door_angles()
+        for k, angle in enumerate(angles):
+            if not 0.0 <= angle <= 90.0:
+                raise InvalidInputError(f"workload.doors_deg[{k}]: {angle} is not within 0..90")
+        runs = [(f"doors {a:g}°, ", door_sweep_run(a, workload.seed)) for a in angles]
+    scenes: list[Scene] = []
+    index: dict[str, int] = {}
+    items: list[SeedItem] = []
+    for prefix, run in runs:
+        calls = run.calls[: workload.limit]
+        where = f"workload {workload.name!r} (for the reference robot)"
+        _checked(model, [c.start for c in calls] + [c.goal for c in calls], where)
+        for call in calls:
+            scene = run.scene_for(call)
+            if scene.hash not in index:
+                index[scene.hash] = len(scenes)
+                scenes.append(scene)
+            label = f"{prefix}call {call.index}: {call.label}"
+            items.append(SeedItem(index[scene.hash], call.start, call.goal, label))
+    return SeedWork(scenes, items)
+
+
+def expand(spec: SeedJobSpec, *, model: RobotModel, settings: Settings) -> SeedWork:
+    """The job's scenes and work items; InvalidInputError names what is wrong (422)."""
+    if spec.concurrency is not None and spec.concurrency > settings.seed_concurrency:
+        raise InvalidInputError(
+            f"concurrency: {spec.concurrency} is above seed_concurrency={settings.seed_concurrency}"
+        )
+    options = spec.options
+    for name, value, limit in (
+        ("threshold", options.threshold, settings.lookup_threshold_max),
+        ("max_candidates", options.max_candidates, settings.max_candidates_limit),
+        ("budget_s", options.budget_s, settings.plan_budget_max_s),
+    ):
+        if value is not None and value > limit:
+            raise InvalidInputError(f"options.{name}: {value} exceeds the service limit {limit}")
+    if spec.workload is not None:
+        work = _workload_items(spec.workload, model)
+        _check_items(len(work.items), settings)
+        return work
+    scenes = build_scenes(
+        scenes=spec.scenes,
+        base_scene=spec.base_scene,
+        variants=spec.variants,
+        sweep=spec.sweep,
+        settings=settings,
+    )
+    assert spec.queries is not None
+    _check_items(sum(len(scenes) if q.scene is None else 1 for q in spec.queries), settings)
+    return SeedWork(scenes, _query_items(spec.queries, model, len(scenes)))
