@@ -1,0 +1,88 @@
+"""Python client of the trajcache planning service.
+
+from trajcache_client import Client
+
+with Client("http://127.0.0.1:8000") as tc:
+    answer = tc.plan("r1", start, goal)
+"""
+
+from trajcache_client._async_client import AsyncClient
+from trajcache_client._base import DEFAULT_BASE_URL, DEFAULT_RETRY, DEFAULT_TIMEOUT
+from trajcache_client._client import Client
+from trajcache_client._exceptions import (
+    APIError,
+    AuthError,
+    BadRequestError,
+    ConflictError,
+    NotFoundError,
+    PayloadTooLargeError,
+    ServerError,
+    TrajcacheError,
+    TransportError,
+    TransportTimeoutError,
+    UnavailableError,
+    UnexpectedResponseError,
+    UnsupportedMediaTypeError,
+    ValidationError,
+)
+from trajcache_client._models import (
+    Health,
+    ModelFile,
+    Page,
+    PlanOptions,
+    PlanResult,
+    Rejection,
+    Robot,
+    RobotModel,
+    RobotModelDetail,
+    RobotModelSummary,
+    Scene,
+    SceneVersion,
+    Trajectory,
+    TrajectoryCreated,
+    TrajectorySummary,
+)
+from trajcache_client._operations import Operation
+from trajcache_client._retry import NO_RETRY, Retry
+from trajcache_client._version import __version__
+
+__all__ = [
+    "DEFAULT_BASE_URL",
+    "DEFAULT_RETRY",
+    "DEFAULT_TIMEOUT",
+    "NO_RETRY",
+    "APIError",
+    "AsyncClient",
+    "AuthError",
+    "BadRequestError",
+    "Client",
+    "ConflictError",
+    "Health",
+    "ModelFile",
+    "NotFoundError",
+    "Operation",
+    "Page",
+    "PayloadTooLargeError",
+    "PlanOptions",
+    "PlanResult",
+    "Rejection",
+    "Retry",
+    "Robot",
+    "RobotModel",
+    "RobotModelDetail",
+    "RobotModelSummary",
+    "Scene",
+    "SceneVersion",
+    "ServerError",
+    "TrajcacheError",
+    "Trajectory",
+    "TrajectoryCreated",
+    "TrajectorySummary",
+    "TransportError",
+    "TransportTimeoutError",
+    "UnavailableError",
+    "UnexpectedResponseError",
+    "UnsupportedMediaTypeError",
+    "ValidationError",
+    "__version__",
+]

@@ -1,0 +1,175 @@
+"""Typed bodies of the v1 API; answers keep fields a newer service adds (in `model_extra`)."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Generic, Literal, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field
+
+T = TypeVar("T")
+
+BaseType = Literal["fixed", "planar"]
+Source = Literal["real", "sim", "import", "planner"]
+
+
+class _Answer(BaseModel):
+    """An answer body: unknown fields are kept, not rejected."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+
+class Page(_Answer, Generic[T]):
+    """One page of a list; `total` counts every match."""
+
+    items: list[T]
+    total: int
+    limit: int
+    offset: int
+
+
+class RobotModel(_Answer):
+    """A registered model; `created` is false when the same content was registered before."""
+
+    model_id: str
+    name: str
+    joint_names: list[str]
+    base: BaseType
+    state_names: list[str]
+    created: bool
+
+
+class RobotModelSummary(_Answer):
+    """A model in a list."""
+
+    model_id: str
+    name: str
+    base: BaseType
+    joint_names: list[str]
+    state_names: list[str]
+    created_at: datetime
+
+
+class ModelFile(_Answer):
+    """A mesh file stored with a model."""
+
+    path: str
+    sha256: str
+    size: int
+
+
+class RobotModelDetail(RobotModelSummary):
+    """A model with its links, planning limits (None = unbounded) and files."""
+
+    link_names: list[str]
+    lower: list[float | None]
+    upper: list[float | None]
+    velocity_limits: list[float]
+    files: list[ModelFile]
+
+
+class Robot(_Answer):
+    """A robot; `scene_version` 0 means it has no scene yet."""
+
+    robot_id: str
+    model_id: str
+    scene_version: int
+    created_at: datetime
+    updated_at: datetime
+
+
+class SceneVersion(_Answer):
+    """The version number and content hash of a scene."""
+
+    version: int
+    hash: str
+
+
+class Scene(SceneVersion):
+    """A robot's current scene in native form."""
+
+    objects: list[dict[str, Any]]
+    env: dict[str, float]
+
+
+class PlanOptions(BaseModel):
+    """Per-request plan options; None leaves the service default. Unknown options pass through."""
+
+    model_config = ConfigDict(extra="allow")
+
+    threshold: float | None = Field(default=None, gt=0)
+    max_candidates: int | None = Field(default=None, ge=1)
+    fallback: bool | None = None
+    budget_s: float | None = Field(default=None, gt=0)
+    planner: str | None = None
+    match: Literal["full", "arm"] | None = None
+
+
+class Rejection(_Answer):
+    """A cached candidate that failed validation, and why."""
+
+    trajectory_id: int
+    status: str
+    reason: str
+
+
+class PlanResult(_Answer):
+    """A plan answer: a trajectory and where it came from, or a status saying why there is none.
+
+    `status` is "success", "miss" (no valid candidate, no planning), "failure" (no path within
+    the budget) or "error" (the planner could not run); `source` is "cache" or "planner".
+    """
+
+    status: str
+    source: str | None
+    trajectory_id: int | None
+    states: list[list[float]] | None
+    candidates_tried: int
+    timings_ms: dict[str, float]
+    message: str = ""
+    rejected: list[Rejection] = Field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        """True when the answer carries a trajectory."""
+        return self.status == "success" and self.states is not None
+
+
+class TrajectoryCreated(_Answer):
+    """A stored trajectory's id; `created` is false when it was already stored."""
+
+    trajectory_id: int
+    created: bool
+
+
+class TrajectorySummary(_Answer):
+    """A stored trajectory without its states."""
+
+    trajectory_id: int
+    model_id: str
+    source: str
+    robot_id: str | None
+    n_states: int
+    dof: int
+    start: list[float]
+    goal: list[float]
+    scene_hash: str | None
+    env: dict[str, float]
+    hits: int
+    failures: int
+    last_used_at: datetime | None
+    planning_time_ms: float | None
+    length: float | None
+    created_at: datetime
+
+
+class Trajectory(TrajectorySummary):
+    """A stored trajectory with its key states."""
+
+    states: list[list[float]]
+
+
+class Health(_Answer):
+    """Liveness (`ok`) or readiness (`ready`)."""
+
+    status: str

@@ -1,0 +1,125 @@
+"""The blocking client against the real app served by uvicorn on loopback (SQLite, PostgreSQL)."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import zipfile
+
+import pytest
+import trimesh
+
+import trajcache_client as tc
+from tests.api.conftest import TWO_JOINT_URDF
+from tests.api.test_models import MESH_URDF
+from trajcache_client import Client
+
+PATH = [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]]
+TABLE = {"id": "table", "type": "box", "size": [0.4, 0.4, 0.4], "pose": {"position": [2, 0, 0]}}
+MOVEIT_YAML = """\
+world:
+  collision_objects:
+    - id: shelf
+      primitives: [{type: 1, dimensions: [0.3, 0.3, 0.3]}]
+      primitive_poses: [{position: {x: -2.0, y: 0.0, z: 0.2}}]
+"""
+
+
+def _mesh_archive() -> tuple[bytes, bytes]:
+    stl = bytes(trimesh.creation.box(extents=(0.1, 0.1, 0.2)).export(file_type="stl"))
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        archive.writestr("meshes/part.stl", stl)
+    return buffer.getvalue(), stl
+
+
+def test_models_are_registered_once_and_read_back(client: Client) -> None:
+    first = client.register_model(TWO_JOINT_URDF, name="two")
+    again = client.register_model(TWO_JOINT_URDF, name="two")
+    assert first.created and not again.created and again.model_id == first.model_id
+    assert first.state_names == ["shoulder", "elbow"] and first.base == "fixed"
+
+    archive, stl = _mesh_archive()
+    meshy = client.register_model(MESH_URDF, base="planar", archive=archive)
+    assert meshy.state_names == ["base_x", "base_y", "base_theta", "lift"]
+
+    page = client.list_models(limit=1)
+    assert page.total == 2 and [m.model_id for m in page.items] == [first.model_id]
+    detail = client.get_model(meshy.model_id)
+    assert detail.link_names == ["base", "arm"] and detail.upper[-1] == 0.5
+    assert detail.lower[0] is None  # the planar base is unbounded in x
+    assert [(f.path, f.sha256) for f in detail.files] == [
+        ("meshes/part.stl", hashlib.sha256(stl).hexdigest())
+    ]
+
+
+def test_robots_and_scenes_follow_the_world(client: Client) -> None:
+    model = client.register_model(TWO_JOINT_URDF)
+    robot = client.put_robot("robot-1", model.model_id)
+    assert robot.scene_version == 0 and client.get_robot("robot-1") == robot
+
+    v1 = client.put_scene("robot-1", {"objects": [TABLE], "env": {"door": 0.0}})
+    assert v1.version == 1 and client.put_scene("robot-1", {"objects": [TABLE]}).version == 2
+    v3 = client.put_scene("robot-1", MOVEIT_YAML)
+    assert [o["id"] for o in client.get_scene("robot-1").objects] == ["shelf"]
+
+    moved = {**TABLE, "pose": {"position": [2.5, 0, 0]}}
+    v4 = client.patch_scene("robot-1", upsert=[moved], remove=["shelf"], env={"door": 0.5})
+    scene = client.get_scene("robot-1")
+    assert (v3.version, v4.version) == (3, 4) and scene.hash == v4.hash
+    assert [o["id"] for o in scene.objects] == ["table"] and scene.env == {"door": 0.5}
+    assert scene.objects[0]["pose"]["position"] == [2.5, 0.0, 0.0]
+    assert client.get_robot("robot-1").scene_version == 4
+
+
+def test_trajectories_are_stored_listed_planned_with_and_deleted(client: Client) -> None:
+    model = client.register_model(TWO_JOINT_URDF)
+    client.put_robot("robot-1", model.model_id)
+    stored = client.store_trajectory(model.model_id, PATH, source="sim", robot_id="robot-1")
+    assert stored.created
+    assert not client.store_trajectory(model.model_id, PATH, source="sim").created
+
+    listed = client.list_trajectories(model_id=model.model_id, source="sim")
+    assert [t.trajectory_id for t in listed.items] == [stored.trajectory_id]
+    assert client.list_trajectories(source="real").total == 0
+
+    answer = client.plan("robot-1", [0.05, 0.02], [0.98, -0.03], {"fallback": False})
+    assert answer.ok and answer.source == "cache"
+    assert answer.trajectory_id == stored.trajectory_id
+    assert answer.states is not None and answer.states[0] == [0.05, 0.02]
+    assert set(answer.timings_ms) >= {"lookup", "validate", "plan", "total"}
+
+    trajectory = client.get_trajectory(stored.trajectory_id)
+    assert trajectory.states == PATH and trajectory.source == "sim"
+
+    client.delete_trajectory(stored.trajectory_id)
+    with pytest.raises(tc.NotFoundError, match=f"trajectory {stored.trajectory_id} not found"):
+        client.get_trajectory(stored.trajectory_id)
+    miss = client.plan("robot-1", [0.05, 0.02], [0.98, -0.03], {"fallback": False})
+    assert miss.status == "miss" and not miss.ok and miss.states is None
+
+
+def test_service_errors_arrive_as_exceptions_naming_the_problem(client: Client) -> None:
+    model = client.register_model(TWO_JOINT_URDF)
+    client.put_robot("robot-1", model.model_id)
+    with pytest.raises(tc.NotFoundError, match="robot 'ghost' not found"):
+        client.get_robot("ghost")
+    with pytest.raises(tc.ValidationError, match="start has 1 values") as caught:
+        client.plan("robot-1", [0.0], [1.0, 0.0])
+    assert caught.value.status_code == 422
+    with pytest.raises(tc.ValidationError, match=r"path\.trajectory_id") as invalid:
+        client.get_trajectory(0)
+    assert invalid.value.errors[0]["loc"] == ["path", "trajectory_id"]
+    with pytest.raises(tc.UnsupportedMediaTypeError):
+        client.put_scene("robot-1", b"\x89PNG", media_type="image/png")
+    with pytest.raises(tc.ValidationError, match="object 'a'"):
+        client.put_scene("robot-1", {"objects": [{"id": "a", "type": "box"}]})
+    with pytest.raises(tc.PayloadTooLargeError, match="max_trajectory_states"):
+        client.store_trajectory(model.model_id, [[0.0, 0.0]] * 5001)
+    with pytest.raises(tc.ValidationError, match="max_page_size"):
+        client.list_trajectories(limit=100_000)
+
+
+def test_health_and_readiness(client: Client) -> None:
+    assert client.health().status == "ok"
+    assert client.ready().status == "ready"
