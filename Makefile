@@ -28,6 +28,10 @@ bench-smoke: setup
 	$(BIN)/python bench/validation.py --smoke
 	$(BIN)/python bench/lookup.py --smoke
 	$(BIN)/python bench/plan_hit.py --smoke
+	$(BIN)/python bench/stats.py --smoke
+	$(BIN)/python bench/reuse_quality.py --smoke
+	$(BIN)/python bench/planning.py --smoke
+	$(BIN)/python bench/paper_tables.py --smoke
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

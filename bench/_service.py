@@ -14,6 +14,41 @@ from pathlib import Path
 
 import httpx
 
+_PIDS: dict[str, int] = {}  # base URL → pid of the service started by running_service
+
+
+def server_cpu_seconds(base: str) -> float:
+    """CPU time (user + system, s) used so far by the HTTP processes of the service at `base`
+    (the planner pool's processes, forked from a forkserver, are left out); Linux only (read
+    from /proc), NaN elsewhere."""
+    root = _PIDS.get(base)
+    proc = Path("/proc")
+    if root is None or not (proc / str(root)).exists():
+        return float("nan")
+    tick = os.sysconf("SC_CLK_TCK")
+    stats: dict[int, tuple[int, float]] = {}  # pid → (parent pid, cpu seconds)
+    for entry in proc.iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            cmdline = (entry / "cmdline").read_bytes()
+        except OSError:  # the process ended meanwhile
+            continue
+        if b"forkserver" in cmdline or b"resource_tracker" in cmdline:
+            continue
+        stats[int(entry.name)] = (int(fields[1]), (int(fields[11]) + int(fields[12])) / tick)
+    family, total, grew = {root}, 0.0, True
+    while grew:
+        grew = False
+        for pid, (parent, _) in stats.items():
+            if parent in family and pid not in family:
+                family.add(pid)
+                grew = True
+    for pid in family:
+        total += stats.get(pid, (0, 0.0))[1]
+    return total
+
 
 def free_port() -> int:
     """An unused TCP port on loopback."""
@@ -36,6 +71,7 @@ def running_service(
                "--port", str(port), "--workers", str(workers)]  # fmt: skip
         proc = subprocess.Popen(cmd, env=child_env, cwd=tmp)
         base = f"http://127.0.0.1:{port}"
+        _PIDS[base] = proc.pid
         try:
             deadline = time.monotonic() + 60
             while True:
@@ -49,6 +85,7 @@ def running_service(
                 time.sleep(0.2)
             yield base
         finally:
+            _PIDS.pop(base, None)
             proc.terminate()
             try:
                 proc.wait(timeout=10)

@@ -1,12 +1,35 @@
 """End-to-end cache-hit latency of POST /v1/robots/{id}/plan through the real service.
 
-Starts `trajcache serve` (uvicorn on loopback, SQLite by default), registers the reference robot,
-uploads the restroom scene, stores collision-free trajectories, then asks for plans whose start
-and goal are near stored ones (execution noise), so every answer is a validated cache hit.
-Measures client latency sequentially and with 16 concurrent clients, and the server-side
-breakdown (lookup, validation, database; serialization and HTTP = client latency − server total).
+Starts `trajcache serve` (uvicorn on loopback; SQLite by default, or a fresh schema on the
+PostgreSQL server given with --database-url) and drives it with the reference workload
+(REFERENCE.md): the reference robot in the restroom.
 
-    python bench/plan_hit.py [--smoke] [--database-url postgresql+psycopg://…]
+- Warm cache: every call of cleaning run 1 (seed S) is planned in this process with the
+  project's planner (OMPL RRTConnect, shortcut, certified-validated) in the scene in force at that
+  call, and stored through the API as `sim`, which is what pre-seeding does.
+- Queries: the calls of further runs (seeds S+1, S+2, …). Every call carries fresh execution
+  noise, and the doors start and open at other angles than in run 1, so the robot's scene is
+  never the one a trajectory was planned in. Each distinct scene of those runs is uploaded once,
+  as its own robot, and every query goes to the robot whose scene it was made in. Before timing,
+  each robot answers one request of an unrelated run (its validator is built, as it would be
+  after the first call that follows a scene change).
+- Sequential: one keep-alive client sends each query once, in run order. No request repeats, so
+  every answer is validated against the scene (the validation memo only helps where a cached
+  interior recurs exactly). Latency percentiles are over the answers served from the cache;
+  misses are counted, not timed.
+- Repeat: the same sequential requests once more. Exact repeats are answered from the validation
+  memo without collision checks: the most the memo can give, not what a robot sees.
+- Concurrent: 16 clients, each sending its own share of further fresh queries; plans per second
+  over all requests.
+
+Server-side breakdown: `timings_ms` (db, lookup, validate, total of the plan flow) and the
+`Server-Timing` header (answer extras such as quality metrics, serialize); "http" is client
+latency minus all of those, and GET /healthz with the same client shows the transport and
+framework floor. The last line printed is one JSON object with `p50_ms`, `p99_ms` and
+`concurrent_rps`. Server CPU per plan (the service's processes, from /proc) is reported too:
+unlike latency, it hardly moves when other programs load the machine.
+
+    python bench/plan_hit.py [--smoke] [--database-url postgresql+psycopg://…] [--workers N]
 """
 
 from __future__ import annotations
@@ -16,100 +39,194 @@ import json
 import statistics
 import threading
 import time
+import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 
 import httpx
 import numpy as np
+import sqlalchemy as sa
 
-from _service import running_service
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.reference.restroom import restroom_scene
+from _service import running_service, server_cpu_seconds
 from trajcache.geometry.reference.robot import reference_model, reference_urdf
-from trajcache.geometry.scene import scene_to_payload
-from trajcache.geometry.validation import TrajectoryValidator
-from validation import make_trajectories
+from trajcache.geometry.scene import Scene, scene_to_payload
+from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
+from trajcache.planning.run import run_planning
+from trajcache.workload.cleaning import CleaningRun, cleaning_run
 
 CONCURRENCY = 16
+QUERY_DOORS_START = (4.0, 11.0, 17.0)  # degrees per stall; run 1 draws its own
+QUERY_DOORS_OPEN = 83.0
+PLAN_OPTIONS = {"fallback": False}
 
 
-def percentile(values: list[float], q: float) -> float:
-    """The q-th percentile (0–100) of `values`."""
-    return float(np.percentile(np.asarray(values), q))
+@dataclass(frozen=True)
+class Query:
+    """One plan request of the workload, addressed to the robot that holds its scene."""
+
+    robot_id: str
+    body: dict[str, object]
 
 
-def setup_cache(base: str, count: int, seed: int) -> list[tuple[list[float], list[float]]]:
-    """Register the robot and scene, store `count` trajectories; return noisy (start, goal)s."""
+PLAN_PARTS = {"db", "lookup", "validate", "plan", "total"}  # timings_ms inside the plan flow
+
+
+@dataclass
+class Sample:
+    """What one request returned."""
+
+    latency_ms: float
+    hit: bool
+    timings: dict[str, float] = field(default_factory=dict)  # timings_ms of the answer
+    server_timing: dict[str, float] = field(default_factory=dict)  # the Server-Timing header
+
+    @property
+    def serialize_ms(self) -> float:
+        """Time spent serializing the answer."""
+        return self.server_timing.get("serialize", 0.0)
+
+    @property
+    def extras_ms(self) -> float:
+        """Time the route spent besides the plan flow and serializing (answer extras)."""
+        return sum(v for k, v in self.server_timing.items() if k not in PLAN_PARTS | {"serialize"})
+
+
+def fill_cache(client: httpx.Client, model_id: str, run: CleaningRun, calls: int) -> int:
+    """Plan the first `calls` calls of `run` in its scenes and store them; return how many."""
     model = reference_model()
-    scene = restroom_scene(doors=[30.0, 60.0, 90.0])
-    rng = np.random.default_rng(seed)
-    with httpx.Client(base_url=base, timeout=30) as client:
+    source = ModelSource(
+        model_id=model_id,
+        urdf=reference_urdf(),
+        base="planar",
+        joint_names=tuple(model.state_names[3:]),
+        allowed_pairs=tuple(sorted(model.allowed_pairs)),
+    )
+    stored = 0
+    for call in run.calls[:calls]:
+        scene = run.scene_for(call)
+        problem = PlanningProblem(
+            model=source,
+            scene=SceneSource(scene.hash, scene_to_payload(scene)),
+            start=tuple(call.start),
+            goal=tuple(call.goal),
+            seed=call.index,
+        )
+        result = run_planning(problem)
+        if not result.solved or result.path is None:
+            continue
         reply = client.post(
-            "/v1/robot-models",
-            json={"urdf": reference_urdf(), "base": "planar", "name": "xarm7-mobile"},
+            "/v1/trajectories",
+            json={
+                "model_id": model_id,
+                "states": result.path.tolist(),
+                "source": "sim",
+                "scene_hash": scene.hash,
+                "env": dict(scene.env),
+            },
         )
         reply.raise_for_status()
-        model_id = reply.json()["model_id"]
-        client.put("/v1/robots/bench-1", json={"model_id": model_id}).raise_for_status()
-        client.put("/v1/robots/bench-1/scene", json=scene_to_payload(scene)).raise_for_status()
-        validator = TrajectoryValidator(model, scene)
-        free, _ = make_trajectories(model, CollisionChecker(model, scene), rng, count * 2)
-        queries = []
-        for key in free:
-            key = key.copy()
-            key[:, :3] = key[0, :3]  # the arm moves, the base stays: the common case
-            if not validator.validate(key).valid:
-                continue
-            client.post(
-                "/v1/trajectories",
-                json={"model_id": model_id, "states": key.tolist(), "source": "sim"},
-            ).raise_for_status()
-            for _ in range(3):
-                start, goal = key[0].copy(), key[-1].copy()
-                start[3:] += rng.uniform(-0.01, 0.01, size=7)
-                goal[3:] += rng.uniform(-0.01, 0.01, size=7)
-                goal[:3] = start[:3]
-                start = np.clip(start, model.lower, model.upper)
-                goal = np.clip(goal, model.lower, model.upper)
-                queries.append((start.tolist(), goal.tolist()))
-            if len(queries) >= count * 3:
-                break
-    return queries
+        stored += 1
+    return stored
 
 
-def run_sequential(
-    base: str, queries: list[tuple[list[float], list[float]]], n: int
-) -> tuple[list[float], list[dict[str, float]], int]:
-    """Latencies (ms), server timings and hit count of `n` sequential plans."""
-    latencies, timings, hits = [], [], 0
+class Robots:
+    """One robot per distinct scene, created (and its scene uploaded) on first use."""
+
+    def __init__(self, client: httpx.Client, model_id: str) -> None:
+        self.client, self.model_id = client, model_id
+        self.by_hash: dict[str, str] = {}
+
+    def robot_for(self, scene: Scene) -> str:
+        """The id of the robot whose scene is `scene`."""
+        robot_id = self.by_hash.get(scene.hash)
+        if robot_id is None:
+            robot_id = f"bench-{len(self.by_hash)}"
+            self.client.put(f"/v1/robots/{robot_id}", json={"model_id": self.model_id})
+            reply = self.client.put(f"/v1/robots/{robot_id}/scene", json=scene_to_payload(scene))
+            reply.raise_for_status()
+            self.by_hash[scene.hash] = robot_id
+        return robot_id
+
+
+def query_run(seed: int, calls: int, robots: Robots) -> list[Query]:
+    """The first `calls` calls of a query run as requests."""
+    run = cleaning_run(
+        seed,
+        initial_doors_deg=QUERY_DOORS_START,
+        door_open_deg=(QUERY_DOORS_OPEN, QUERY_DOORS_OPEN),
+    )
+    return [
+        Query(
+            robots.robot_for(run.scene_for(call)),
+            {"start": call.start.tolist(), "goal": call.goal.tolist(), "options": PLAN_OPTIONS},
+        )
+        for call in run.calls[:calls]
+    ]
+
+
+def _timed(query: Query) -> Query:
+    """The same request asking for a toppra-timed JointTrajectory."""
+    base = query.body["options"]
+    assert isinstance(base, dict)
+    options = {**base, "timing": {"method": "toppra"}}
+    return Query(query.robot_id, {**query.body, "options": options})
+
+
+def send(client: httpx.Client, query: Query) -> Sample:
+    """Send one plan request and time it."""
+    began = time.perf_counter()
+    reply = client.post(f"/v1/robots/{query.robot_id}/plan", json=query.body)
+    latency = (time.perf_counter() - began) * 1e3
+    if reply.status_code != 200:
+        raise RuntimeError(f"plan answered {reply.status_code}: {reply.text[:300]}")
+    body = reply.json()
+    return Sample(
+        latency,
+        body.get("source") == "cache",
+        body.get("timings_ms", {}),
+        _server_timing(reply.headers.get("server-timing", "")),
+    )
+
+
+def _server_timing(header: str) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for part in header.split(","):
+        name, _, rest = part.strip().partition(";dur=")
+        if rest:
+            out[name] = float(rest)
+    return out
+
+
+def run_sequential(base: str, queries: list[Query]) -> list[Sample]:
+    """Each query once, one client, in order."""
     with httpx.Client(base_url=base, timeout=30) as client:
-        for i in range(n):
-            start, goal = queries[i % len(queries)]
+        return [send(client, q) for q in queries]
+
+
+def http_floor(base: str, n: int = 200) -> float:
+    """Median latency (ms) of GET /healthz with the same client: transport and framework only."""
+    with httpx.Client(base_url=base, timeout=30) as client:
+        times = []
+        for _ in range(n):
             began = time.perf_counter()
-            reply = client.post(
-                "/v1/robots/bench-1/plan",
-                json={"start": start, "goal": goal, "options": {"fallback": False}},
-            )
-            latencies.append((time.perf_counter() - began) * 1e3)
-            body = reply.json()
-            hits += body.get("source") == "cache"
-            timings.append(body.get("timings_ms", {}))
-    return latencies, timings, hits
+            client.get("/healthz").raise_for_status()
+            times.append((time.perf_counter() - began) * 1e3)
+    return statistics.median(times)
 
 
-def run_concurrent(base: str, queries: list[tuple[list[float], list[float]]], n: int) -> float:
-    """Plans per second with CONCURRENCY clients sending `n` requests in all."""
-    per_client = n // CONCURRENCY
+def run_concurrent(base: str, queries: list[Query]) -> tuple[float, int]:
+    """Plans per second and hits with CONCURRENCY clients, each sending its share in order."""
+    shares = [queries[k::CONCURRENCY] for k in range(CONCURRENCY)]
+    hits = [0] * CONCURRENCY
     errors: list[str] = []
 
-    def worker(offset: int) -> None:
-        with httpx.Client(base_url=base, timeout=30) as client:
-            for i in range(per_client):
-                start, goal = queries[(offset * 7 + i) % len(queries)]
-                reply = client.post(
-                    "/v1/robots/bench-1/plan",
-                    json={"start": start, "goal": goal, "options": {"fallback": False}},
-                )
-                if reply.status_code != 200:
-                    errors.append(reply.text)
+    def worker(k: int) -> None:
+        with httpx.Client(base_url=base, timeout=60) as client:
+            try:
+                hits[k] = sum(send(client, q).hit for q in shares[k])
+            except Exception as exc:  # reported below
+                errors.append(str(exc))
 
     threads = [threading.Thread(target=worker, args=(k,)) for k in range(CONCURRENCY)]
     began = time.perf_counter()
@@ -119,61 +236,155 @@ def run_concurrent(base: str, queries: list[tuple[list[float], list[float]]], n:
         t.join()
     elapsed = time.perf_counter() - began
     if errors:
-        print(f"{len(errors)} errors, first: {errors[0][:200]}")
-    return per_client * CONCURRENCY / elapsed
+        raise RuntimeError(f"{len(errors)} clients failed, first: {errors[0][:300]}")
+    return len(queries) / elapsed, sum(hits)
+
+
+@contextmanager
+def database(url: str | None) -> Iterator[str | None]:
+    """`url` as given (None: the service's temporary SQLite), or a fresh PostgreSQL schema."""
+    if url is None or not url.startswith("postgresql"):
+        yield url
+        return
+    schema = f"plan_hit_{uuid.uuid4().hex[:10]}"
+    admin = sa.create_engine(url, isolation_level="AUTOCOMMIT")
+    with admin.connect() as conn:
+        conn.execute(sa.text(f'CREATE SCHEMA "{schema}"'))
+    sep = "&" if "?" in url else "?"
+    try:
+        yield f"{url}{sep}options=-csearch_path%3D{schema}"
+    finally:
+        with admin.connect() as conn:
+            conn.execute(sa.text(f'DROP SCHEMA "{schema}" CASCADE'))
+        admin.dispose()
+
+
+def pct(values: list[float], q: float) -> float:
+    """The q-th percentile (0–100); NaN when there are none."""
+    return float(np.percentile(values, q)) if values else float("nan")
+
+
+def summarize(samples: list[Sample]) -> dict[str, float]:
+    """Latency percentiles and the median server breakdown of the cache hits."""
+    hits = [s for s in samples if s.hit]
+    if not hits:
+        return {"hits": 0}
+
+    def med(key: str) -> float:
+        return statistics.median(s.timings.get(key, 0.0) for s in hits)
+
+    http = [s.latency_ms - s.timings.get("total", 0.0) - s.extras_ms - s.serialize_ms for s in hits]
+    return {
+        "hits": len(hits),
+        "p50": pct([s.latency_ms for s in hits], 50),
+        "p99": pct([s.latency_ms for s in hits], 99),
+        "db": med("db"),
+        "lookup": med("lookup"),
+        "validate": med("validate"),
+        "total": med("total"),
+        "total_p99": pct([s.timings.get("total", 0.0) for s in hits], 99),
+        "extras": statistics.median(s.extras_ms for s in hits),
+        "serialize": statistics.median(s.serialize_ms for s in hits),
+        "http": statistics.median(http),
+    }
 
 
 def main() -> None:
     """Run the benchmark and print the table and the JSON line."""
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--smoke", action="store_true", help="tiny run for CI")
+    parser.add_argument("--smoke", action="store_true", help="small run for CI")
     parser.add_argument("--database-url", default=None, help="default: a temporary SQLite file")
-    parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--workers", type=int, default=1, help="server worker processes")
+    parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
-    stored, sequential, concurrent = (10, 60, 160) if args.smoke else (100, 600, 3200)
+    calls, sequential, concurrent = (40, 60, 160) if args.smoke else (None, 600, 3200)
+    fill_run = cleaning_run(args.seed)
+    per_run = len(fill_run.calls[:calls])
 
-    with running_service(args.database_url) as base:
-        queries = setup_cache(base, stored, args.seed)
-        run_sequential(base, queries, 30)  # warm-up: connections, caches, validators
-        latencies, timings, hits = run_sequential(base, queries, sequential)
-        rps = run_concurrent(base, queries, concurrent)
+    with database(args.database_url) as url, running_service(url, workers=args.workers) as base:
+        with httpx.Client(base_url=base, timeout=60) as client:
+            reply = client.post(
+                "/v1/robot-models",
+                json={"urdf": reference_urdf(), "base": "planar", "name": "xarm7-mobile"},
+            )
+            reply.raise_for_status()
+            model_id = reply.json()["model_id"]
+            stored = fill_cache(client, model_id, fill_run, per_run)
+            robots = Robots(client, model_id)
+            runs = -(-(sequential + concurrent) // per_run) + 1
+            queries = [
+                q for k in range(1, runs + 1) for q in query_run(args.seed + k, per_run, robots)
+            ]
+            warmup = {q.robot_id: q for q in query_run(args.seed + 10_000, per_run, robots)}
+        run_sequential(base, list(warmup.values()))
+        seq_queries, conc_queries = queries[:sequential], queries[sequential:]
+        conc_queries = conc_queries[:concurrent]
+        floor = http_floor(base)
+        cpu = server_cpu_seconds(base)
+        first = run_sequential(base, seq_queries)
+        cpu_seq = (server_cpu_seconds(base) - cpu) / len(first) * 1e3
+        again = run_sequential(base, seq_queries)
+        timed = run_sequential(base, [_timed(q) for q in seq_queries])
+        cpu = server_cpu_seconds(base)
+        rps, conc_hits = run_concurrent(base, conc_queries)
+        cpu_conc = (server_cpu_seconds(base) - cpu) / len(conc_queries) * 1e3
 
-    def med(key: str) -> float:
-        return statistics.median(t.get(key, 0.0) for t in timings)
-
-    client_minus_server = statistics.median(
-        lat - t.get("total", 0.0) for lat, t in zip(latencies, timings, strict=True)
-    )
-    p50, p99 = percentile(latencies, 50), percentile(latencies, 99)
-    print(f"{'measure':<34}{'value':>10}")
-    for label, value in (
-        ("stored trajectories", len(queries) // 3),
-        ("sequential requests", sequential),
-        ("cache hits", hits),
-        ("client p50 ms", p50),
-        ("client p99 ms", p99),
-        ("server lookup p50 ms", med("lookup")),
-        ("server validate p50 ms", med("validate")),
-        ("server db p50 ms", med("db")),
-        ("server total p50 ms", med("total")),
-        ("http + serialization p50 ms", client_minus_server),
+    fresh, repeat, timed_repeat = summarize(first), summarize(again), summarize(timed)
+    timing_cost = timed_repeat.get("p50", float("nan")) - repeat.get("p50", float("nan"))
+    rows: list[tuple[str, object]] = [
+        ("trajectories cached (run 1)", stored),
+        ("scenes (robots)", len(robots.by_hash)),
+        ("sequential requests", len(first)),
+        ("cache hits", fresh["hits"]),
+        ("client p50 ms", fresh.get("p50")),
+        ("client p99 ms", fresh.get("p99")),
+        ("server db p50 ms", fresh.get("db")),
+        ("server lookup p50 ms", fresh.get("lookup")),
+        ("server validate p50 ms", fresh.get("validate")),
+        ("server total p50 ms", fresh.get("total")),
+        ("server total p99 ms", fresh.get("total_p99")),
+        ("answer extras (quality) p50 ms", fresh.get("extras")),
+        ("server serialize p50 ms", fresh.get("serialize")),
+        ("http p50 ms", fresh.get("http")),
+        ("http floor: GET /healthz p50 ms", floor),
+        ("server CPU per plan, sequential ms", cpu_seq),
+        ("repeat: client p50 ms", repeat.get("p50")),
+        ("repeat: client p99 ms", repeat.get("p99")),
+        ("repeat: server validate p50 ms", repeat.get("validate")),
+        ("timed repeat (toppra): client p50 ms", timed_repeat.get("p50")),
+        ("added p50 ms for timing", timing_cost),
         (f"concurrent rps ({CONCURRENCY} clients)", rps),
-    ):
-        print(
-            f"{label:<34}{value:>10.3f}" if isinstance(value, float) else f"{label:<34}{value:>10}"
-        )
+        ("concurrent hit rate", conc_hits / max(len(conc_queries), 1)),
+        ("server CPU per plan, concurrent ms", cpu_conc),
+    ]
+    print(f"{'measure':<36}{'value':>10}")
+    for label, value in rows:
+        text = f"{value:.3f}" if isinstance(value, float) else str(value)
+        print(f"{label:<36}{text:>10}")
     print(
         json.dumps(
             {
-                "p50_ms": round(p50, 3),
-                "p99_ms": round(p99, 3),
+                "p50_ms": round(fresh.get("p50", float("nan")), 3),
+                "p99_ms": round(fresh.get("p99", float("nan")), 3),
                 "concurrent_rps": round(rps, 1),
-                "hit_rate": round(hits / sequential, 4),
-                "server_lookup_ms": round(med("lookup"), 3),
-                "server_validate_ms": round(med("validate"), 3),
-                "server_db_ms": round(med("db"), 3),
-                "http_serialization_ms": round(client_minus_server, 3),
-                "database": "postgresql" if args.database_url else "sqlite",
+                "hit_rate": round(fresh["hits"] / max(len(first), 1), 4),
+                "repeat_p50_ms": round(repeat.get("p50", float("nan")), 3),
+                "repeat_p99_ms": round(repeat.get("p99", float("nan")), 3),
+                "timed_repeat_p50_ms": round(timed_repeat.get("p50", float("nan")), 3),
+                "timing_added_p50_ms": round(timing_cost, 3),
+                "server_db_ms": round(fresh.get("db", float("nan")), 3),
+                "server_lookup_ms": round(fresh.get("lookup", float("nan")), 3),
+                "server_validate_ms": round(fresh.get("validate", float("nan")), 3),
+                "server_total_ms": round(fresh.get("total", float("nan")), 3),
+                "server_total_p99_ms": round(fresh.get("total_p99", float("nan")), 3),
+                "server_extras_ms": round(fresh.get("extras", float("nan")), 3),
+                "server_serialize_ms": round(fresh.get("serialize", float("nan")), 3),
+                "http_ms": round(fresh.get("http", float("nan")), 3),
+                "healthz_ms": round(floor, 3),
+                "server_cpu_ms_sequential": round(cpu_seq, 3),
+                "server_cpu_ms_concurrent": round(cpu_conc, 3),
+                "database": "postgresql" if url and url.startswith("postgresql") else "sqlite",
+                "workers": args.workers,
                 "smoke": args.smoke,
             }
         )

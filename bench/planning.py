@@ -1,14 +1,10 @@
 """Fallback planning: OMPL RRTConnect (batched checks), RRIS and a naive OMPL baseline.
 
-Workload (deterministic, from `--seed`): the reference robot in the restroom with all stall
-doors at 0°, 45° and 90°. Arm task configurations come from a seeded random search over the
-arm's joint space: a configuration qualifies when it keeps 1 cm clearance at every base station
-under every door angle, and it is filed by where its tool tip ends up in the base frame
-(forward, down, up, left, right); the first two of each kind plus the stowed arm make the set.
-Arm queries keep the base at a station (facing its stall or the sink) and move between two
-configurations of the set; about 80% of them are chosen among pairs whose straight segment
-collides (the rest are straight-line connectable). Base queries move between adjacent stations
-with the arm stowed, both ways, under every door angle.
+Workload (deterministic, from `--seed`): planning calls drawn from the reference workload
+generator (REFERENCE.md): three cleaning runs, each with its own door angles and execution noise,
+and a pre-seeding door sweep with every door at 0°, 45° and 90°. Each call is planned in the
+scene in force when the run makes it (doors, seats). Both arm moves at a station and base moves
+between stations (arm stowed) are drawn; the table reports how many are straight-line free.
 
 Planners, side by side on the same pairs and seeds, budget 2 s each:
 - rrtconnect: `run_planning` → OMPL RRTConnect with the batched segment MotionValidator;
@@ -16,7 +12,8 @@ Planners, side by side on the same pairs and seeds, budget 2 s each:
 - naive: OMPL RRTConnect with a per-state Python validity callback (one check call per state)
   and OMPL's default motion validation at an equivalent resolution.
 Planning time is the search (endpoint checks and planner run); "total" adds shortcutting and
-the certified validation. Per query (medians): "states" submitted to collision checking
+the certified validation; "detour med" is the median planning time over the calls whose
+straight segment collides. Per query (medians): "states" submitted to collision checking
 (batched: every sample of a checked segment; naive: every state it asked about), "calls" into
 the collision checker, "fcl" narrow-phase checks. The last line printed is one JSON object.
 
@@ -30,119 +27,63 @@ import argparse
 import json
 import statistics
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from trajcache.geometry.collision import FREE, CollisionChecker
-from trajcache.geometry.kinematics import link_transforms
-from trajcache.geometry.reference.restroom import BaseStation, restroom_layout, restroom_scene
-from trajcache.geometry.reference.robot import STOWED_ARM, reference_model, reference_urdf
+from trajcache.geometry.reference.robot import reference_model, reference_urdf
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene, scene_to_payload
 from trajcache.planning.ompl_planner import plan_ompl
 from trajcache.planning.problem import ModelSource, PlanningProblem, PlanResult, SceneSource
 from trajcache.planning.run import run_planning
 from trajcache.planning.space import MotionChecker, state_space_spec
+from trajcache.workload.cleaning import CleaningRun, cleaning_run, door_sweep_run
 
-DOOR_ANGLES = (0.0, 45.0, 90.0)
 BUDGET_S = 2.0
-ADJACENT = (("stall_1", "stall_2"), ("stall_2", "stall_3"), ("stall_3", "sink"))
-# Tool-tip regions in the base frame (x forward, y left, z up; metres).
-REGIONS: dict[str, Callable[[np.ndarray], bool]] = {
-    "forward": lambda p: p[0] > 0.55 and abs(p[1]) < 0.25 and 0.5 < p[2] < 1.1,
-    "down": lambda p: p[0] > 0.35 and p[2] < 0.5,
-    "up": lambda p: p[2] > 1.2,
-    "left": lambda p: p[1] > 0.4,
-    "right": lambda p: p[1] < -0.4,
-}
-PER_REGION = 2
-CLEARANCE_M = 0.01  # task configurations keep 1 cm from obstacles and from the robot itself
-NONTRIVIAL_SHARE = 0.8
+SWEEP_DOORS_DEG = (0.0, 45.0, 90.0)
 
 
 @dataclass(frozen=True)
 class Pair:
-    """One query: door angle, start and goal states, and what kind of query it is."""
+    """One query: the scene it is planned in, start and goal states, and what kind it is."""
 
-    doors: float
+    scene: str  # hash of the scene in force at the call
     start: tuple[float, ...]
     goal: tuple[float, ...]
     kind: str  # "arm" | "base"
     straight_free: bool
+    label: str
 
 
-def _base(station: BaseStation) -> list[float]:
-    return [station.x, station.y, station.theta]
-
-
-def task_configurations(
-    model: RobotModel, scenes: dict[float, Scene], seed: int, draws: int = 4000
-) -> dict[str, np.ndarray]:
-    """~10 arm configurations free at every station under every door angle (seeded search)."""
-    rng = np.random.default_rng(seed)
-    off = model.arm_offset
-    arms = rng.uniform(model.lower[off:], model.upper[off:], size=(draws, model.dof - off))
-    free = np.ones(draws, dtype=bool)
-    for station in restroom_layout().stations:
-        states = np.hstack([np.tile(_base(station), (draws, 1)), arms])
-        for scene in scenes.values():
-            checker = CollisionChecker(model, scene)
-            pads = (len(model.elements), len(checker.robot.pair_i))
-            verdict = checker.check(
-                states,
-                element_pad=np.full((draws, pads[0]), CLEARANCE_M),
-                pair_pad=np.full((draws, pads[1]), CLEARANCE_M),
-                stop_at_first=False,
-            )
-            free &= verdict.status == FREE
-    tip = model.link_names.index("tool_tip")
-    at_origin = np.hstack([np.zeros((draws, off)), arms])
-    tips = link_transforms(model, at_origin)[:, tip, :3, 3]
-    chosen: dict[str, np.ndarray] = {"stowed": np.array(STOWED_ARM, dtype=float)}
-    for region, inside in REGIONS.items():
-        found = [k for k in np.flatnonzero(free) if inside(tips[k])][:PER_REGION]
-        chosen.update({f"{region}_{n}": arms[k] for n, k in enumerate(found)})
-    return chosen
+def workload_runs(seed: int, cleaning_runs: int) -> list[CleaningRun]:
+    """Cleaning runs (each with its own door angles) and a door sweep at 0°, 45° and 90°."""
+    runs = [cleaning_run(seed + k) for k in range(cleaning_runs)]
+    return runs + [door_sweep_run(d, seed) for d in SWEEP_DOORS_DEG]
 
 
 def build_pairs(
-    model: RobotModel, scenes: dict[float, Scene], count: int, seed: int
-) -> tuple[list[Pair], dict[str, np.ndarray]]:
-    """`count` fixed queries: base moves between adjacent stations, the rest arm moves."""
+    model: RobotModel, count: int, seed: int, detour_share: float, cleaning_runs: int
+) -> tuple[list[Pair], dict[str, Scene]]:
+    """`count` planning calls of the workload; up to `detour_share` of them need a detour."""
+    pools: dict[bool, list[Pair]] = {True: [], False: []}
+    scenes: dict[str, Scene] = {}
+    for run in workload_runs(seed, cleaning_runs):
+        for call in run.calls:
+            scene = run.scene_for(call)
+            scenes[scene.hash] = scene
+            start, goal = call.start.tolist(), call.goal.tolist()
+            free = _straight_free(model, scene, start, goal)
+            kind = "base" if call.base_moves else "arm"
+            pools[free].append(Pair(scene.hash, tuple(start), tuple(goal), kind, free, call.label))
     rng = np.random.default_rng(seed)
-    configs = task_configurations(model, scenes, seed)
-    layout = restroom_layout()
-    base_pairs: list[Pair] = []
-    stowed = list(configs["stowed"])
-    for doors, scene in scenes.items():
-        for a, b in ADJACENT:
-            for s, g in ((a, b), (b, a)):
-                start = _base(layout.station(s)) + stowed
-                goal = _base(layout.station(g)) + stowed
-                free = _straight_free(model, scene, start, goal)
-                base_pairs.append(Pair(doors, tuple(start), tuple(goal), "base", free))
-    n_base = min(len(base_pairs), max(2, round(count * 0.15)))
-    picked = [base_pairs[k] for k in sorted(rng.choice(len(base_pairs), n_base, replace=False))]
-    names = sorted(configs)
-    arm_pairs: dict[bool, list[Pair]] = {True: [], False: []}
-    for doors, scene in scenes.items():
-        for station in layout.stations:
-            for i in names:
-                for j in names:
-                    if i == j:
-                        continue
-                    start = _base(station) + list(configs[i])
-                    goal = _base(station) + list(configs[j])
-                    free = _straight_free(model, scene, start, goal)
-                    arm_pairs[free].append(Pair(doors, tuple(start), tuple(goal), "arm", free))
-    n_arm = count - len(picked)
-    hard = min(len(arm_pairs[False]), round(n_arm * NONTRIVIAL_SHARE))
-    for free, n in ((False, hard), (True, n_arm - hard)):
-        pool = arm_pairs[free]
-        picked += [pool[k] for k in sorted(rng.choice(len(pool), n, replace=False))]
-    return picked, configs
+    n_detour = min(len(pools[False]), round(count * detour_share))
+    pairs: list[Pair] = []
+    for free, n in ((False, n_detour), (True, count - n_detour)):
+        pool = pools[free]
+        pairs += [pool[k] for k in sorted(rng.choice(len(pool), min(n, len(pool)), False))]
+    used = {p.scene for p in pairs}
+    return pairs, {h: s for h, s in scenes.items() if h in used}
 
 
 def _straight_free(model: RobotModel, scene: Scene, start: list[float], goal: list[float]) -> bool:
@@ -152,7 +93,7 @@ def _straight_free(model: RobotModel, scene: Scene, start: list[float], goal: li
 
 
 def run_pairs(
-    pairs: list[Pair], planner: str, model: RobotModel, scenes: dict[float, Scene]
+    pairs: list[Pair], planner: str, model: RobotModel, scenes: dict[str, Scene]
 ) -> list[PlanResult]:
     """Plan every pair with one planner ("naive" = the per-state OMPL baseline)."""
     source = ModelSource(
@@ -162,17 +103,17 @@ def run_pairs(
         joint_names=model.joint_names,
         allowed_pairs=tuple(sorted(model.allowed_pairs)),
     )
-    sources = {d: SceneSource(s.hash, scene_to_payload(s)) for d, s in scenes.items()}
+    sources = {h: SceneSource(h, scene_to_payload(s)) for h, s in scenes.items()}
     results = []
     for seed, pair in enumerate(pairs):
         if planner == "naive":
             result = plan_ompl(
-                model, scenes[pair.doors], pair.start, pair.goal,
+                model, scenes[pair.scene], pair.start, pair.goal,
                 planner="rrtconnect", budget_s=BUDGET_S, seed=seed, naive=True,
             )  # fmt: skip
         else:
             problem = PlanningProblem(
-                source, sources[pair.doors], pair.start, pair.goal,
+                source, sources[pair.scene], pair.start, pair.goal,
                 budget_s=BUDGET_S, planner=planner, seed=seed,
             )  # fmt: skip
             result = run_planning(problem)
@@ -210,19 +151,26 @@ def main() -> None:
     parser.add_argument("--smoke", action="store_true", help="10 pairs")
     parser.add_argument("--pairs", type=int, default=120)
     parser.add_argument("--seed", type=int, default=7)
+    parser.add_argument(
+        "--detour-share",
+        type=float,
+        default=0.5,
+        help="share of calls whose straight segment collides (the workload itself has ~1%%)",
+    )
+    parser.add_argument("--cleaning-runs", type=int, default=20, help="runs to draw calls from")
     args = parser.parse_args()
     count = 10 if args.smoke else max(100, args.pairs)
     began = time.perf_counter()
     model = reference_model()
-    scenes = {d: restroom_scene(doors=d) for d in DOOR_ANGLES}
-    pairs, configs = build_pairs(model, scenes, count, args.seed)
+    runs = 2 if args.smoke else args.cleaning_runs
+    pairs, scenes = build_pairs(model, count, args.seed, args.detour_share, runs)
     kinds = {k: sum(p.kind == k for p in pairs) for k in ("arm", "base")}
     straight = sum(p.straight_free for p in pairs)
     print(
-        f"pairs: {len(pairs)} (seed {args.seed}; {kinds['arm']} arm, {kinds['base']} base; "
-        f"{straight} straight-line free); doors {DOOR_ANGLES}; "
-        f"task configurations: {', '.join(sorted(configs))}; built in "
-        f"{time.perf_counter() - began:.1f} s"
+        f"pairs: {len(pairs)} planning calls of the reference workload (seed {args.seed}: "
+        f"cleaning runs {args.seed}..{args.seed + runs - 1}, door sweep {SWEEP_DOORS_DEG}°); "
+        f"{kinds['arm']} arm, {kinds['base']} base; {straight} straight-line free; "
+        f"{len(scenes)} scenes; built in {time.perf_counter() - began:.1f} s"
     )
     summary: dict[str, dict[str, float]] = {}
     for planner in ("rrtconnect", "rris", "naive"):
@@ -230,13 +178,17 @@ def main() -> None:
         results = run_pairs(pairs, planner, model, scenes)
         summary[planner] = summarize(results)
         summary[planner]["wall_s"] = time.perf_counter() - t
+        detour = [r for r, p in zip(results, pairs, strict=True) if not p.straight_free]
+        summary[planner]["detour_median_ms"] = (
+            float(np.median([r.stats.get("plan_ms", 0.0) for r in detour])) if detour else 0.0
+        )
         failures = [r for r in results if not r.solved]
         for r in failures[:3]:
             print(f"  {planner} failure: {r.status.value}: {r.message[:120]}")
     header = (
         f"{'planner':<11}{'success':>8}{'plan med':>10}{'plan p95':>10}{'total med':>11}"
         f"{'total p95':>11}{'len raw':>9}{'len short':>10}{'states':>8}{'calls':>7}{'fcl':>7}"
-        f"{'wall s':>8}"
+        f"{'detour med':>11}{'wall s':>8}"
     )
     print(header)
     print("-" * len(header))
@@ -245,7 +197,7 @@ def main() -> None:
             f"{planner:<11}{s['success_rate']:>8.3f}{s['median_ms']:>10.1f}{s['p95_ms']:>10.1f}"
             f"{s['median_total_ms']:>11.1f}{s['p95_total_ms']:>11.1f}{s['length_before']:>9.2f}"
             f"{s['length_after']:>10.2f}{s['checks']:>8.0f}{s['check_calls']:>7.0f}"
-            f"{s['narrow_checks']:>7.0f}{s['wall_s']:>8.1f}"
+            f"{s['narrow_checks']:>7.0f}{s['detour_median_ms']:>11.1f}{s['wall_s']:>8.1f}"
         )
     ours, rris, naive = summary["rrtconnect"], summary["rris"], summary["naive"]
     line = {
@@ -258,6 +210,8 @@ def main() -> None:
         "naive_success_rate": round(naive["success_rate"], 4),
         "naive_median_ms": round(naive["median_ms"], 2),
         "speedup_vs_naive": round(naive["median_ms"] / max(ours["median_ms"], 1e-9), 2),
+        "detour_median_ms": round(ours["detour_median_ms"], 2),
+        "naive_detour_median_ms": round(naive["detour_median_ms"], 2),
         "pairs": len(pairs),
         "straight_free_pairs": straight,
         "budget_s": BUDGET_S,

@@ -8,6 +8,9 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 from rich.console import Console
 
+from trajcache import cli_seed, cli_transfer
+from trajcache.cli_keys import app as keys_app
+from trajcache.cli_openapi import config_table_command, openapi
 from trajcache.cli_reference import app as reference_app
 from trajcache.jobs.worker_cli import worker
 
@@ -18,7 +21,12 @@ app = typer.Typer(
     help="trajcache: a shared, collision-validated trajectory cache.", no_args_is_help=True
 )
 app.add_typer(reference_app, name="reference")
+app.add_typer(keys_app, name="keys")
 app.command("worker", help="Start a Celery planner worker (broker from settings).")(worker)
+app.command("openapi")(openapi)
+app.command("config-table")(config_table_command)
+cli_seed.register(app)  # seed
+cli_transfer.register(app)  # export, import, prune
 
 
 def _settings() -> Settings:
@@ -49,6 +57,9 @@ def serve(
     """Run the HTTP service (settings from TRAJCACHE_* environment variables)."""
     import uvicorn
 
+    from trajcache.metrics_dir import prepare_multiprocess_dir
+
+    prepare_multiprocess_dir(workers)  # before any metric exists: workers merge /metrics there
     from trajcache.db import migrate
     from trajcache.main import AUTO_MIGRATE_ENV
 
@@ -58,6 +69,7 @@ def serve(
     if not no_migrate:
         migrate.upgrade(settings.database_url)  # once here rather than once per worker
     os.environ[AUTO_MIGRATE_ENV] = "0"
+    os.environ["TRAJCACHE_HOST"] = host  # the app decides from it whether keys are required
     shown = f"[{host}]" if ":" in host else host
     Console(stderr=True).print(
         f"trajcache serving on [bold]http://{shown}:{port}[/bold] "

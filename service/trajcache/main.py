@@ -14,7 +14,10 @@ from trajcache.api.errors import install_error_handlers
 from trajcache.api.router import api_router
 from trajcache.api.routes import health
 from trajcache.core.config import Settings, get_settings
+from trajcache.dashboard import mount_dashboard
 from trajcache.db import migrate as db_migrate
+from trajcache.metrics import install_metrics
+from trajcache.services.background import start_background
 from trajcache.services.context import ServiceContext
 
 AUTO_MIGRATE_ENV = "TRAJCACHE_AUTO_MIGRATE"
@@ -39,9 +42,13 @@ def create_app(settings: Settings | None = None, *, migrate: bool | None = None)
             await run_in_threadpool(db_migrate.upgrade, settings.database_url)
         ctx = ServiceContext.create(settings)
         app.state.ctx = ctx
+        if settings.worker_prestart:
+            await run_in_threadpool(ctx.planner_pool)
+        app.state.background = start_background(ctx)  # seed jobs (resumed) and eviction
         try:
             yield
         finally:
+            app.state.background.stop()
             ctx.close()
 
     app = FastAPI(
@@ -53,4 +60,6 @@ def create_app(settings: Settings | None = None, *, migrate: bool | None = None)
     install_error_handlers(app)
     app.include_router(api_router, prefix="/v1")
     app.include_router(health.router)
+    install_metrics(app)
+    mount_dashboard(app)
     return app

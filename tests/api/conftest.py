@@ -56,6 +56,8 @@ def client_factory(database_url: str) -> Iterator[ClientFactory]:
     with ExitStack() as stack:
 
         def make(**overrides: Any) -> TestClient:
+            # Planner workers start on the first miss that needs them, not with every test app.
+            overrides.setdefault("worker_prestart", False)
             settings = Settings(database_url=database_url, **overrides)
             return stack.enter_context(TestClient(create_app(settings)))
 

@@ -260,3 +260,12 @@ def test_reference_robot_registers(app_client: TestClient, reference_urdf: str) 
     body = register(app_client, reference_urdf, base="planar")
     assert body["state_names"][:3] == ["base_x", "base_y", "base_theta"]
     assert body["joint_names"] == [f"joint{i}" for i in range(1, 8)]
+
+
+def test_another_replica_serves_the_model_detail(client_factory: ClientFactory) -> None:
+    first = client_factory()
+    model_id = register(first, base="planar")["model_id"]
+    second = client_factory()  # empty model cache: the detail loads the model from the database
+    reply = second.get(f"/v1/robot-models/{model_id}")
+    assert reply.status_code == 200, reply.text
+    assert reply.json()["model_id"] == model_id

@@ -18,10 +18,13 @@ from trajcache.db.models import Trajectory
 TABLES = {
     "api_keys",
     "model_files",
+    "plan_event_rollup_state",
+    "plan_event_rollups",
     "plan_events",
     "robot_models",
     "robots",
     "scene_versions",
+    "seed_jobs",
     "trajectories",
     "trajectory_tombstones",
 }

@@ -16,8 +16,8 @@ from trajcache.services.errors import InvalidInputError
 DEFAULT_PAGE_SIZE = 100
 
 
-def get_ctx(request: Request) -> ServiceContext:
-    """The app's ServiceContext (created by the lifespan)."""
+async def get_ctx(request: Request) -> ServiceContext:
+    """The app's ServiceContext (created by the lifespan); async, so no thread-pool hop."""
     ctx: ServiceContext = request.app.state.ctx
     return ctx
 

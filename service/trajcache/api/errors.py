@@ -20,10 +20,12 @@ from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 
 from trajcache.geometry.errors import GeometryError
 from trajcache.services.errors import (
+    AuthenticationError,
     ConflictError,
     InvalidInputError,
     NotFoundError,
     PayloadTooLargeError,
+    PermissionDeniedError,
     ServiceError,
     UnavailableError,
 )
@@ -31,6 +33,8 @@ from trajcache.services.errors import (
 logger = logging.getLogger(__name__)
 
 _STATUS: tuple[tuple[type[Exception], int], ...] = (
+    (AuthenticationError, 401),
+    (PermissionDeniedError, 403),
     (NotFoundError, 404),
     (ConflictError, 409),
     (PayloadTooLargeError, 413),
@@ -62,7 +66,10 @@ async def _service_error(_request: Request, exc: Exception) -> JSONResponse:
     status = next((code for kind, code in _STATUS if isinstance(exc, kind)), 500)
     if status == 500:
         logger.error("unmapped service error", exc_info=exc)
-    return _detail(status, str(exc) or type(exc).__name__)
+    response = _detail(status, str(exc) or type(exc).__name__)
+    if status == 401:
+        response.headers["WWW-Authenticate"] = "Bearer"
+    return response
 
 
 def _db_message(exc: DBAPIError) -> str:

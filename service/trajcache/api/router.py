@@ -1,13 +1,20 @@
-"""The v1 API router: every resource's routes (health checks are mounted outside /v1)."""
+"""The v1 API router: every resource's routes, each behind the API-key policy of `api.auth`.
+
+Health checks are mounted outside /v1 and stay open.
+"""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Depends
 
-from trajcache.api.routes import models, plan, robots, trajectories
+from trajcache.api.auth import authorize
+from trajcache.api.routes import admin, models, plan, robots, seed_jobs, stats, trajectories
 
-api_router = APIRouter()
+api_router = APIRouter(dependencies=[Depends(authorize)])
+api_router.include_router(plan.router)  # first: routes are matched in order, plan is the hot one
 api_router.include_router(models.router)
 api_router.include_router(robots.router)
-api_router.include_router(plan.router)
 api_router.include_router(trajectories.router)
+api_router.include_router(stats.router)
+api_router.include_router(seed_jobs.router)
+api_router.include_router(admin.router)

@@ -15,7 +15,7 @@ SourceName = Literal["real", "sim", "import", "planner"]
 ModelId = Annotated[str, Field(min_length=1, max_length=64)]
 RobotId = Annotated[str, Field(pattern=ROBOT_ID_PATTERN)]
 
-_URDF_EXAMPLE = (
+URDF_EXAMPLE = (
     '<robot name="arm2"><link name="base"/><link name="l1"><collision><geometry>'
     '<cylinder radius="0.04" length="0.3"/></geometry></collision></link>'
     '<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>'
@@ -27,9 +27,81 @@ _BOX: dict[str, Any] = {
     "size": [1.2, 0.8, 0.75],
     "pose": {"position": [1.5, 0.0, 0.375], "orientation": [0, 0, 0, 1]},
 }
+# Answers of the examples above, as the service gives them (OpenAPI examples of the responses).
+_MODEL_ID = "5158592d7f5559c728b6d23f76857a89890f358d7aa40994d9e2338ac93ec821"
+_SCENE_HASH = "08dd82870f84ed8b43d17f3baca4d6c55c6de216fbfee2996678642b82b81e4a"
+_WHEN = "2025-06-02T09:25:01.941173Z"
+_MODEL: dict[str, Any] = {
+    "model_id": _MODEL_ID,
+    "name": "arm2",
+    "base": "planar",
+    "joint_names": ["j1"],
+    "state_names": ["base_x", "base_y", "base_theta", "j1"],
+}
+_MODEL_SUMMARY: dict[str, Any] = {**_MODEL, "created_at": _WHEN}
+_TRAJECTORY_SUMMARY: dict[str, Any] = {
+    "trajectory_id": 1,
+    "model_id": _MODEL_ID,
+    "source": "real",
+    "robot_id": "robot-7",
+    "n_states": 3,
+    "dof": 4,
+    "start": [0.0, 0.0, 0.0, 0.0],
+    "goal": [1.0, 0.0, 0.0, 0.3],
+    "scene_hash": _SCENE_HASH,
+    "env": {"stall_2_door": 0.0},
+    "hits": 12,
+    "failures": 1,
+    "last_used_at": _WHEN,
+    "planning_time_ms": 68.2,
+    "length": 1.08,
+    "created_at": _WHEN,
+}
+
+
+def _examples(*examples: dict[str, Any]) -> dict[str, Any]:
+    return {"examples": list(examples)}
+
+
+# --- errors ---------------------------------------------------------------------------------
+
+
+class FieldErrorOut(BaseModel):
+    """One invalid field of a request."""
+
+    loc: list[str | int] = Field(description="Where: `body`, `query` or `path`, then the field.")
+    msg: str
+    type: str
+
+
+class ErrorOut(BaseModel):
+    """Every error answer: a readable `detail`; request validation also lists the fields."""
+
+    model_config = ConfigDict(
+        json_schema_extra=_examples(
+            {
+                "detail": "body.start[1]: Input should be a finite number",
+                "errors": [
+                    {
+                        "loc": ["body", "start", 1],
+                        "msg": "Input should be a finite number",
+                        "type": "finite_number",
+                    }
+                ],
+            }
+        )
+    )
+
+    detail: str
+    errors: list[FieldErrorOut] | None = Field(
+        default=None, description="The invalid fields (first 10), on request validation errors."
+    )
 
 
 # --- robot models ---------------------------------------------------------------------------
+
+PositiveLimit = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+JointLimitsIn = PositiveLimit | dict[Annotated[str, Field(max_length=200)], PositiveLimit]
 
 
 class RobotModelIn(BaseModel):
@@ -37,7 +109,7 @@ class RobotModelIn(BaseModel):
 
     model_config = ConfigDict(
         extra="forbid",
-        json_schema_extra={"examples": [{"urdf": _URDF_EXAMPLE, "base": "planar", "name": "arm2"}]},
+        json_schema_extra={"examples": [{"urdf": URDF_EXAMPLE, "base": "planar", "name": "arm2"}]},
     )
 
     urdf: str = Field(min_length=1, description="URDF XML text (no DOCTYPE/ENTITY).")
@@ -49,10 +121,30 @@ class RobotModelIn(BaseModel):
     archive_base64: str | None = Field(
         default=None, description="Mesh files as a base64 zip or tar(.gz) archive."
     )
+    acceleration_limits: JointLimitsIn | None = Field(
+        default=None,
+        description="Acceleration limits of the planning joints for timing (rad/s², m/s² for "
+        "prismatic joints): one value for all, or by joint name; joints left out use the "
+        "service default (TRAJCACHE_TIMING_JOINT_ACCELERATION). Fixed at first registration.",
+    )
+    jerk_limits: JointLimitsIn | None = Field(
+        default=None,
+        description="Jerk limits (rad/s³) for jerk-limited timing, like acceleration_limits "
+        "(default TRAJCACHE_TIMING_JOINT_JERK).",
+    )
+    end_effector_link: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=200,
+        description="Link whose path is measured as the end-effector path (default: the tip "
+        "of the longest kinematic chain).",
+    )
 
 
 class RobotModelOut(BaseModel):
     """A registered model; `created` is false when the same content was registered before."""
+
+    model_config = ConfigDict(json_schema_extra=_examples({**_MODEL, "created": True}))
 
     model_id: str
     name: str
@@ -65,6 +157,12 @@ class RobotModelOut(BaseModel):
 class ModelFileOut(BaseModel):
     """A stored mesh file of a model."""
 
+    model_config = ConfigDict(
+        json_schema_extra=_examples(
+            {"path": "meshes/link1.stl", "sha256": _SCENE_HASH, "size": 48_284}
+        )
+    )
+
     path: str
     sha256: str
     size: int
@@ -72,6 +170,8 @@ class ModelFileOut(BaseModel):
 
 class RobotModelSummary(BaseModel):
     """A model in a list."""
+
+    model_config = ConfigDict(json_schema_extra=_examples(_MODEL_SUMMARY))
 
     model_id: str
     name: str
@@ -84,15 +184,43 @@ class RobotModelSummary(BaseModel):
 class RobotModelDetail(RobotModelSummary):
     """A model with its links, planning limits (null = unbounded) and files."""
 
+    model_config = ConfigDict(
+        json_schema_extra=_examples(
+            {
+                **_MODEL_SUMMARY,
+                "link_names": ["base", "l1"],
+                "lower": [None, None, -3.141592653589793, -3.0],
+                "upper": [None, None, 3.141592653589793, 3.0],
+                "velocity_limits": [0.5, 0.5, 1.0, 1.0],
+                "files": [],
+            }
+        )
+    )
+
     link_names: list[str]
     lower: list[float | None]
     upper: list[float | None]
     velocity_limits: list[float]
+    acceleration_limits: list[float] | None = Field(
+        default=None, description="Acceleration limits timing uses, per state value."
+    )
+    jerk_limits: list[float] | None = Field(
+        default=None, description="Jerk limits jerk-limited timing uses, per state value."
+    )
+    end_effector_link: str | None = Field(
+        default=None, description="The link whose path is the end-effector path."
+    )
     files: list[ModelFileOut]
 
 
 class RobotModelPage(BaseModel):
     """A page of models."""
+
+    model_config = ConfigDict(
+        json_schema_extra=_examples(
+            {"items": [_MODEL_SUMMARY], "total": 1, "limit": 100, "offset": 0}
+        )
+    )
 
     items: list[RobotModelSummary]
     total: int
@@ -106,16 +234,35 @@ class RobotModelPage(BaseModel):
 class RobotIn(BaseModel):
     """The model a robot is an instance of."""
 
-    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [{"model_id": "…"}]})
+    model_config = ConfigDict(extra="forbid", json_schema_extra=_examples({"model_id": _MODEL_ID}))
 
     model_id: ModelId
+    kind: Literal["real", "sim"] | None = Field(
+        default=None,
+        description="`real` (a physical robot; the default for a new robot) or `sim` (a "
+        "simulated one); omitted, an existing robot keeps its kind.",
+    )
 
 
 class RobotOut(BaseModel):
     """A robot; `scene_version` 0 means no scene was uploaded yet."""
 
+    model_config = ConfigDict(
+        json_schema_extra=_examples(
+            {
+                "robot_id": "robot-7",
+                "model_id": _MODEL_ID,
+                "kind": "real",
+                "scene_version": 2,
+                "created_at": _WHEN,
+                "updated_at": _WHEN,
+            }
+        )
+    )
+
     robot_id: str
     model_id: str
+    kind: Literal["real", "sim"]
     scene_version: int
     created_at: datetime
     updated_at: datetime
@@ -154,12 +301,20 @@ class ScenePatchIn(BaseModel):
 class SceneVersionOut(BaseModel):
     """The version number and content hash of a scene."""
 
+    model_config = ConfigDict(json_schema_extra=_examples({"version": 2, "hash": _SCENE_HASH}))
+
     version: int
     hash: str
 
 
 class SceneOut(SceneVersionOut):
     """A robot's current scene in native form."""
+
+    model_config = ConfigDict(
+        json_schema_extra=_examples(
+            {"version": 2, "hash": _SCENE_HASH, "objects": [_BOX], "env": {"stall_2_door": 0.52}}
+        )
+    )
 
     objects: list[dict[str, Any]]
     env: dict[str, float]
@@ -176,8 +331,8 @@ class TrajectoryIn(BaseModel):
         json_schema_extra={
             "examples": [
                 {
-                    "model_id": "…",
-                    "states": [[0.0, 0.0], [0.5, -0.2], [1.0, 0.3]],
+                    "model_id": _MODEL_ID,
+                    "states": [[0.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.2], [1.0, 0.0, 0.0, 0.3]],
                     "source": "real",
                     "robot_id": "robot-7",
                 }
@@ -197,6 +352,8 @@ class TrajectoryIn(BaseModel):
 class TrajectoryCreated(BaseModel):
     """The stored trajectory's id; `created` is false when it was already stored."""
 
+    model_config = ConfigDict(json_schema_extra=_examples({"trajectory_id": 1, "created": True}))
+
     trajectory_id: int
     created: bool
 
@@ -204,7 +361,9 @@ class TrajectoryCreated(BaseModel):
 class TrajectorySummary(BaseModel):
     """A stored trajectory without its states."""
 
-    model_config = ConfigDict(from_attributes=True)
+    model_config = ConfigDict(
+        from_attributes=True, json_schema_extra=_examples(_TRAJECTORY_SUMMARY)
+    )
 
     trajectory_id: int = Field(validation_alias=AliasChoices("trajectory_id", "id"))
     model_id: str
@@ -220,18 +379,42 @@ class TrajectorySummary(BaseModel):
     failures: int
     last_used_at: datetime | None
     planning_time_ms: float | None
-    length: float | None
+    length: float | None = Field(description="State-space path length (quality at store time).")
+    ee_length: float | None = Field(
+        default=None, description="End-effector path length (m) at store time."
+    )
+    min_clearance: float | None = Field(
+        default=None, description="Smallest distance to its recorded scene (m) at store time."
+    )
+    duration_s: float | None = Field(
+        default=None, description="Duration after time-optimal timing (s) at store time."
+    )
     created_at: datetime
 
 
 class TrajectoryOut(TrajectorySummary):
     """A stored trajectory with its key states."""
 
+    model_config = ConfigDict(
+        json_schema_extra=_examples(
+            {
+                **_TRAJECTORY_SUMMARY,
+                "states": [[0.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.2], [1.0, 0.0, 0.0, 0.3]],
+            }
+        )
+    )
+
     states: list[list[float]]
 
 
 class TrajectoryPage(BaseModel):
     """A page of trajectories."""
+
+    model_config = ConfigDict(
+        json_schema_extra=_examples(
+            {"items": [_TRAJECTORY_SUMMARY], "total": 1, "limit": 100, "offset": 0}
+        )
+    )
 
     items: list[TrajectorySummary]
     total: int
@@ -244,5 +427,7 @@ class TrajectoryPage(BaseModel):
 
 class HealthOut(BaseModel):
     """Liveness or readiness."""
+
+    model_config = ConfigDict(json_schema_extra=_examples({"status": "ok"}, {"status": "ready"}))
 
     status: Literal["ok", "ready"]

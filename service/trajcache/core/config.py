@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 from typing import Literal, Self
 
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from trajcache.planning.problem import PLANNER_NAMES
 
 MIB = 1024 * 1024
 
@@ -76,12 +79,18 @@ class Settings(BaseSettings):
     )
 
     # Planning and workers
-    worker_backend: Literal["local", "celery"] = Field(
+    worker_backend: Literal["local", "celery", "none"] = Field(
         default="local",
-        description="Where fallback planning runs: a local process pool or Celery workers.",
+        description="Where fallback planning runs: a local process pool, Celery workers, or "
+        "nowhere ('none': a request no cached trajectory serves gets status 'miss').",
     )
     worker_processes: int = Field(
         default=2, ge=1, description="Size of the local planning process pool."
+    )
+    worker_prestart: bool = Field(
+        default=True,
+        description="Start the planner pool with the service, so the first miss does not wait "
+        "for workers to start (off: start it on the first miss).",
     )
     plan_budget_s: float = Field(
         default=2.0, gt=0, description="Default planner time budget per request (s)."
@@ -104,6 +113,40 @@ class Settings(BaseSettings):
     celery_result_backend: str = Field(
         default="redis://127.0.0.1:6379/1",
         description="Celery result backend URL (celery backend only).",
+    )
+    celery_queue: str = Field(
+        default="plan",
+        min_length=1,
+        description="Celery queue that planning tasks are sent to and workers consume.",
+    )
+
+    # Timing (time-optimal or jerk-limited) of answered trajectories
+    timing_joint_acceleration: float = Field(
+        default=5.0,
+        gt=0,
+        description="Acceleration limit of an arm joint whose model was registered without one "
+        "(rad/s², m/s² for prismatic joints).",
+    )
+    timing_joint_jerk: float = Field(
+        default=50.0,
+        gt=0,
+        description="Jerk limit of an arm joint whose model was registered without one "
+        "(rad/s³, m/s³ for prismatic joints; jerk-limited timing only).",
+    )
+    timing_base_velocity: tuple[float, float, float] = Field(
+        default=(0.5, 0.5, 1.0),
+        description="Velocity limits of a planar base: x, y (m/s), θ (rad/s); JSON list.",
+    )
+    timing_base_acceleration: tuple[float, float, float] = Field(
+        default=(0.5, 0.5, 1.0),
+        description="Acceleration limits of a planar base: x, y (m/s²), θ (rad/s²); JSON list.",
+    )
+    timing_base_jerk: tuple[float, float, float] = Field(
+        default=(2.0, 2.0, 4.0),
+        description="Jerk limits of a planar base: x, y (m/s³), θ (rad/s³); JSON list.",
+    )
+    timing_max_points: int = Field(
+        default=10_000, ge=2, description="Most points in one timed trajectory of an answer."
     )
 
     # Request limits
@@ -128,7 +171,114 @@ class Settings(BaseSettings):
     # Security
     auth_mode: Literal["auto", "on", "off"] = Field(
         default="auto",
-        description="API key checks: `on`, `off`, or `auto` (on once any key exists).",
+        description="API key checks: `on`, `off`, or `auto` (on when `host` is not a loopback "
+        "address or once any key exists).",
+    )
+    auth_cache_ttl_s: float = Field(
+        default=5.0,
+        ge=0,
+        description="Seconds a verified API key is trusted without asking the database "
+        "(a revoked key stops working within this time).",
+    )
+
+    # Pre-seeding (seed jobs), candidate ranking and eviction
+    seed_concurrency: int = Field(
+        default=2,
+        ge=1,
+        le=64,
+        description="Plan requests one seed job keeps in flight (a job may ask for fewer).",
+    )
+    seed_max_running_jobs: int = Field(
+        default=1, ge=1, description="Seed jobs one service process runs at the same time."
+    )
+    seed_max_scenes: int = Field(
+        default=500, ge=1, description="Most scenes (or scene variants) in one seed job."
+    )
+    seed_max_queries: int = Field(
+        default=100_000,
+        ge=1,
+        description="Most plan requests in one seed job (queries × scenes, or workload calls).",
+    )
+    seed_lease_s: float = Field(
+        default=30.0,
+        gt=0,
+        description="How long a replica's claim on a running seed job lasts without a "
+        "heartbeat; a job whose claim ran out (its replica stopped) is resumed by another.",
+    )
+    seed_heartbeat_s: float = Field(
+        default=2.0,
+        gt=0,
+        description="Seconds between a running seed job's progress writes (which renew its "
+        "claim and notice a cancel from another replica).",
+    )
+    seed_poll_interval_s: float = Field(
+        default=5.0,
+        gt=0,
+        description="Seconds between a replica's looks for queued or orphaned seed jobs.",
+    )
+    ranking_pool: int = Field(
+        default=10,
+        ge=1,
+        le=100,
+        description="Relevant candidates (within the lookup threshold, nearest first) that "
+        "ranking re-orders before the best max_candidates are tried.",
+    )
+    ranking_env_enabled: bool = Field(
+        default=True,
+        description="Try candidates whose recorded environment values are nearest to the "
+        "requesting scene's first (environment-dependent indexing).",
+    )
+    ranking_env_weight: float = Field(
+        default=0.05,
+        ge=0,
+        description="Distance added per unit of environment-value difference (summed over the "
+        "request's values, each capped at ranking_env_cap).",
+    )
+    ranking_env_cap: float = Field(
+        default=1.0,
+        gt=0,
+        description="Largest difference one environment value counts for; a value the "
+        "candidate did not record counts as this.",
+    )
+    ranking_real_enabled: bool = Field(
+        default=True, description="Prefer candidates recently validated on a real robot."
+    )
+    ranking_real_bonus: float = Field(
+        default=0.02,
+        ge=0,
+        description="Distance taken off a candidate validated on a real robot just now; it "
+        "fades linearly to 0 over ranking_real_window_s.",
+    )
+    ranking_real_window_s: float = Field(
+        default=30 * 24 * 3600.0,
+        gt=0,
+        description="How long a real-robot validation keeps counting for a candidate (s).",
+    )
+    ranking_failure_enabled: bool = Field(
+        default=True,
+        description="Try candidates that failed validation repeatedly in a row last.",
+    )
+    ranking_failure_demote_after: int = Field(
+        default=3,
+        ge=1,
+        description="Consecutive validation failures after which a candidate is tried last.",
+    )
+    cache_max_per_model: int = Field(
+        default=0,
+        ge=0,
+        description="Most trajectories kept per robot model; beyond it the eviction policy "
+        "deletes the rest (0 = no cap).",
+    )
+    eviction_policy: Literal["lru", "least_hit"] = Field(
+        default="lru",
+        description="What eviction deletes first: `lru` (least recently used, never-used ones "
+        "by creation time) or `least_hit` (fewest hits, then least recently used).",
+    )
+    eviction_interval_s: float = Field(
+        default=300.0,
+        ge=0,
+        description="Seconds between automatic evictions when cache_max_per_model is set "
+        "(0 = only on demand: `trajcache prune`, POST /v1/admin/prune).",
     )
 
     @field_validator("database_url")
@@ -142,10 +292,31 @@ class Settings(BaseSettings):
                 return "postgresql+psycopg://" + value[len(prefix) :]
         return value
 
+    @field_validator("default_planner")
+    @classmethod
+    def _known_planner(cls, value: str) -> str:
+        key = value.strip().lower()
+        if key not in PLANNER_NAMES:
+            raise ValueError(f"unknown planner {value!r}; use one of {', '.join(PLANNER_NAMES)}")
+        return key
+
+    @field_validator("timing_base_velocity", "timing_base_acceleration", "timing_base_jerk")
+    @classmethod
+    def _positive_limits(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
+        if not all(math.isfinite(v) and v > 0 for v in value):
+            raise ValueError(f"base limits must be three finite values > 0, got {list(value)}")
+        return value
+
     @field_validator("log_level", mode="before")
     @classmethod
     def _lower_log_level(cls, value: object) -> object:
         return value.strip().lower() if isinstance(value, str) else value
+
+    @model_validator(mode="after")
+    def _check_seed_timing(self) -> Self:
+        if self.seed_heartbeat_s >= self.seed_lease_s:
+            raise ValueError("seed_heartbeat_s must be shorter than seed_lease_s")
+        return self
 
     @model_validator(mode="after")
     def _check_limits(self) -> Self:

@@ -93,6 +93,12 @@ class RobotModel(Base):
     urdf: Mapped[str] = mapped_column(Text)
     allowed_pairs: Mapped[list[list[int]]] = mapped_column(JSON, default=list)
     config: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    # Limits by planning joint name (rad/s², rad/s³; m for prismatic joints) as registered;
+    # joints not named, or None, use the service defaults.
+    acceleration_limits: Mapped[dict[str, float] | None] = mapped_column(JSON)
+    jerk_limits: Mapped[dict[str, float] | None] = mapped_column(JSON)
+    # Link whose origin traces the end-effector path; None = tip of the longest joint chain.
+    end_effector_link: Mapped[str | None] = mapped_column(String(200))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
     files: Mapped[list[ModelFile]] = relationship(
@@ -125,6 +131,8 @@ class Robot(Base):
     id: Mapped[str] = mapped_column(String(128), primary_key=True)
     model_id: Mapped[str] = mapped_column(String(64), ForeignKey("robot_models.id"), index=True)
     scene_version: Mapped[int | None] = mapped_column(Integer)
+    # `real`: a physical robot; `sim`: a simulated one (validation statistics tell them apart).
+    kind: Mapped[str] = mapped_column(String(8), default="real", server_default="real")
     created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow, onupdate=utcnow)
 
@@ -187,7 +195,12 @@ class Trajectory(Base):
     last_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     last_real_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     planning_time_ms: Mapped[float | None] = mapped_column(Float)
+    # Quality at store time: state-space and end-effector path lengths, minimum clearance to the
+    # recorded scene (m; None without a scene) and time-optimal duration (s); details in `quality`.
     length: Mapped[float | None] = mapped_column(Float)
+    ee_length: Mapped[float | None] = mapped_column(Float)
+    min_clearance: Mapped[float | None] = mapped_column(Float)
+    duration_s: Mapped[float | None] = mapped_column(Float)
     quality: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
@@ -230,6 +243,7 @@ class PlanEvent(Base):
         Index("ix_plan_events_robot_id_created_at", "robot_id", "created_at"),
         Index("ix_plan_events_model_id_created_at", "model_id", "created_at"),
         Index("ix_plan_events_status_created_at", "status", "created_at"),
+        Index("ix_plan_events_trajectory_id_created_at", "trajectory_id", "created_at"),
         {"sqlite_autoincrement": True},
     )
 
@@ -249,6 +263,38 @@ class PlanEvent(Base):
     error: Mapped[str | None] = mapped_column(String(500))
 
 
+class PlanEventRollup(Base):
+    """Plan events of one hour with one robot, model, source and status, summarised.
+
+    Sums of the timings and a sparse latency histogram per timing (`services/rollups.py`), so
+    statistics over long windows read one row per hour and group instead of every event.
+    """
+
+    __tablename__ = "plan_event_rollups"
+
+    id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
+    bucket_start: Mapped[datetime] = mapped_column(UTCDateTime(), index=True)
+    robot_id: Mapped[str] = mapped_column(String(128))
+    model_id: Mapped[str] = mapped_column(String(64))
+    source: Mapped[str | None] = mapped_column(String(16))
+    status: Mapped[str] = mapped_column(String(32))
+    requests: Mapped[int] = mapped_column(Integer)
+    lookup_ms: Mapped[float] = mapped_column(Float)
+    validate_ms: Mapped[float] = mapped_column(Float)
+    plan_ms: Mapped[float] = mapped_column(Float)
+    total_ms: Mapped[float] = mapped_column(Float)
+    histograms: Mapped[bytes] = mapped_column(LargeBinary)
+
+
+class PlanEventRollupState(Base):
+    """How far plan events are rolled up: every hour before `rolled_until` (a single row)."""
+
+    __tablename__ = "plan_event_rollup_state"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    rolled_until: Mapped[datetime] = mapped_column(UTCDateTime())
+
+
 class ApiKey(Base):
     """An API key (only its hash is stored) with a role and, for robots, the robots it may use."""
 
@@ -262,3 +308,38 @@ class ApiKey(Base):
     robot_ids: Mapped[list[str]] = mapped_column(JSON, default=list)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
     revoked_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+
+
+class SeedJob(Base):
+    """A pre-seeding job: its request, progress and which replica runs it (services/seeding.py).
+
+    Progress counts only the first `done` work items, all finished: a job resumed elsewhere
+    starts at item `done`. A replica runs a job while it holds the lease (`lease_owner` until
+    `lease_expires_at`, renewed by each progress write).
+    """
+
+    __tablename__ = "seed_jobs"
+    __table_args__ = (
+        Index("ix_seed_jobs_state_lease_expires_at", "state", "lease_expires_at"),
+        {"sqlite_autoincrement": True},
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str | None] = mapped_column(String(200))
+    model_id: Mapped[str] = mapped_column(String(64), ForeignKey("robot_models.id"), index=True)
+    state: Mapped[str] = mapped_column(String(16))
+    spec: Mapped[dict[str, Any]] = mapped_column(JSON)
+    total: Mapped[int] = mapped_column(Integer)
+    done: Mapped[int] = mapped_column(Integer, default=0)
+    hits: Mapped[int] = mapped_column(Integer, default=0)
+    planned: Mapped[int] = mapped_column(Integer, default=0)
+    failed: Mapped[int] = mapped_column(Integer, default=0)
+    errors: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list)
+    message: Mapped[str | None] = mapped_column(String(500))
+    lease_owner: Mapped[str | None] = mapped_column(String(128))
+    lease_expires_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    eta_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    started_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)

@@ -416,7 +416,7 @@ def make_pool(settings: Settings, *, task_fn: TaskFn | None = None) -> PlannerPo
             raise ValueError("the celery backend runs the workers' task; task_fn is local-only")
         from trajcache.jobs.celery_app import CeleryBackend
 
-        backend = CeleryBackend(settings)
+        backend = CeleryBackend(settings, queue=settings.celery_queue)
     else:
         backend = LocalBackend(task_fn or load_task_fn(), processes=settings.worker_processes)
     return PlannerPool(

@@ -13,14 +13,20 @@ def worker(
         typer.Option(min=1, help="Worker processes [default: TRAJCACHE_WORKER_PROCESSES]."),
     ] = None,
     loglevel: Annotated[str, typer.Option(help="Celery log level.")] = "info",
-    queues: Annotated[str, typer.Option(help="Comma-separated queues to consume.")] = "plan",
+    queues: Annotated[
+        str | None,
+        typer.Option(help="Comma-separated queues to consume [default: TRAJCACHE_CELERY_QUEUE]."),
+    ] = None,
 ) -> None:
     """Run a Celery worker that plans `trajcache.plan` tasks from the configured broker."""
     from trajcache.core.config import get_settings
     from trajcache.jobs.celery_app import celery_app
 
+    settings = get_settings()
     if concurrency is None:
-        concurrency = get_settings().worker_processes
+        concurrency = settings.worker_processes
+    if queues is None:
+        queues = settings.celery_queue
     celery_app.worker_main(
         ["worker", f"--concurrency={concurrency}", f"--loglevel={loglevel}", f"--queues={queues}"]
     )

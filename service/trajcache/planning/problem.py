@@ -8,6 +8,9 @@ from typing import Any
 
 import numpy as np
 
+# Planner names a request may ask for: the paper's RRIS and the OMPL planners of ompl_planner.
+PLANNER_NAMES = ("rrtconnect", "rrt", "bitstar", "bit*", "prm", "kpiece", "rris")
+
 
 class PlannerStatus(str, Enum):
     """How a planning attempt ended (failure is a value, not an exception)."""

@@ -2,25 +2,27 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
 
 import sqlalchemy as sa
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
+from trajcache.cache.memo import ValidationMemo
+from trajcache.cache.ranking import RankingRules
 from trajcache.core.config import Settings
 from trajcache.db.session import make_engine, make_sessionmaker
+from trajcache.jobs.pool import PlannerPool, make_pool
 from trajcache.services.errors import UnavailableError
 from trajcache.services.index_store import IndexStore
+from trajcache.services.keys import KeyCache
 from trajcache.services.models import ModelRegistry
+from trajcache.services.plan_records import PlanRecorder
 from trajcache.services.robots import SceneCache
-
-if TYPE_CHECKING:
-    from trajcache.jobs.pool import PlannerPool
 
 
 @dataclass
@@ -33,7 +35,12 @@ class ServiceContext:
     models: ModelRegistry
     scenes: SceneCache
     indexes: IndexStore
-    planner: PlannerPool | None = None  # set by whoever starts the worker pool
+    keys: KeyCache
+    memo: ValidationMemo  # key states already certified per model, scene and validator settings
+    records: PlanRecorder  # plan bookkeeping, written off the request path
+    ranking: RankingRules  # how lookup candidates are ordered before validation
+    planner: PlannerPool | None = None  # started by planner_pool(), closed by close()
+    _planner_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @classmethod
     def create(cls, settings: Settings) -> ServiceContext:
@@ -46,6 +53,10 @@ class ServiceContext:
             models=ModelRegistry(),
             scenes=SceneCache(),
             indexes=IndexStore(sync_interval_s=settings.index_sync_interval_s),
+            keys=KeyCache(ttl_s=settings.auth_cache_ttl_s),
+            memo=ValidationMemo(),
+            records=PlanRecorder(engine),
+            ranking=RankingRules.from_settings(settings),
         )
 
     @contextmanager
@@ -64,8 +75,22 @@ class ServiceContext:
         except SQLAlchemyError as exc:
             raise UnavailableError(f"database unavailable: {_first_line(exc)}") from exc
 
+    def planner_pool(self) -> PlannerPool | None:
+        """The fallback planner pool, started on first use; None when planning is off."""
+        if self.planner is not None or self.settings.worker_backend == "none":
+            return self.planner
+        with self._planner_lock:
+            if self.planner is None:
+                self.planner = make_pool(self.settings)
+        return self.planner
+
     def close(self) -> None:
-        """Release the database connections."""
+        """Stop the planner pool, write pending plan records, release the database connections."""
+        with self._planner_lock:
+            planner, self.planner = self.planner, None
+        if planner is not None:
+            planner.close()
+        self.records.close()
         self.engine.dispose()
 
 

@@ -1,6 +1,8 @@
 """Service-level errors; `trajcache.api.errors` maps each one to an HTTP status.
 
 ServiceError
+├── AuthenticationError    401  no API key, or an unknown or revoked one
+├── PermissionDeniedError  403  the key's role or robot binding does not allow the request
 ├── NotFoundError          404  an unknown model, robot or trajectory
 ├── ConflictError          409  the request contradicts what is stored
 ├── PayloadTooLargeError   413  a request exceeds a configured size limit
@@ -15,11 +17,13 @@ from __future__ import annotations
 from trajcache.geometry.errors import GeometryError
 
 __all__ = [
+    "AuthenticationError",
     "ConflictError",
     "GeometryError",
     "InvalidInputError",
     "NotFoundError",
     "PayloadTooLargeError",
+    "PermissionDeniedError",
     "ServiceError",
     "UnavailableError",
 ]
@@ -27,6 +31,14 @@ __all__ = [
 
 class ServiceError(Exception):
     """Base class of the errors a service function raises on purpose."""
+
+
+class AuthenticationError(ServiceError):
+    """No API key, or one that is unknown or revoked."""
+
+
+class PermissionDeniedError(ServiceError):
+    """A valid key whose role or robot binding does not allow the request."""
 
 
 class NotFoundError(ServiceError):

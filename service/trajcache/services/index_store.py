@@ -9,26 +9,38 @@ order: a row with a lower id may become visible after a higher one was read. So 
 skipped over is remembered as a gap and asked for again on each sync until it shows up or
 `gap_ttl_s` passes (a rolled-back insert leaves a gap forever). Adding and removing are
 idempotent, so reading a row twice is harmless.
+
+One sync is one query: new and missing trajectory rows and tombstones are read together (UNION
+ALL), so both come from the same snapshot. With `sync_interval_s=0` every plan needs a sync that
+began after the plan arrived (so it sees every row committed before); requests that arrive while
+a sync runs share the next one instead of queueing one each.
+
+Key states of candidates are kept in a byte-bounded LRU (`states`): a trajectory's states never
+change after it is stored, and a deleted one leaves the cache with its tombstone.
 """
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
-from collections.abc import Sequence
+from collections import OrderedDict
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import sqlalchemy as sa
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from trajcache.cache.index import TrajectoryIndex
-from trajcache.db.models import Trajectory, TrajectoryTombstone
+from trajcache.cache.metric import FloatArray
+from trajcache.db.models import Trajectory, TrajectoryTombstone, unpack_states
 from trajcache.geometry.robot import RobotModel
 
 _STARTUP_WINDOW = 10_000  # ids below the first high-water mark that may still be in flight
 _MAX_GAPS = 100_000
+_ROW, _TOMBSTONE = 0, 1
 
 
 @dataclass
@@ -61,22 +73,30 @@ class IdStream:
 class IndexStore:
     """All models' indexes of one service process, synchronised through the database."""
 
-    def __init__(self, *, sync_interval_s: float = 0.0, gap_ttl_s: float = 60.0) -> None:
+    def __init__(
+        self,
+        *,
+        sync_interval_s: float = 0.0,
+        gap_ttl_s: float = 60.0,
+        states_cache_bytes: int = 64 * 1024 * 1024,
+    ) -> None:
         self.sync_interval_s = sync_interval_s
         self.gap_ttl_s = gap_ttl_s
+        self.syncs = 0  # sync queries run (for tests and metrics)
         self._indexes: dict[str, TrajectoryIndex] = {}
         self._rows = IdStream()
         self._tombs = IdStream()
         self._started = False
-        self._last_sync = -1e18
+        self._synced_from = -float("inf")  # when the last completed sync began (monotonic)
         self._lock = threading.Lock()
+        self._states = StatesCache(states_cache_bytes)
 
     def index(self, session: Session, model: RobotModel) -> TrajectoryIndex:
         """The model's index, after picking up what other replicas wrote."""
+        asked = time.monotonic()
         with self._lock:
-            now = time.monotonic()
-            if not self._started or now - self._last_sync >= self.sync_interval_s:
-                self._sync(session, now)
+            if not self._started or self._synced_from < asked - self.sync_interval_s:
+                self._sync(session)
             index = self._indexes.get(model.model_id)
             if index is None:
                 index = self._load_model(session, model)
@@ -85,7 +105,22 @@ class IndexStore:
     def sync(self, session: Session) -> None:
         """Read new rows and tombstones now."""
         with self._lock:
-            self._sync(session, time.monotonic())
+            self._sync(session)
+
+    def states(self, session: Session, ids: Iterable[int]) -> dict[int, FloatArray]:
+        """Key states (read-only arrays) of the trajectories `ids` that exist, by id."""
+        found, missing = self._states.get_many(ids)
+        if missing:
+            rows = session.execute(
+                sa.select(
+                    Trajectory.id, Trajectory.states, Trajectory.n_states, Trajectory.dof
+                ).where(Trajectory.id.in_(missing))
+            ).all()
+            for row in rows:
+                states = unpack_states(row.states, n_states=row.n_states, dof=row.dof)
+                states.flags.writeable = False
+                found[int(row.id)] = self._states.put(int(row.id), states)
+        return found
 
     def sizes(self) -> dict[str, int]:
         """Number of indexed trajectories per loaded model."""
@@ -102,50 +137,40 @@ class IndexStore:
             stream.hwm = max(stream.hwm, int(top))
         self._started = True
 
-    def _sync(self, session: Session, now: float) -> None:
+    def _sync(self, session: Session) -> None:
+        began = time.monotonic()
         if not self._started:
-            self._start(session, now)
-        self._read_tombstones(session, now)
-        self._read_rows(session, now)
-        self._last_sync = now
+            self._start(session, began)
+        self._read_changes(session, began)
+        self.syncs += 1
+        self._synced_from = began
 
-    def _read_rows(self, session: Session, now: float) -> None:
-        stream = self._rows
-        cond = Trajectory.id > stream.hwm
-        gaps = stream.wanted_gaps(now, self.gap_ttl_s)
-        if gaps:
-            cond = sa.or_(cond, Trajectory.id.in_(gaps))
-        rows = session.execute(
-            sa.select(Trajectory.id, Trajectory.model_id, Trajectory.start, Trajectory.goal).where(
-                cond
-            )
-        ).all()
+    def _read_changes(self, session: Session, now: float) -> None:
+        """New and missing rows and tombstones in one query; rows are applied first."""
+        row_gaps = self._rows.wanted_gaps(now, self.gap_ttl_s)
+        tomb_gaps = self._tombs.wanted_gaps(now, self.gap_ttl_s)
+        params: dict[str, Any] = {"row_hwm": self._rows.hwm, "tomb_hwm": self._tombs.hwm}
+        if row_gaps:
+            params["row_gaps"] = row_gaps
+        if tomb_gaps:
+            params["tomb_gaps"] = tomb_gaps
+        statement = _changes_statement(bool(row_gaps), bool(tomb_gaps))
+        changes = session.connection().execute(statement, params).all()
+        new_rows = [c for c in changes if c.kind == _ROW]
+        tombstones = [c for c in changes if c.kind == _TOMBSTONE]
         by_model: dict[str, list[Any]] = {}
-        for row in rows:
+        for row in new_rows:
             if row.model_id in self._indexes:
                 by_model.setdefault(row.model_id, []).append(row)
         for model_id, model_rows in by_model.items():
             _add_rows(self._indexes[model_id], model_rows)
-        stream.advance([int(r.id) for r in rows], now)
-
-    def _read_tombstones(self, session: Session, now: float) -> None:
-        stream = self._tombs
-        cond = TrajectoryTombstone.id > stream.hwm
-        gaps = stream.wanted_gaps(now, self.gap_ttl_s)
-        if gaps:
-            cond = sa.or_(cond, TrajectoryTombstone.id.in_(gaps))
-        rows = session.execute(
-            sa.select(
-                TrajectoryTombstone.id,
-                TrajectoryTombstone.model_id,
-                TrajectoryTombstone.trajectory_id,
-            ).where(cond)
-        ).all()
-        for row in rows:
-            index = self._indexes.get(row.model_id)
-            if index is not None and row.trajectory_id in index:
-                index.remove(np.array([row.trajectory_id], dtype=np.int64))
-        stream.advance([int(r.id) for r in rows], now)
+        for tomb in tombstones:
+            self._states.discard(int(tomb.ref))
+            index = self._indexes.get(tomb.model_id)
+            if index is not None and tomb.ref in index:
+                index.remove(np.array([tomb.ref], dtype=np.int64))
+        self._rows.advance([int(r.id) for r in new_rows], now)
+        self._tombs.advance([int(t.id) for t in tombstones], now)
 
     def _load_model(self, session: Session, model: RobotModel) -> TrajectoryIndex:
         rows = session.execute(
@@ -157,6 +182,88 @@ class IndexStore:
         _add_rows(index, rows)
         self._indexes[model.model_id] = index
         return index
+
+
+class StatesCache:
+    """Thread-safe LRU of trajectory key states by id, bounded by their total size in bytes."""
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = max_bytes
+        self._items: OrderedDict[int, FloatArray] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def get_many(self, ids: Iterable[int]) -> tuple[dict[int, FloatArray], list[int]]:
+        """The cached states among `ids`, and the ids that are not cached."""
+        found: dict[int, FloatArray] = {}
+        missing: list[int] = []
+        with self._lock:
+            for i in ids:
+                states = self._items.get(i)
+                if states is None:
+                    missing.append(i)
+                else:
+                    self._items.move_to_end(i)
+                    found[i] = states
+        return found, missing
+
+    def put(self, trajectory_id: int, states: FloatArray) -> FloatArray:
+        """Cache `states` (unless larger than the whole budget) and return them."""
+        if states.nbytes > self.max_bytes:
+            return states
+        with self._lock:
+            old = self._items.pop(trajectory_id, None)
+            if old is not None:
+                self._bytes -= old.nbytes
+            self._items[trajectory_id] = states
+            self._bytes += states.nbytes
+            while self._bytes > self.max_bytes:
+                _, evicted = self._items.popitem(last=False)
+                self._bytes -= evicted.nbytes
+        return states
+
+    def discard(self, trajectory_id: int) -> None:
+        """Forget one trajectory's states."""
+        with self._lock:
+            old = self._items.pop(trajectory_id, None)
+            if old is not None:
+                self._bytes -= old.nbytes
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._items)
+
+
+@functools.cache
+def _changes_statement(row_gaps: bool, tomb_gaps: bool) -> sa.CompoundSelect[Any]:
+    """Rows and tombstones above their high-water marks (`:row_hwm`, `:tomb_hwm`) or, when
+    asked, among the gaps (`:row_gaps`, `:tomb_gaps`); built once per shape."""
+    rows = sa.select(
+        sa.literal_column(str(_ROW), sa.Integer).label("kind"),
+        Trajectory.id.label("id"),
+        Trajectory.model_id.label("model_id"),
+        Trajectory.start.label("start"),
+        Trajectory.goal.label("goal"),
+        sa.cast(sa.null(), sa.BigInteger).label("ref"),
+    ).where(_above_or_in(Trajectory.id, "row", row_gaps))
+    tombs = sa.select(
+        sa.literal_column(str(_TOMBSTONE), sa.Integer),
+        TrajectoryTombstone.id,
+        TrajectoryTombstone.model_id,
+        sa.cast(sa.null(), Trajectory.start.type),
+        sa.cast(sa.null(), Trajectory.goal.type),
+        TrajectoryTombstone.trajectory_id,
+    ).where(_above_or_in(TrajectoryTombstone.id, "tomb", tomb_gaps))
+    return sa.union_all(rows, tombs)
+
+
+def _above_or_in(
+    column: InstrumentedAttribute[int], name: str, gaps: bool
+) -> sa.ColumnElement[bool]:
+    above = column > sa.bindparam(f"{name}_hwm", type_=sa.BigInteger)
+    if not gaps:
+        return above
+    return sa.or_(above, column.in_(sa.bindparam(f"{name}_gaps", expanding=True)))
 
 
 def _add_rows(index: TrajectoryIndex, rows: Sequence[Any]) -> None:

@@ -17,6 +17,13 @@ from trajcache.geometry.robot import BASE_STATE_NAMES, BaseType, RobotModel
 from trajcache.geometry.urdf import _MeshResolver, load_robot_model, unpack_archive
 from trajcache.planning.problem import ModelSource
 from trajcache.services.errors import NotFoundError, PayloadTooLargeError
+from trajcache.services.model_config import (
+    JointLimits,
+    ModelConfig,
+    check_same_config,
+    joint_limits,
+    link_name,
+)
 
 NAME_MAX = 200  # robot_models.name column width
 
@@ -105,8 +112,16 @@ def register_model(
     joint_names: Sequence[str] | None = None,
     name: str | None = None,
     max_urdf_bytes: int | None = None,
+    acceleration_limits: JointLimits | None = None,
+    jerk_limits: JointLimits | None = None,
+    end_effector_link: str | None = None,
 ) -> tuple[RobotModel, bool]:
-    """Register a model (same content → same model id, no new rows); return it and `created`."""
+    """Register a model (same content → same model id, no new rows); return it and `created`.
+
+    Acceleration and jerk limits (one value for every planning joint, or per joint name) and
+    the end-effector link are the model's configuration, fixed at its first registration:
+    registering the same content again with a different configuration is a ConflictError.
+    """
     size = len(urdf.encode("utf-8"))
     if max_urdf_bytes is not None and size > max_urdf_bytes:
         raise PayloadTooLargeError(
@@ -114,9 +129,16 @@ def register_model(
         )
     model = load_robot_model(urdf, files=files or {}, base=base, joint_names=joint_names, name=name)
     model = replace(model, name=model.name[:NAME_MAX])
-    existing = _stored_name(session, model.model_id)
+    config = ModelConfig(
+        acceleration_limits=joint_limits(model, acceleration_limits, "acceleration_limits"),
+        jerk_limits=joint_limits(model, jerk_limits, "jerk_limits"),
+        end_effector_link=link_name(model, end_effector_link),
+    )
+    existing = _stored(session, model.model_id)
     if existing is not None:
-        return _cached(registry, model, existing), False
+        stored_name, stored = existing
+        check_same_config(model.model_id, stored, config)
+        return _cached(registry, model, stored_name, stored), False
     row = tables.RobotModel(
         id=model.model_id,
         name=model.name,
@@ -125,6 +147,9 @@ def register_model(
         urdf=urdf,
         allowed_pairs=[list(pair) for pair in sorted(model.allowed_pairs)],
         config={},
+        acceleration_limits=config.acceleration_limits,
+        jerk_limits=config.jerk_limits,
+        end_effector_link=config.end_effector_link,
     )
     row.files = [
         tables.ModelFile(path=path, sha256=hashlib.sha256(data).hexdigest(), data=data)
@@ -135,22 +160,34 @@ def register_model(
         session.commit()
     except IntegrityError:  # registered concurrently by another request or replica
         session.rollback()
-        stored = _stored_name(session, model.model_id)
-        if stored is None:
+        found = _stored(session, model.model_id)
+        if found is None:
             raise
-        return _cached(registry, model, stored), False
-    return registry.put(model), True
+        check_same_config(model.model_id, found[1], config)
+        return _cached(registry, model, *found), False
+    return registry.put(config.apply(model)), True
 
 
-def _cached(registry: ModelRegistry, model: RobotModel, stored_name: str) -> RobotModel:
+def _cached(
+    registry: ModelRegistry, model: RobotModel, stored_name: str, config: ModelConfig
+) -> RobotModel:
     cached = registry.get(model.model_id)
     if cached is not None:
         return cached
-    return registry.put(replace(model, name=stored_name))
+    return registry.put(config.apply(replace(model, name=stored_name)))
 
 
-def _stored_name(session: Session, model_id: str) -> str | None:
-    return session.scalar(sa.select(tables.RobotModel.name).where(tables.RobotModel.id == model_id))
+def _stored(session: Session, model_id: str) -> tuple[str, ModelConfig] | None:
+    """The stored name and configuration of a model, or None."""
+    t = tables.RobotModel
+    row = session.execute(
+        sa.select(t.name, t.acceleration_limits, t.jerk_limits, t.end_effector_link).where(
+            t.id == model_id
+        )
+    ).one_or_none()
+    if row is None:
+        return None
+    return row.name, ModelConfig(row.acceleration_limits, row.jerk_limits, row.end_effector_link)
 
 
 def get_model(*, session: Session, registry: ModelRegistry, model_id: str) -> RobotModel:
@@ -171,7 +208,8 @@ def get_model(*, session: Session, registry: ModelRegistry, model_id: str) -> Ro
     )
     if model.model_id != row.id:  # hashing changed since registration: the stored id rules
         model = replace(model, model_id=row.id)
-    return registry.put(model)
+    config = ModelConfig(row.acceleration_limits, row.jerk_limits, row.end_effector_link)
+    return registry.put(config.apply(model))
 
 
 def model_source(

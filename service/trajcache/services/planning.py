@@ -1,4 +1,35 @@
-"""The plan flow (paper, section 3): lookup → adapt → validate → fallback → store → answer."""
+"""The plan flow (paper, section 3): lookup → adapt → validate → fallback → store → answer.
+
+A cache hit, the hot path, reads the database twice: the robot with its current scene version
+(parsed scenes are cached by hash), and one replica sync (what other replicas stored or deleted
+since the last sync; with `index_sync_interval_s=0` a sync that began after the request arrived).
+Candidates' key states come from a per-process cache (stored states never change). The read
+transaction ends before validation, so no connection is held while checking collisions.
+
+Validation memo (`cache.memo`). A cached trajectory's verdict depends on its key states, the
+robot model (id = content hash of the robot), the scene (hash = content hash of every object and
+environment value) and the validator's settings (steps, certified mode): the memo scope. Per
+scope, a bounded per-process LRU holds digests of exact key-state sequences that passed certified
+validation. Adaptation (`cache.adapt`) replaces the first and last states (their heading unwrapped
+towards their neighbour) and, when the base stays still, re-anchors every interior base pose to
+the request's. Validation certifies each straight segment between key states on its own, so:
+
+- the exact adapted path was certified in this scope → valid without collision checks;
+- its interior (all but the first and last state) was → only the first and last segments, the
+  ones endpoint substitution changed, are validated;
+- anything else — another scene (new hash), other settings, an interior moved by re-anchoring
+  the base, reversal — is a different digest, and the whole path is validated.
+
+Only a path that passed is ever remembered; a rejection is never remembered, and a memo entry can
+only skip checks whose outcome is already known to be "valid". Candidates that adapt to the same
+path as one already rejected in this request (two-state trajectories all become the straight
+line from start to goal) reuse that verdict.
+
+Bookkeeping of a hit (usage counters of the served and the rejected candidates, the plan event)
+goes to `ctx.records` (`services.plan_records`): written in order by a background writer, many per
+transaction, flushed at shutdown. The HTTP layer keeps the request's cycle open, after sending the
+answer, until its record is committed.
+"""
 
 from __future__ import annotations
 
@@ -12,16 +43,21 @@ from sqlalchemy.orm import Session
 
 from trajcache.cache.adapt import adapt_trajectory, base_is_still
 from trajcache.cache.index import Match
-from trajcache.db.models import PlanEvent, Trajectory, unpack_states, utcnow
+from trajcache.cache.memo import MemoScope, MemoUse, validate_with_memo
+from trajcache.cache.ranking import RANKING_COLUMNS, facts_from_row, rank_matches
+from trajcache.db.models import PlanEvent, Trajectory, utcnow
 from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.kinematics import check_limits, check_states
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene, scene_to_payload
-from trajcache.geometry.validation import ValidationResult, validator_for
+from trajcache.geometry.validation import ValidationResult, ValidationSettings, validator_for
+from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, SceneSource
 from trajcache.services.context import ServiceContext
+from trajcache.services.errors import UnavailableError
 from trajcache.services.models import get_model, model_source
-from trajcache.services.robots import current_scene
+from trajcache.services.plan_records import PlanRecord
+from trajcache.services.robots import robot_scene
 from trajcache.services.trajectories import store_trajectory
 
 
@@ -31,7 +67,7 @@ class PlanStatus(str, Enum):
     SUCCESS = "success"
     MISS = "miss"  # no valid cached candidate and no fallback planning asked for or available
     FAILURE = "failure"  # the planner found no path within its budget
-    ERROR = "error"  # the planner could not run (pool broken, backend down)
+    ERROR = "error"  # the planner could not run (pool broken, backend down): answered with 503
 
 
 class PlanSource(str, Enum):
@@ -53,6 +89,16 @@ class PlanRequest:
     budget_s: float = 2.0
     planner: str = "rrtconnect"
     arm_only: bool = False  # match on arm joints only when the base does not move
+    lookup: bool = True  # False: skip the cache and plan (a fresh plan is still stored)
+
+
+@dataclass(frozen=True)
+class _Origin:
+    """Where a request comes from: what a planned trajectory is stored as, and if it is real."""
+
+    store_source: str  # source of a trajectory the planner finds for this request
+    store_robot_id: str | None
+    real: bool  # a real robot: a hit counts as a validation of the trajectory in the real world
 
 
 @dataclass
@@ -67,6 +113,8 @@ class PlanAnswer:
     timings_ms: dict[str, float]
     message: str = ""
     rejected: list[dict[str, object]] = field(default_factory=list)
+    record: int | None = None  # sequence number of the bookkeeping in `ctx.records`, if queued
+    memo: MemoUse | None = None  # how the served cached trajectory was validated
 
 
 @dataclass
@@ -89,94 +137,183 @@ class _Clock:
 
 
 def plan(*, ctx: ServiceContext, robot_id: str, request: PlanRequest) -> PlanAnswer:
-    """Answer one plan request from the cache, or from the planner when nothing cached is safe."""
+    """Answer one plan request of a robot, in the scene the robot last uploaded."""
     clock = _Clock()
     with ctx.sessions() as session:
         t = time.perf_counter()
-        robot, scene, _version = current_scene(
-            session=session, scenes=ctx.scenes, robot_id=robot_id
-        )
+        _read_without_transaction(session)
+        robot = robot_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
         model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
-        start = check_states(model, request.start, name="start")[0]
-        goal = check_states(model, request.goal, name="goal")[0]
-        check_limits(model, start, name="start")
-        check_limits(model, goal, name="goal")
+        scene = robot.scene
         clock.db += time.perf_counter() - t
+        origin = _Origin("planner", robot_id, real=robot.kind == "real")
+        return _plan_in_scene(session, ctx, robot_id, model, scene, request, origin, clock)
 
+
+def plan_in_scene(
+    *,
+    ctx: ServiceContext,
+    caller: str,
+    model_id: str,
+    scene: Scene,
+    request: PlanRequest,
+    store_as: str = "sim",
+) -> PlanAnswer:
+    """Answer a plan request in a given scene (a seed job's simulated robot).
+
+    The flow is the robots' one; `caller` is recorded in the plan event, and a trajectory the
+    planner finds is stored with source `store_as`.
+    """
+    clock = _Clock()
+    with ctx.sessions() as session:
         t = time.perf_counter()
-        index = ctx.indexes.index(session, model)
-        arm_only = request.arm_only and base_is_still(start, goal, arm_offset=model.arm_offset)
+        model = get_model(session=session, registry=ctx.models, model_id=model_id)
+        clock.db += time.perf_counter() - t
+        origin = _Origin(store_as, None, real=False)
+        return _plan_in_scene(session, ctx, caller, model, scene, request, origin, clock)
+
+
+def _plan_in_scene(
+    session: Session,
+    ctx: ServiceContext,
+    robot_id: str,
+    model: RobotModel,
+    scene: Scene,
+    request: PlanRequest,
+    origin: _Origin,
+    clock: _Clock,
+) -> PlanAnswer:
+    """Lookup → rank → adapt → validate → (fallback → store) → answer, in one session.
+
+    Lookup fetches up to `ranking_pool` candidates within the threshold, nearest first; ranking
+    (`cache.ranking`: environment nearness, real-robot validations, failure streaks) orders them
+    and the first `max_candidates` are tried.
+    """
+    t = time.perf_counter()
+    start = check_states(model, request.start, name="start")[0]
+    goal = check_states(model, request.goal, name="goal")[0]
+    check_limits(model, start, name="start")
+    check_limits(model, goal, name="goal")
+    clock.db += time.perf_counter() - t
+
+    t = time.perf_counter()
+    index = ctx.indexes.index(session, model)  # one query: what other replicas wrote
+    clock.db += time.perf_counter() - t
+
+    t = time.perf_counter()
+    arm_only = request.arm_only and base_is_still(start, goal, arm_offset=model.arm_offset)
+    matches: list[Match] = []
+    if request.lookup:
         matches = index.query(
             start,
             goal,
             threshold=request.threshold,
-            limit=request.max_candidates,
+            limit=max(request.max_candidates, ctx.ranking.pool),
             arm_only=arm_only,
         )
-        candidates = _load_states(session, [m.trajectory_id for m in matches])
-        clock.lookup += time.perf_counter() - t
+    if len(matches) > 1:
+        matches = _ranked(session, ctx, matches, scene)
+    matches = matches[: request.max_candidates]
+    candidates = ctx.indexes.states(session, [m.trajectory_id for m in matches])
+    session.rollback()  # end the read transaction: no connection is held while validating
+    clock.lookup += time.perf_counter() - t
 
-        t = time.perf_counter()
-        validator = validator_for(model, scene, ctx.settings)
-        failed: list[int] = []
-        rejected: list[dict[str, object]] = []
-        for match in matches:
-            stored = candidates.get(match.trajectory_id)
-            if stored is None:  # deleted since the index was read
-                continue
-            adapted = adapt_trajectory(
-                stored, start, goal, arm_offset=model.arm_offset, reverse=match.reversed
+    t = time.perf_counter()
+    validator = validator_for(model, scene, ctx.settings)
+    scope = memo_scope(model, scene, ctx.settings)
+    failed: list[int] = []
+    rejected: list[dict[str, object]] = []
+    seen: list[tuple[np.ndarray, ValidationResult]] = []  # adapted paths rejected so far
+    for match in matches:
+        stored = candidates.get(match.trajectory_id)
+        if stored is None:  # deleted since the index was read
+            continue
+        adapted = adapt_trajectory(
+            stored, start, goal, arm_offset=model.arm_offset, reverse=match.reversed
+        )
+        result = next((r for path, r in seen if np.array_equal(path, adapted)), None)
+        if result is None:
+            result, memo_use = validate_with_memo(
+                adapted, validate_fn=validator.validate, memo=ctx.memo, scope=scope
             )
-            result = validator.validate(adapted)
             if result.valid:
                 clock.validate += time.perf_counter() - t
                 return _answer_hit(
-                    session, ctx, robot_id, model, scene, match, adapted, failed, rejected, clock
-                )
-            failed.append(match.trajectory_id)
-            rejected.append(_rejection(match, result))
-        clock.validate += time.perf_counter() - t
+                    ctx, robot_id, origin, model, scene, match, adapted, failed, rejected, clock,
+                    memo_use,
+                )  # fmt: skip
+            seen.append((adapted, result))
+        failed.append(match.trajectory_id)
+        rejected.append(_rejection(match, result))
+    clock.validate += time.perf_counter() - t
 
-        _raise_if_endpoint_collides(validator, start, goal)
-        if not request.fallback or ctx.planner is None:
-            why = "fallback planning disabled" if not request.fallback else "no planner configured"
-            return _answer_without_path(
-                session,
-                robot_id,
-                model,
-                scene,
-                PlanStatus.MISS,
-                len(matches),
-                failed,
-                rejected,
-                clock,
-                f"no valid cached trajectory; {why}",
-            )
-        return _plan_fallback(
+    _raise_if_endpoint_collides(validator, start, goal)
+    planner = ctx.planner_pool() if request.fallback else None
+    if planner is None:
+        why = "fallback planning disabled" if not request.fallback else "planning is off"
+        return _answer_without_path(
             session,
-            ctx,
             robot_id,
             model,
             scene,
-            start,
-            goal,
-            request,
+            PlanStatus.MISS,
             len(matches),
             failed,
             rejected,
             clock,
+            f"no valid cached trajectory; {why}",
         )
+    return _plan_fallback(
+        session,
+        ctx,
+        planner,
+        origin,
+        robot_id,
+        model,
+        scene,
+        start,
+        goal,
+        request,
+        len(matches),
+        failed,
+        rejected,
+        clock,
+    )
 
 
-def _load_states(session: Session, ids: list[int]) -> dict[int, np.ndarray]:
-    if not ids:
-        return {}
+def _ranked(
+    session: Session, ctx: ServiceContext, matches: list[Match], scene: Scene
+) -> list[Match]:
+    """`matches` in the order the ranking rules give (one query for the candidates' facts)."""
     rows = session.execute(
-        sa.select(Trajectory.id, Trajectory.states, Trajectory.n_states, Trajectory.dof).where(
-            Trajectory.id.in_(ids)
+        sa.select(*(getattr(Trajectory, c) for c in RANKING_COLUMNS)).where(
+            Trajectory.id.in_([m.trajectory_id for m in matches])
         )
     ).all()
-    return {r.id: unpack_states(r.states, n_states=r.n_states, dof=r.dof) for r in rows}
+    facts = {row.id: facts_from_row(row) for row in rows}
+    return rank_matches(matches, facts, env=scene.env, now=utcnow(), rules=ctx.ranking)
+
+
+def _read_without_transaction(session: Session) -> None:
+    """On PostgreSQL, run the lookup's reads in autocommit: no BEGIN and ROLLBACK round trips.
+
+    Each read sees its own snapshot either way (read committed) and none writes; the connection
+    goes back to the pool (its isolation level reset) when the reads end, so later writes of the
+    request run in an ordinary transaction.
+    """
+    if session.get_bind().dialect.name == "postgresql":
+        session.connection(execution_options={"isolation_level": "AUTOCOMMIT"})
+
+
+def memo_scope(model: RobotModel, scene: Scene, settings: ValidationSettings) -> MemoScope | None:
+    """What a validation verdict depends on besides the states (None: scene has no hash).
+
+    The same inputs `validator_for` builds its validator from; a setting added there belongs here.
+    """
+    if not scene.hash:
+        return None
+    resolution = (settings.step_position_m, settings.step_orientation_rad, settings.step_joint_rad)
+    return MemoScope(model.model_id, scene.hash, (*resolution, settings.certified_validation))
 
 
 def _rejection(match: Match, result: ValidationResult) -> dict[str, object]:
@@ -233,25 +370,43 @@ def _event(
     error: str | None = None,
 ) -> PlanEvent:
     return PlanEvent(
-        robot_id=robot_id,
-        model_id=model.model_id,
-        scene_hash=scene.hash,
-        status=status.value,
-        source=source.value if source else None,
-        trajectory_id=trajectory_id,
-        candidates_tried=tried,
-        lookup_ms=timings["lookup"],
-        validate_ms=timings["validate"],
-        plan_ms=timings["plan"],
-        total_ms=timings["total"],
-        error=(error or None) and error[:500],
+        **_event_values(
+            robot_id, model, scene, status, source, trajectory_id, tried, timings, error
+        )
     )
 
 
+def _event_values(
+    robot_id: str,
+    model: RobotModel,
+    scene: Scene,
+    status: PlanStatus,
+    source: PlanSource | None,
+    trajectory_id: int | None,
+    tried: int,
+    timings: dict[str, float],
+    error: str | None = None,
+) -> dict[str, object]:
+    return {
+        "robot_id": robot_id,
+        "model_id": model.model_id,
+        "scene_hash": scene.hash,
+        "status": status.value,
+        "source": source.value if source else None,
+        "trajectory_id": trajectory_id,
+        "candidates_tried": tried,
+        "lookup_ms": timings["lookup"],
+        "validate_ms": timings["validate"],
+        "plan_ms": timings["plan"],
+        "total_ms": timings["total"],
+        "error": (error or None) and error[:500],
+    }
+
+
 def _answer_hit(
-    session: Session,
     ctx: ServiceContext,
     robot_id: str,
+    origin: _Origin,
     model: RobotModel,
     scene: Scene,
     match: Match,
@@ -259,33 +414,28 @@ def _answer_hit(
     failed: list[int],
     rejected: list[dict[str, object]],
     clock: _Clock,
+    memo_use: MemoUse,
 ) -> PlanAnswer:
-    t = time.perf_counter()
+    """Answer with a validated cached trajectory; its bookkeeping is queued, not awaited."""
     tried = len(failed) + 1
-    _record_usage(session, match.trajectory_id, failed)
     timings = clock.timings()
-    session.add(
-        _event(
-            robot_id,
-            model,
-            scene,
-            PlanStatus.SUCCESS,
-            PlanSource.CACHE,
-            match.trajectory_id,
-            tried,
-            timings,
-        )
+    event = _event_values(
+        robot_id, model, scene, PlanStatus.SUCCESS, PlanSource.CACHE, match.trajectory_id,
+        tried, timings,
+    )  # fmt: skip
+    record = ctx.records.submit(
+        PlanRecord(utcnow(), match.trajectory_id, tuple(failed), event, real=origin.real)
     )
-    session.commit()
-    clock.db += time.perf_counter() - t
     return PlanAnswer(
         PlanStatus.SUCCESS,
         PlanSource.CACHE,
         match.trajectory_id,
         states,
         tried,
-        clock.timings(),
+        timings,
         rejected=rejected,
+        record=record,
+        memo=memo_use,
     )
 
 
@@ -312,6 +462,8 @@ def _answer_without_path(
 def _plan_fallback(
     session: Session,
     ctx: ServiceContext,
+    planner: PlannerPool,
+    origin: _Origin,
     robot_id: str,
     model: RobotModel,
     scene: Scene,
@@ -323,8 +475,11 @@ def _plan_fallback(
     rejected: list[dict[str, object]],
     clock: _Clock,
 ) -> PlanAnswer:
-    """Plan in the worker pool, validate like a cached trajectory, store and answer."""
-    assert ctx.planner is not None
+    """Plan in the worker pool, validate like a cached trajectory, store and answer.
+
+    The session's transaction ends before planning, so a request waiting on a worker holds no
+    database connection; storing the result and the usage opens a new one.
+    """
     t = time.perf_counter()
     problem = PlanningProblem(
         model=model_source(session=session, model_id=model.model_id, registry=ctx.models),
@@ -334,14 +489,18 @@ def _plan_fallback(
         budget_s=request.budget_s,
         planner=request.planner,
     )
-    outcome = ctx.planner.submit(problem)
+    session.rollback()  # nothing is written yet; release the connection while planning
+    outcome = planner.submit(problem)
     clock.plan += time.perf_counter() - t
     if not outcome.solved or outcome.path is None:
         status = PlanStatus.ERROR if outcome.status is PlannerStatus.ERROR else PlanStatus.FAILURE
         message = f"{outcome.status.value}: {outcome.message}".rstrip(": ")
-        return _answer_without_path(
+        answer = _answer_without_path(
             session, robot_id, model, scene, status, tried, failed, rejected, clock, message
         )
+        if status is PlanStatus.ERROR:  # the planner could not run: a 503 the caller may retry
+            raise UnavailableError(f"planning is unavailable, retry later ({outcome.message})")
+        return answer
     t = time.perf_counter()
     result = validator_for(model, scene, ctx.settings).validate(outcome.path)
     clock.validate += time.perf_counter() - t
@@ -364,8 +523,8 @@ def _plan_fallback(
         session=session,
         model=model,
         states=outcome.path,
-        source="planner",
-        robot_id=robot_id,
+        source=origin.store_source,
+        robot_id=origin.store_robot_id,
         scene_hash=scene.hash,
         env=scene.env,
         planning_time_ms=clock.plan * 1e3,

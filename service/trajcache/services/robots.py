@@ -78,9 +78,19 @@ def check_robot_id(robot_id: str) -> str:
     return robot_id
 
 
-def put_robot(*, session: Session, robot_id: str, model_id: str) -> tuple[tables.Robot, bool]:
-    """Create robot `robot_id` of model `model_id`, or re-point it; return it and `created`."""
+ROBOT_KINDS = ("real", "sim")
+
+
+def put_robot(
+    *, session: Session, robot_id: str, model_id: str, kind: str | None = None
+) -> tuple[tables.Robot, bool]:
+    """Create robot `robot_id` of model `model_id`, or re-point it; return it and `created`.
+
+    `kind` (`real` or `sim`) is set when given; a new robot without it is `real`.
+    """
     check_robot_id(robot_id)
+    if kind is not None and kind not in ROBOT_KINDS:
+        raise InvalidInputError(f"robot kind {kind!r} must be one of {', '.join(ROBOT_KINDS)}")
     if (
         session.scalar(sa.select(tables.RobotModel.id).where(tables.RobotModel.id == model_id))
         is None
@@ -88,7 +98,9 @@ def put_robot(*, session: Session, robot_id: str, model_id: str) -> tuple[tables
         raise NotFoundError(f"robot model {model_id!r} not found")
     robot = session.get(tables.Robot, robot_id)
     if robot is None:
-        robot = tables.Robot(id=robot_id, model_id=model_id, scene_version=None)
+        robot = tables.Robot(
+            id=robot_id, model_id=model_id, scene_version=None, kind=kind or "real"
+        )
         session.add(robot)
         try:
             session.commit()
@@ -98,8 +110,9 @@ def put_robot(*, session: Session, robot_id: str, model_id: str) -> tuple[tables
             robot = session.get(tables.Robot, robot_id)
             if robot is None:
                 raise
-    if robot.model_id != model_id:
+    if robot.model_id != model_id or (kind is not None and robot.kind != kind):
         robot.model_id = model_id
+        robot.kind = kind or robot.kind
         robot.updated_at = tables.utcnow()
         session.commit()
     return robot, False
@@ -113,27 +126,68 @@ def get_robot(*, session: Session, robot_id: str) -> tables.Robot:
     return robot
 
 
+@dataclass(frozen=True)
+class RobotScene:
+    """What a plan needs to know about a robot: its model and its current scene."""
+
+    robot_id: str
+    model_id: str
+    scene: Scene
+    version: int  # 0: no scene uploaded yet (the empty scene)
+    kind: str = "real"  # "real" or "sim"
+
+
+def robot_scene(*, session: Session, scenes: SceneCache, robot_id: str) -> RobotScene:
+    """The robot's model id and current scene; one query when the scene is cached."""
+    row = session.connection().execute(_ROBOT_SCENE, {"robot_id": robot_id}).one_or_none()
+    if row is None:
+        raise NotFoundError(f"robot {robot_id!r} not found")
+    model_id, version, scene_hash, kind = row
+    scene, version = _resolve_scene(session, scenes, robot_id, version or 0, scene_hash)
+    return RobotScene(robot_id, model_id, scene, version, kind)
+
+
 def current_scene(
     *, session: Session, scenes: SceneCache, robot_id: str
 ) -> tuple[tables.Robot, Scene, int]:
     """The robot, its current scene and version (0: empty) in one query when the scene is cached."""
     row = session.execute(
         sa.select(tables.Robot, tables.SceneVersion.hash)
-        .outerjoin(
-            tables.SceneVersion,
-            sa.and_(
-                tables.SceneVersion.robot_id == tables.Robot.id,
-                tables.SceneVersion.version == tables.Robot.scene_version,
-            ),
-        )
+        .outerjoin(tables.SceneVersion, _current_version())
         .where(tables.Robot.id == robot_id)
     ).one_or_none()
     if row is None:
         raise NotFoundError(f"robot {robot_id!r} not found")
     robot, scene_hash = row
-    version = robot.scene_version or 0
+    scene, version = _resolve_scene(session, scenes, robot_id, robot.scene_version or 0, scene_hash)
+    return robot, scene, version
+
+
+def _current_version() -> sa.ColumnElement[bool]:
+    return sa.and_(
+        tables.SceneVersion.robot_id == tables.Robot.id,
+        tables.SceneVersion.version == tables.Robot.scene_version,
+    )
+
+
+_ROBOT_SCENE = (  # built once: the plan flow runs it on every request
+    sa.select(
+        tables.Robot.model_id,
+        tables.Robot.scene_version,
+        tables.SceneVersion.hash,
+        tables.Robot.kind,
+    )
+    .outerjoin(tables.SceneVersion, _current_version())
+    .where(tables.Robot.id == sa.bindparam("robot_id", type_=sa.String))
+)
+
+
+def _resolve_scene(
+    session: Session, scenes: SceneCache, robot_id: str, version: int, scene_hash: str | None
+) -> tuple[Scene, int]:
+    """The parsed scene of a robot's version (from the cache, else its stored payload)."""
     if version == 0 or scene_hash is None:
-        return robot, EMPTY_SCENE, 0
+        return EMPTY_SCENE, 0
     scene = scenes.get(scene_hash)
     if scene is None:
         payload = session.scalar(
@@ -145,7 +199,7 @@ def current_scene(
         if scene.hash != scene_hash:  # the stored hash names this version everywhere
             scene = replace(scene, hash=scene_hash)
         scene = scenes.put(scene)
-    return robot, scene, version
+    return scene, version
 
 
 def get_scene(*, session: Session, scenes: SceneCache, robot_id: str) -> SceneInfo:

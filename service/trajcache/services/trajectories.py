@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 from collections.abc import Mapping, Sized
 from typing import Any
 
@@ -12,18 +14,23 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
+from trajcache.core.config import Settings, get_settings
 from trajcache.db import models as tables
-from trajcache.geometry.errors import StateError
+from trajcache.geometry.errors import GeometryError, StateError
 from trajcache.geometry.kinematics import check_limits, check_states
 from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import parse_env
+from trajcache.geometry.scene import Scene, parse_env, parse_scene
 from trajcache.services.errors import (
     ConflictError,
     InvalidInputError,
     NotFoundError,
     PayloadTooLargeError,
 )
-from trajcache.services.robots import check_robot_id
+from trajcache.services.quality import trajectory_quality
+from trajcache.services.robots import SceneCache, check_robot_id
+from trajcache.timing import TimingError
+
+logger = logging.getLogger(__name__)
 
 SOURCES = ("real", "sim", "import", "planner")
 _COLUMNS = tuple(attr.key for attr in sa.inspect(tables.Trajectory).column_attrs)
@@ -42,12 +49,19 @@ def store_trajectory(
     max_states: int | None = None,
     require_robot: bool = False,
     commit: bool = True,
+    scene: Scene | None = None,
+    settings: Settings | None = None,
+    compute_quality: bool = True,
 ) -> tuple[int, bool]:
     """Store a trajectory of `model`; an identical one already stored is returned, not copied.
 
     States are checked for length, finiteness and joint limits (StateError names the joint).
     With `require_robot`, `robot_id` must name a robot of this model. With `commit=False` the
     row is only flushed, so the caller can commit it together with other writes.
+
+    A new row gets its quality columns (`compute_quality`): path lengths, duration after
+    time-optimal timing and, in `scene` or else the stored scene version with `scene_hash`,
+    the minimum clearance. A metric that cannot be computed is left empty; the store proceeds.
     """
     if source not in SOURCES:
         raise InvalidInputError(f"source {source!r} must be one of {', '.join(SOURCES)}")
@@ -73,6 +87,10 @@ def store_trajectory(
     existing = _find(session, model.model_id, row.content_hash)
     if existing is not None:
         return existing, False
+    if compute_quality:
+        if scene is None and scene_hash is not None:
+            scene = _scene_with_hash(session, scene_hash)
+        _set_quality(row, model, array, settings or get_settings(), scene)
     new_id = _insert_unless_present(session, row)
     if new_id is None:  # stored concurrently by another request or replica
         existing = _find(session, model.model_id, row.content_hash)
@@ -82,6 +100,48 @@ def store_trajectory(
     if commit:
         session.commit()
     return new_id, True
+
+
+_SCENES = SceneCache(capacity=32)  # scenes of stored trajectories, by hash
+
+
+def _scene_with_hash(session: Session, scene_hash: str) -> Scene | None:
+    """The scene version with this hash (any robot's), parsed once per process; None if none."""
+    cached = _SCENES.get(scene_hash)
+    if cached is not None:
+        return cached
+    payload = session.scalar(
+        sa.select(tables.SceneVersion.payload)
+        .where(tables.SceneVersion.hash == scene_hash)
+        .limit(1)
+    )
+    if payload is None:
+        return None
+    try:
+        scene = parse_scene(payload)
+    except GeometryError:  # stored before a parser change; clearance stays unknown
+        logger.warning("stored scene %s no longer parses", scene_hash, exc_info=True)
+        return None
+    return _SCENES.put(dataclasses.replace(scene, hash=scene_hash))
+
+
+def _set_quality(
+    row: tables.Trajectory,
+    model: RobotModel,
+    states: np.ndarray,
+    settings: Settings,
+    scene: Scene | None,
+) -> None:
+    try:
+        quality, details = trajectory_quality(model, states, settings, scene=scene)
+    except (TimingError, ValueError, RuntimeError):  # a metric must never block storing
+        logger.warning("quality of a new trajectory could not be computed", exc_info=True)
+        return
+    row.length = quality.path_length
+    row.ee_length = quality.ee_path_length
+    row.min_clearance = quality.min_clearance
+    row.duration_s = quality.duration_s
+    row.quality = details
 
 
 def _check_count(count: int | None, max_states: int | None) -> None:

@@ -16,7 +16,9 @@ from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException
 
 from trajcache.api.deps import CtxDep, PageDep, SessionDep, SettingsDep
+from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas import (
+    URDF_EXAMPLE,
     ModelFileOut,
     RobotModelDetail,
     RobotModelIn,
@@ -25,6 +27,7 @@ from trajcache.api.schemas import (
     RobotModelSummary,
 )
 from trajcache.core.config import Settings
+from trajcache.quality import end_effector_link
 from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 from trajcache.services.models import (
     get_model,
@@ -35,8 +38,9 @@ from trajcache.services.models import (
     state_names,
     unpack_model_archive,
 )
+from trajcache.timing import kinematic_limits
 
-router = APIRouter(prefix="/robot-models", tags=["robot models"])
+router = APIRouter(prefix="/robot-models", tags=["robot models"], responses=COMMON)
 
 _FORM_SCHEMA = {
     "type": "object",
@@ -46,6 +50,9 @@ _FORM_SCHEMA = {
         "base": {"type": "string", "enum": ["fixed", "planar"], "default": "fixed"},
         "joint_names": {"type": "string", "description": "Comma-separated planning joints."},
         "name": {"type": "string"},
+        "acceleration_limits": {"type": "string", "description": "A number or JSON object."},
+        "jerk_limits": {"type": "string", "description": "A number or JSON object."},
+        "end_effector_link": {"type": "string"},
         "archive": {"type": "string", "format": "binary", "description": "zip or tar(.gz)."},
     },
 }
@@ -54,7 +61,10 @@ _REGISTRATION_BODY: dict[str, Any] = {
         "required": True,
         "content": {
             "application/json": {"schema": RobotModelIn.model_json_schema()},
-            "multipart/form-data": {"schema": _FORM_SCHEMA},
+            "multipart/form-data": {
+                "schema": _FORM_SCHEMA,
+                "example": {"urdf": URDF_EXAMPLE, "base": "planar", "archive": "(meshes.zip)"},
+            },
         },
     }
 }
@@ -145,6 +155,13 @@ async def _from_form(request: Request, settings: Settings) -> Registration:
                     data[key] = raw.decode("utf-8-sig")
                 except UnicodeDecodeError:
                     raise InvalidInputError("the uploaded URDF is not UTF-8 text") from None
+            elif key in ("acceleration_limits", "jerk_limits"):
+                try:  # one number, or a JSON object by joint name
+                    data[key] = json.loads(value, parse_constant=_reject_constant)
+                except ValueError:
+                    raise InvalidInputError(
+                        f"form field {key!r} must be a number or a JSON object"
+                    ) from None
             elif key == "joint_names":
                 names = [n.strip() for n in value.split(",") if n.strip()]
                 data[key] = names or None
@@ -175,12 +192,33 @@ RegistrationDep = Annotated[Registration, Depends(read_registration)]
     status_code=201,
     response_model=RobotModelOut,
     summary="Register a robot model (same content → same model_id)",
+    response_description="Registered: a new model",
+    description="Registers a URDF with its base type (`fixed`, or `planar` for an x, y, θ mobile "
+    "base) and planning joints (default: every movable joint). Send JSON (mesh archive as "
+    "`archive_base64`), or multipart/form-data with the URDF as a field or file and the meshes "
+    "as an `archive` file (zip or tar(.gz)); `package://` and relative mesh URIs resolve inside "
+    "the archive. The id is a hash of the content: registering the same content again answers "
+    "200 with the same `model_id` and `created: false`.",
     openapi_extra=_REGISTRATION_BODY,
     responses={
-        200: {"description": "Already registered", "model": RobotModelOut},
-        413: {"description": "URDF or archive above the size limits"},
-        415: {"description": "Neither JSON nor multipart/form-data"},
-        422: {"description": "Unusable URDF, joints, meshes or archive"},
+        200: {"description": "Already registered: the same model_id", "model": RobotModelOut},
+        **errors(
+            {
+                413: (
+                    "URDF or archive above the size limits",
+                    "URDF has 3145728 bytes, more than max_urdf_bytes=2097152",
+                ),
+                415: (
+                    "Neither JSON nor multipart/form-data",
+                    "unsupported content type 'text/xml'; send application/json or "
+                    "multipart/form-data",
+                ),
+                422: (
+                    "Unusable URDF, joints, meshes or archive",
+                    "unknown joint names ['j9']; movable joints are ['j1']",
+                ),
+            }
+        ),
     },
 )
 def register_model_route(
@@ -202,6 +240,9 @@ def register_model_route(
         base=fields.base,
         joint_names=fields.joint_names,
         name=fields.name,
+        acceleration_limits=fields.acceleration_limits,
+        jerk_limits=fields.jerk_limits,
+        end_effector_link=fields.end_effector_link,
         max_urdf_bytes=s.max_urdf_bytes,
     )
     if not created:
@@ -216,7 +257,20 @@ def register_model_route(
     )
 
 
-@router.get("", response_model=RobotModelPage, summary="List registered robot models")
+@router.get(
+    "",
+    response_model=RobotModelPage,
+    summary="List registered robot models",
+    description="Registered models, oldest first, a page at a time (`limit`, `offset`).",
+    responses=errors(
+        {
+            422: (
+                "A page larger than max_page_size",
+                "query.limit: 5000 is above max_page_size=1000",
+            ),
+        }
+    ),
+)
 def list_models_route(session: SessionDep, page: PageDep) -> RobotModelPage:
     """Registered models, oldest first."""
     rows, total = list_models(session=session, limit=page.limit, offset=page.offset)
@@ -242,13 +296,17 @@ def _finite_or_none(values: Any) -> list[float | None]:
     "/{model_id}",
     response_model=RobotModelDetail,
     summary="A robot model: joints, links, limits and files",
-    responses={404: {"description": "Unknown model"}},
+    description="The model's planning joints and state order, link names, planning limits per "
+    "state value (null = unbounded), velocity limits and stored mesh files.",
+    responses=errors({404: ("Unknown model", "robot model '5158592d' not found")}),
 )
 def get_model_route(model_id: str, ctx: CtxDep, session: SessionDep) -> RobotModelDetail:
     """The model `model_id`."""
-    row = get_model_row(session=session, model_id=model_id)
+    # The model first: loading it reads the URDF, which get_model_row leaves unloaded.
     model = get_model(session=session, registry=ctx.models, model_id=model_id)
+    row = get_model_row(session=session, model_id=model_id)
     files = list_model_files(session=session, model_id=model_id)
+    limits = kinematic_limits(model, ctx.settings)
     return RobotModelDetail(
         model_id=row.id,
         name=row.name,
@@ -260,5 +318,8 @@ def get_model_route(model_id: str, ctx: CtxDep, session: SessionDep) -> RobotMod
         lower=_finite_or_none(model.lower),
         upper=_finite_or_none(model.upper),
         velocity_limits=[float(v) for v in model.velocity_limits],
+        acceleration_limits=limits.acceleration.tolist(),
+        jerk_limits=limits.jerk.tolist(),
+        end_effector_link=model.link_names[end_effector_link(model)],
         files=[ModelFileOut(path=f.path, sha256=f.sha256, size=f.size) for f in files],
     )

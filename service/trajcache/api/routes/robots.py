@@ -10,6 +10,7 @@ from fastapi import APIRouter, Depends, Request, Response
 from starlette.exceptions import HTTPException
 
 from trajcache.api.deps import CtxDep, SessionDep, SettingsDep
+from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas import (
     RobotIn,
     RobotOut,
@@ -24,28 +25,44 @@ from trajcache.geometry.scene import Scene, parse_scene, parse_scene_text
 from trajcache.services.errors import PayloadTooLargeError
 from trajcache.services.robots import get_robot, get_scene, patch_scene, put_robot, put_scene
 
-router = APIRouter(prefix="/robots", tags=["robots"])
+router = APIRouter(prefix="/robots", tags=["robots"], responses=COMMON)
 
 JSON_TYPES = frozenset({"", "application/json"})
 YAML_TYPES = frozenset(
     {"application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml", "text/plain"}
 )  # text: YAML or JSON
+_YAML_EXAMPLE = """\
+world:
+  collision_objects:
+    - id: table
+      primitives: [{type: 1, dimensions: [1.2, 0.8, 0.75]}]
+      primitive_poses: [{position: {x: 1.5, y: 0.0, z: 0.375}}]
+"""
 _SCENE_BODY: dict[str, Any] = {
     "requestBody": {
         "required": True,
         "content": {
             "application/json": {"schema": SceneIn.model_json_schema()},
-            "application/yaml": {"schema": {"type": "string"}},
+            "application/yaml": {"schema": {"type": "string"}, "example": _YAML_EXAMPLE},
         },
     }
 }
-_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "Unknown robot"}}
+_UNKNOWN_ROBOT = ("Unknown robot", "robot 'robot-7' not found")
+_TOO_LARGE = (
+    "Body above max_body_bytes, or more objects than max_scene_objects",
+    "scene body has 17000000 bytes, more than max_body_bytes=16777216",
+)
+_NOT_JSON_OR_YAML = (
+    "Neither JSON nor YAML",
+    "unsupported content type 'image/png'; send application/json or application/yaml",
+)
 
 
 def _robot_out(robot: tables.Robot) -> RobotOut:
     return RobotOut(
         robot_id=robot.id,
         model_id=robot.model_id,
+        kind=robot.kind,
         scene_version=robot.scene_version or 0,
         created_at=robot.created_at,
         updated_at=robot.updated_at,
@@ -57,19 +74,44 @@ def _robot_out(robot: tables.Robot) -> RobotOut:
     status_code=201,
     response_model=RobotOut,
     summary="Create a robot, or re-point it to another model",
-    responses={200: {"description": "Robot updated", "model": RobotOut}, 404: {}, 422: {}},
+    response_description="Robot created",
+    description="Creates the robot `robot_id` (1-128 letters, digits, `.`, `_`, `:` or `-`) as an "
+    "instance of a registered model, or re-points an existing robot (201 when new, 200 when it "
+    "existed). Robots of one model share one cache. `kind` marks a robot `real` (the default) or "
+    "`sim`, so validation statistics can tell real-robot use of a trajectory apart.",
+    responses={
+        200: {"description": "Robot updated", "model": RobotOut},
+        **errors(
+            {
+                404: ("Unknown model", "robot model '5158592d' not found"),
+                422: (
+                    "Malformed robot id or body",
+                    "robot id 'robot 7' must match ^[A-Za-z0-9._:-]{1,128}$ "
+                    "(1-128 letters, digits, '.', '_', ':' or '-')",
+                ),
+            }
+        ),
+    },
 )
 def put_robot_route(
     robot_id: str, body: RobotIn, session: SessionDep, response: Response
 ) -> RobotOut:
     """201 when the robot is new, 200 when it existed."""
-    robot, created = put_robot(session=session, robot_id=robot_id, model_id=body.model_id)
+    robot, created = put_robot(
+        session=session, robot_id=robot_id, model_id=body.model_id, kind=body.kind
+    )
     if not created:
         response.status_code = 200
     return _robot_out(robot)
 
 
-@router.get("/{robot_id}", response_model=RobotOut, summary="A robot", responses=_NOT_FOUND)
+@router.get(
+    "/{robot_id}",
+    response_model=RobotOut,
+    summary="A robot",
+    description="The robot's model and its current scene version (0 = no scene uploaded yet).",
+    responses=errors({404: _UNKNOWN_ROBOT}),
+)
 def get_robot_route(robot_id: str, session: SessionDep) -> RobotOut:
     """The robot `robot_id`."""
     return _robot_out(get_robot(session=session, robot_id=robot_id))
@@ -128,8 +170,19 @@ def parse_scene_body(body: SceneBody) -> Scene:
     "/{robot_id}/scene",
     response_model=SceneVersionOut,
     summary="Replace the robot's scene (native, MoveIt world, JSON or YAML)",
+    description="Replaces the scene with collision objects in the world frame (box, sphere, "
+    "cylinder, capsule, mesh) and named environment values, in native form or as the "
+    "`world.collision_objects` of a MoveIt PlanningScene, as JSON or YAML. Answers the new "
+    "version and content hash; unchanged content keeps the current version.",
     openapi_extra=_SCENE_BODY,
-    responses={**_NOT_FOUND, 413: {}, 415: {}, 422: {"description": "Malformed scene"}},
+    responses=errors(
+        {
+            404: _UNKNOWN_ROBOT,
+            413: _TOO_LARGE,
+            415: _NOT_JSON_OR_YAML,
+            422: ("Malformed scene", "object 'a': size must have 3 values, got 0"),
+        }
+    ),
 )
 def put_scene_route(
     robot_id: str, body: SceneBodyDep, ctx: CtxDep, session: SessionDep
@@ -150,7 +203,23 @@ def put_scene_route(
     "/{robot_id}/scene",
     response_model=SceneVersionOut,
     summary="Upsert or remove scene objects by id, set env values",
-    responses={**_NOT_FOUND, 409: {}, 413: {}, 422: {"description": "Malformed patch"}},
+    description="Adds or replaces objects by id (`upsert`), removes ids (`remove`) and sets "
+    "environment values (`env`, null removes one): a door swung open is one small patch. "
+    "Answers the new version and hash.",
+    responses=errors(
+        {
+            404: _UNKNOWN_ROBOT,
+            409: (
+                "The scene kept changing under concurrent patches",
+                "the scene of robot 'robot-7' keeps changing; retry the patch",
+            ),
+            413: (
+                "More objects than max_scene_objects",
+                "scene has 2001 objects, more than max_scene_objects=2000",
+            ),
+            422: ("Malformed patch", "object 'door': size must have 3 values, got 2"),
+        }
+    ),
 )
 def patch_scene_route(
     robot_id: str, body: ScenePatchIn, ctx: CtxDep, session: SessionDep
@@ -170,7 +239,9 @@ def patch_scene_route(
     "/{robot_id}/scene",
     response_model=SceneOut,
     summary="The robot's current scene",
-    responses=_NOT_FOUND,
+    description="The current scene in native form (MoveIt input is converted), its version "
+    "and content hash.",
+    responses=errors({404: _UNKNOWN_ROBOT}),
 )
 def get_scene_route(robot_id: str, ctx: CtxDep, session: SessionDep) -> SceneOut:
     """The current scene in native form with its version and hash."""

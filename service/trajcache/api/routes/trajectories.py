@@ -2,20 +2,22 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Path, Query, Response
 
 from trajcache.api.deps import CtxDep, PageDep, SessionDep
+from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas import (
     SourceName,
     TrajectoryCreated,
     TrajectoryIn,
-    TrajectoryOut,
     TrajectoryPage,
     TrajectorySummary,
 )
+from trajcache.api.stats_schemas import PlanEventOut, TrajectoryDetailOut
 from trajcache.services.models import get_model
+from trajcache.services.plan_events import trajectory_usage
 from trajcache.services.trajectories import (
     delete_trajectory,
     get_trajectory,
@@ -24,10 +26,18 @@ from trajcache.services.trajectories import (
     trajectory_states,
 )
 
-router = APIRouter(prefix="/trajectories", tags=["trajectories"])
+router = APIRouter(prefix="/trajectories", tags=["trajectories"], responses=COMMON)
 
 TrajectoryId = Annotated[int, Path(ge=1, le=2**63 - 1, description="Trajectory id.")]
-_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "Unknown trajectory"}}
+_BY_ID = errors(
+    {
+        404: ("Unknown trajectory", "trajectory 99 not found"),
+        422: (
+            "Not a trajectory id",
+            "path.trajectory_id: Input should be greater than or equal to 1",
+        ),
+    }
+)
 
 
 @router.post(
@@ -35,12 +45,30 @@ _NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"description": "Unknown tra
     status_code=201,
     response_model=TrajectoryCreated,
     summary="Store a trajectory (an identical one is not stored twice)",
+    response_description="Stored: a new trajectory",
+    description="Contributes key states (straight lines in state space between them, ordered as "
+    "the model's `state_names`) with their provenance (`real`, `sim`, `import`, `planner`) and "
+    "the scene they were valid in. 201 with the new id; 200 with the stored id when an "
+    "identical trajectory exists. Stored trajectories are validated again before every reuse.",
     responses={
         200: {"description": "Already stored", "model": TrajectoryCreated},
-        404: {"description": "Unknown model or robot"},
-        409: {"description": "The robot is of another model"},
-        413: {"description": "More states than max_trajectory_states"},
-        422: {"description": "Wrong state length, NaN/Inf, out of joint limits"},
+        **errors(
+            {
+                404: ("Unknown model or robot", "robot 'robot-7' not found"),
+                409: (
+                    "The robot is of another model",
+                    "robot 'robot-7' is of model '5158592d', not of model '0c4e1a7f'",
+                ),
+                413: (
+                    "More states than max_trajectory_states",
+                    "trajectory has 6000 states, more than max_trajectory_states=5000",
+                ),
+                422: (
+                    "Wrong state length, NaN/Inf, out of joint limits",
+                    "state 1 (of 1 out of limits) is out of joint limits: j1 = 9 not in [-3, 3]",
+                ),
+            }
+        ),
     },
 )
 def store_trajectory_route(
@@ -65,7 +93,18 @@ def store_trajectory_route(
     return TrajectoryCreated(trajectory_id=trajectory_id, created=created)
 
 
-@router.get("", response_model=TrajectoryPage, summary="List trajectories (without states)")
+@router.get(
+    "",
+    response_model=TrajectoryPage,
+    summary="List trajectories (without states)",
+    description="Stored trajectories by id, filtered by model, source and robot, a page at a time "
+    "(`limit`, `offset`), with usage statistics (hits, validation failures, last use).",
+    responses=errors(
+        {
+            422: ("Bad filter or page", "query.limit: 5000 is above max_page_size=1000"),
+        }
+    ),
+)
 def list_trajectories_route(
     session: SessionDep,
     page: PageDep,
@@ -88,15 +127,21 @@ def list_trajectories_route(
 
 @router.get(
     "/{trajectory_id}",
-    response_model=TrajectoryOut,
-    summary="A trajectory with its key states",
-    responses=_NOT_FOUND,
+    response_model=TrajectoryDetailOut,
+    summary="A trajectory with its key states and usage history",
+    description="The stored trajectory, its provenance and usage statistics, and its key states.",
+    responses=_BY_ID,
 )
-def get_trajectory_route(trajectory_id: TrajectoryId, session: SessionDep) -> TrajectoryOut:
-    """The trajectory `trajectory_id`."""
+def get_trajectory_route(trajectory_id: TrajectoryId, session: SessionDep) -> TrajectoryDetailOut:
+    """The trajectory `trajectory_id` with its most recent plan events."""
     row = get_trajectory(session=session, trajectory_id=trajectory_id)
     summary = TrajectorySummary.model_validate(row)
-    return TrajectoryOut(**summary.model_dump(), states=trajectory_states(row))
+    usage = trajectory_usage(session=session, trajectory_id=trajectory_id)
+    return TrajectoryDetailOut(
+        **summary.model_dump(),
+        states=trajectory_states(row),
+        usage_history=[PlanEventOut.model_validate(e) for e in usage],
+    )
 
 
 @router.delete(
@@ -104,7 +149,10 @@ def get_trajectory_route(trajectory_id: TrajectoryId, session: SessionDep) -> Tr
     status_code=204,
     response_class=Response,
     summary="Delete a trajectory (replicas drop it on their next sync)",
-    responses=_NOT_FOUND,
+    response_description="Deleted",
+    description="Deletes the trajectory; every replica stops serving it once it has synced "
+    "with the database (before its next plan, by default).",
+    responses=_BY_ID,
 )
 def delete_trajectory_route(trajectory_id: TrajectoryId, session: SessionDep) -> Response:
     """Delete `trajectory_id`."""

@@ -1,0 +1,146 @@
+"""Validation memo: key states already certified in a scene are not checked a second time.
+
+A trajectory's verdict depends only on its key states, the robot model (its id is the content
+hash of the robot), the scene (its hash is the content hash of every object and value) and the
+validator's settings — a :class:`MemoScope`. The memo remembers, per scope, digests of key-state
+sequences that passed certified validation; it never remembers a failure, so the worst a memo
+entry can do is skip work whose outcome is already known to be "valid".
+
+Validation checks each straight segment between consecutive key states on its own (samples are
+placed per segment, and each segment is certified by its two end samples), so a path is safe
+when every one of its segments is. :func:`validate_with_memo` uses that:
+
+- the whole adapted path was certified before in this scope → valid, nothing to check;
+- its interior (every key state but the first and last) was certified before → only the first
+  and last segments, the ones that endpoint substitution changed, are validated;
+- otherwise the whole path is validated, and on success both it and its interior are remembered.
+
+Digests are SHA-256 of the exact float64 bytes, so any change of any value — a different
+endpoint, a base re-anchored by 1 µm, a reversed playback — is a different entry.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.validation import ValidationResult, ValidationStatus
+
+__all__ = ["MemoScope", "MemoUse", "ValidationMemo", "validate_with_memo"]
+
+ValidateFn = Callable[[FloatArray], ValidationResult]
+
+
+@dataclass(frozen=True)
+class MemoScope:
+    """Everything besides the key states that a validation verdict depends on."""
+
+    model_id: str
+    scene_hash: str
+    settings: tuple[object, ...]  # validator settings (resolution, certified mode, …)
+
+
+class MemoUse(str, Enum):
+    """How much validation a memo lookup saved."""
+
+    NONE = "none"  # the whole path was validated
+    ENDS = "ends"  # only the first and last segments were validated
+    WHOLE = "whole"  # the exact path was certified before
+
+
+class ValidationMemo:
+    """Thread-safe bounded LRU of (scope, key-state digest) pairs that passed validation."""
+
+    def __init__(self, capacity: int = 8192) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity must be at least 1, not {capacity}")
+        self.capacity = capacity
+        self._entries: OrderedDict[tuple[MemoScope, bytes], None] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def known_valid(self, scope: MemoScope, states: FloatArray) -> bool:
+        """Whether exactly these key states passed validation in `scope`."""
+        key = (scope, _digest(states))
+        with self._lock:
+            if key not in self._entries:
+                return False
+            self._entries.move_to_end(key)
+            return True
+
+    def remember(self, scope: MemoScope, states: FloatArray) -> None:
+        """Record that these key states passed certified validation in `scope`."""
+        key = (scope, _digest(states))
+        with self._lock:
+            self._entries[key] = None
+            self._entries.move_to_end(key)
+            while len(self._entries) > self.capacity:
+                self._entries.popitem(last=False)
+
+    def clear(self) -> None:
+        """Forget everything."""
+        with self._lock:
+            self._entries.clear()
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._entries)
+
+
+def _digest(states: FloatArray) -> bytes:
+    array = np.ascontiguousarray(states, dtype=np.float64)
+    digest = hashlib.sha256(f"{array.shape}".encode())
+    digest.update(array.tobytes())
+    return digest.digest()
+
+
+def validate_with_memo(
+    states: FloatArray, *, validate_fn: ValidateFn, memo: ValidationMemo, scope: MemoScope | None
+) -> tuple[ValidationResult, MemoUse]:
+    """Validate an (n, D) path with `validate_fn`, skipping what `memo` already certified.
+
+    `scope` None (e.g. a scene without a content hash) validates the whole path and remembers
+    nothing.
+    """
+    if scope is None:
+        return validate_fn(states), MemoUse.NONE
+    if memo.known_valid(scope, states):
+        return ValidationResult(ValidationStatus.VALID, 0, 0), MemoUse.WHOLE
+    interior = states[1:-1]
+    if len(states) >= 4 and memo.known_valid(scope, interior):
+        result = _validate_ends(states, validate_fn)
+        if result.valid:
+            memo.remember(scope, states)
+        return result, MemoUse.ENDS
+    result = validate_fn(states)
+    if result.valid:
+        memo.remember(scope, states)
+        if len(states) >= 4:
+            memo.remember(scope, interior)
+    return result, MemoUse.NONE
+
+
+def _validate_ends(states: FloatArray, validate_fn: ValidateFn) -> ValidationResult:
+    """Validate the first and the last segment; the first failure is the verdict."""
+    head = validate_fn(states[:2])
+    if not head.valid:
+        return head
+    tail = validate_fn(states[-2:])
+    if not tail.valid:
+        tail.samples += head.samples
+        tail.narrow_checks += head.narrow_checks
+        tail.subdivisions += head.subdivisions
+        return tail
+    return ValidationResult(
+        ValidationStatus.VALID,
+        head.samples + tail.samples,
+        head.narrow_checks + tail.narrow_checks,
+        head.subdivisions + tail.subdivisions,
+        elapsed_ms=head.elapsed_ms + tail.elapsed_ms,
+    )

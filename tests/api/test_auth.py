@@ -1,0 +1,184 @@
+"""API keys and roles: 401 without a valid key, 403 past a role or robot binding, every route."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+from typer.testing import CliRunner
+
+from tests.api.conftest import TWO_JOINT_URDF, ClientFactory, assert_detail, ctx_of, register
+from trajcache.api.auth import POLICY, is_loopback
+from trajcache.services.keys import Role, create_key, revoke_key
+
+
+def _key(client: TestClient, role: str, robots: list[str] | None = None) -> str:
+    ctx = ctx_of(client)
+    with ctx.session() as session:
+        _, secret = create_key(session=session, name=f"{role} key", role=role, robot_ids=robots)
+    ctx.keys.clear()
+    return secret
+
+
+def _h(secret: str) -> dict[str, str]:
+    return {"Authorization": f"Bearer {secret}"}
+
+
+@pytest.fixture
+def secured(client_factory: ClientFactory) -> tuple[TestClient, dict[str, str]]:
+    """An app with checks on, a model, robots r1 and r2, and a key of each role."""
+    client = client_factory(auth_mode="on", auth_cache_ttl_s=0)
+    keys = {
+        "admin": _key(client, "admin"),
+        "seeder": _key(client, "seeder"),
+        "robot": _key(client, "robot", ["r1"]),
+    }
+    model_id = client.post(
+        "/v1/robot-models", json={"urdf": TWO_JOINT_URDF}, headers=_h(keys["seeder"])
+    ).json()["model_id"]
+    for robot in ("r1", "r2"):
+        reply = client.put(
+            f"/v1/robots/{robot}", json={"model_id": model_id}, headers=_h(keys["admin"])
+        )
+        assert reply.status_code == 201, reply.text
+    return client, keys
+
+
+def test_no_key_wrong_key_and_revoked_key_are_401(
+    secured: tuple[TestClient, dict[str, str]],
+) -> None:
+    client, keys = secured
+    reply = client.get("/v1/robots/r1/scene")
+    assert_detail(reply, 401, "API key is required")
+    assert reply.headers["www-authenticate"] == "Bearer"
+    assert_detail(client.get("/v1/robots/r1/scene", headers=_h("nonsense")), 401, "unknown")
+    forged = keys["admin"][:-4] + "AAAA"
+    assert_detail(client.get("/v1/robots/r1/scene", headers=_h(forged)), 401, "unknown")
+    ok = client.get("/v1/robots/r1/scene", headers={"X-API-Key": keys["robot"]})
+    assert ok.status_code == 200, ok.text
+
+    ctx = ctx_of(client)
+    with ctx.session() as session:
+        revoke_key(session=session, key=keys["robot"].split("_")[1])
+    assert_detail(client.get("/v1/robots/r1/scene", headers=_h(keys["robot"])), 401, "revoked")
+
+
+def test_health_stays_open(secured: tuple[TestClient, dict[str, str]]) -> None:
+    client, _ = secured
+    assert client.get("/healthz").status_code == 200
+
+
+def test_robot_key_is_bound_to_its_robots(secured: tuple[TestClient, dict[str, str]]) -> None:
+    client, keys = secured
+    robot = _h(keys["robot"])
+    scene = {"objects": []}
+    assert client.put("/v1/robots/r1/scene", json=scene, headers=robot).status_code == 200
+    assert_detail(client.put("/v1/robots/r2/scene", json=scene, headers=robot), 403, "'r2'")
+    assert_detail(client.get("/v1/robots/r2/scene", headers=robot), 403, "'r2'")
+    body = {"start": [0, 0], "goal": [1, 0], "options": {"fallback": False}}
+    assert client.post("/v1/robots/r1/plan", json=body, headers=robot).status_code == 200
+    assert_detail(client.post("/v1/robots/r2/plan", json=body, headers=robot), 403, "'r2'")
+    # The admin and nobody else may re-point a robot, even the robot itself.
+    reply = client.put("/v1/robots/r1", json={"model_id": "x" * 64}, headers=robot)
+    assert_detail(reply, 403, "robot key may not PUT")
+
+
+def test_seeder_registers_models_but_cannot_plan_or_delete(
+    secured: tuple[TestClient, dict[str, str]],
+) -> None:
+    client, keys = secured
+    seeder = _h(keys["seeder"])
+    body = {"start": [0, 0], "goal": [1, 0]}
+    assert_detail(client.post("/v1/robots/r1/plan", json=body, headers=seeder), 403, "seeder")
+    assert client.get("/v1/trajectories", headers=seeder).status_code == 200
+    assert_detail(client.delete("/v1/trajectories/1", headers=seeder), 403, "admin only")
+
+
+def _routes(client: TestClient) -> list[tuple[str, str]]:
+    paths: dict[str, dict[str, Any]] = client.app.openapi()["paths"]  # type: ignore[attr-defined]
+    return sorted(
+        (method.upper(), path)
+        for path, ops in paths.items()
+        if path.startswith("/v1/")
+        for method in ops
+    )
+
+
+@pytest.mark.parametrize("role", [r.value for r in Role])
+def test_every_route_follows_the_policy_for_every_role(
+    secured: tuple[TestClient, dict[str, str]], role: str
+) -> None:
+    client, keys = secured
+    routes = _routes(client)
+    assert len(routes) >= 10
+    for method, path in routes:
+        rule = POLICY.get((method, path[len("/v1") :]))
+        allowed = role == "admin" or (rule is not None and Role(role) in rule.roles)
+        for robot_id, own in (("r1", True), ("r2", False)):
+            url = re.sub(r"\{robot_id\}", robot_id, path)
+            url = re.sub(r"\{[a-z_]+\}", "999999", url)
+            if role == "robot" and rule is not None and rule.own_robot and not own:
+                expected_allowed = False
+            else:
+                expected_allowed = allowed
+            reply = client.request(method, url, headers=_h(keys[role]), json={})
+            denied = reply.status_code == 403
+            assert reply.status_code != 401, (method, url, reply.text)
+            assert denied != expected_allowed, (role, method, url, reply.status_code, reply.text)
+            if "{robot_id}" not in path:
+                break
+
+
+def test_auto_mode_turns_on_with_the_first_key_or_a_public_bind(
+    client_factory: ClientFactory,
+) -> None:
+    client = client_factory(auth_cache_ttl_s=0)
+    assert client.get("/v1/robot-models").status_code == 200  # loopback, no keys: open
+    secret = _key(client, "seeder")
+    assert client.get("/v1/robot-models").status_code == 401
+    assert client.get("/v1/robot-models", headers=_h(secret)).status_code == 200
+
+    public = client_factory(host="0.0.0.0", auth_cache_ttl_s=0)
+    assert_detail(public.get("/v1/robot-models"), 401, "API key is required")
+    off = client_factory(host="0.0.0.0", auth_mode="off")
+    register(off)
+
+
+def test_is_loopback() -> None:
+    assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
+    assert not is_loopback("0.0.0.0") and not is_loopback("10.0.0.5") and not is_loopback("")
+    assert not is_loopback("example.org")
+
+
+def test_key_validation() -> None:
+    from trajcache.services.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="role 'root'"):
+        create_key(session=None, name="x", role="root")  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match="must name the robot ids"):
+        create_key(session=None, name="x", role="robot")  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match="only robot keys"):
+        create_key(session=None, name="x", role="admin", robot_ids=["r1"])  # type: ignore[arg-type]
+
+
+def test_cli_creates_lists_and_revokes_keys(tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    from trajcache.cli import app
+
+    monkeypatch.setenv("TRAJCACHE_DATABASE_URL", f"sqlite:///{tmp_path / 'keys.db'}")
+    runner = CliRunner()
+    made = runner.invoke(
+        app, ["keys", "create", "--name", "forklift-7", "--role", "robot", "--robot", "r1"]
+    )
+    assert made.exit_code == 0, made.output
+    secret = made.stdout.strip().splitlines()[-1]
+    assert secret.startswith("tc_")
+    listed = runner.invoke(app, ["keys", "list"])
+    assert listed.exit_code == 0 and "forklift-7" in listed.stdout and secret not in listed.stdout
+    prefix = secret.split("_")[1]
+    assert runner.invoke(app, ["keys", "revoke", prefix]).exit_code == 0
+    assert "forklift-7" not in runner.invoke(app, ["keys", "list"]).stdout
+    assert "forklift-7" in runner.invoke(app, ["keys", "list", "--all"]).stdout
+    bad = runner.invoke(app, ["keys", "create", "--name", "x", "--role", "root"])
+    assert bad.exit_code == 2 and "role 'root'" in bad.output

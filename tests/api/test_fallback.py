@@ -1,0 +1,217 @@
+"""Fallback planning through the API: a miss is planned in the worker pool, stored, then reused."""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import sqlalchemy as sa
+from fastapi.testclient import TestClient
+
+from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
+from tests.conftest import REDIS_URL, require_service
+from trajcache.db.models import PlanEvent
+from trajcache.geometry.validation import validator_for
+from trajcache.services.models import get_model
+from trajcache.services.robots import current_scene
+
+START, GOAL = [0.0, 0.0], [1.0, 0.0]
+
+
+def _box(oid: str, radius: float, angle: float, size: float) -> dict[str, Any]:
+    """A cube centred `radius` from the shoulder along the arm's line at shoulder `angle`."""
+    position = [radius * math.sin(angle), 0.0, 0.1 + radius * math.cos(angle)]
+    return {"id": oid, "type": "box", "size": [size] * 3, "pose": {"position": position}}
+
+
+# In the forearm's sweep at shoulder 0.5 with a straight elbow: bending the elbow avoids it.
+DETOUR_SCENE = {"objects": [_box("bucket", 0.44, 0.5, 0.04)]}
+# In the upper arm's sweep at shoulder 0.5: no elbow angle gets past, so GOAL is unreachable.
+WALL_SCENE = {"objects": [_box("wall", 0.2, 0.5, 0.08)]}
+
+
+def _setup(client: TestClient, scene: dict[str, Any]) -> None:
+    model_id = register(client)["model_id"]
+    assert client.put("/v1/robots/r1", json={"model_id": model_id}).status_code == 201
+    assert client.put("/v1/robots/r1/scene", json=scene).status_code == 200
+
+
+def _plan(client: TestClient, **options: Any) -> Any:
+    reply = client.post("/v1/robots/r1/plan", json={"start": START, "goal": GOAL, **options})
+    assert reply.status_code == 200, reply.text
+    return reply.json()
+
+
+def _assert_safe(client: TestClient, states: list[list[float]]) -> None:
+    """The answered path passes the certified validator in the robot's current scene."""
+    ctx = ctx_of(client)
+    with ctx.session() as session:
+        robot, scene, _ = current_scene(session=session, scenes=ctx.scenes, robot_id="r1")
+        model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
+    path = np.asarray(states)
+    assert np.allclose(path[[0, -1]], [START, GOAL])
+    assert validator_for(model, scene, ctx.settings).validate(path).valid
+
+
+def _events(client: TestClient) -> list[PlanEvent]:
+    with ctx_of(client).session() as session:
+        return list(session.execute(sa.select(PlanEvent).order_by(PlanEvent.id)).scalars())
+
+
+def test_miss_is_planned_stored_and_then_served_from_cache(client_factory: ClientFactory) -> None:
+    client = client_factory(worker_processes=1)
+    _setup(client, DETOUR_SCENE)
+    body = _plan(client)
+    assert (body["status"], body["source"]) == ("success", "planner"), body
+    _assert_safe(client, body["states"])
+    assert body["timings_ms"]["plan"] > 0
+
+    stored = client.get(f"/v1/trajectories/{body['trajectory_id']}").json()
+    scene_hash = client.get("/v1/robots/r1/scene").json()["hash"]
+    assert stored["source"] == "planner" and stored["scene_hash"] == scene_hash
+    assert stored["robot_id"] == "r1"
+
+    again = _plan(client)
+    assert (again["status"], again["source"]) == ("success", "cache")
+    assert again["trajectory_id"] == body["trajectory_id"]
+    events = _events(client)
+    assert [(e.source, e.trajectory_id) for e in events] == [
+        ("planner", body["trajectory_id"]),
+        ("cache", body["trajectory_id"]),
+    ]
+    assert events[0].plan_ms is not None and events[0].plan_ms > 0
+    assert events[1].plan_ms == 0
+
+
+def test_unreachable_goal_fails_within_budget_then_fails_fast(
+    client_factory: ClientFactory,
+) -> None:
+    client = client_factory(worker_processes=1, negative_cache_ttl_s=60)
+    _setup(client, WALL_SCENE)
+    ctx_of(client).planner_pool()  # start the workers before timing the request
+    began = time.monotonic()
+    body = _plan(client, options={"budget_s": 0.5})
+    assert time.monotonic() - began < 0.5 + 2.0
+    assert body["status"] == "failure" and body["states"] is None
+    assert "timeout" in body["message"]
+
+    began = time.monotonic()
+    again = _plan(client, options={"budget_s": 0.5})
+    assert time.monotonic() - began < 0.3
+    assert again["status"] == "failure" and "negative cache" in again["message"]
+    assert [e.status for e in _events(client)] == ["failure", "failure"]
+    assert client.get("/v1/trajectories").json()["items"] == []
+
+
+def test_concurrent_identical_misses_plan_once(client_factory: ClientFactory) -> None:
+    client = client_factory(worker_processes=1)
+    _setup(client, DETOUR_SCENE)
+    pool = ctx_of(client).planner_pool()
+    assert pool is not None
+    replies: list[Any] = []
+
+    def ask() -> None:
+        replies.append(client.post("/v1/robots/r1/plan", json={"start": START, "goal": GOAL}))
+
+    threads = [threading.Thread(target=ask) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    bodies = [r.json() for r in replies]
+    assert all(r.status_code == 200 for r in replies)
+    assert {(b["status"], b["source"]) for b in bodies} <= {
+        ("success", "planner"),
+        ("success", "cache"),  # a request that arrived after the plan was stored
+    }
+    assert len({b["trajectory_id"] for b in bodies}) == 1
+    stats = pool.stats()
+    assert stats.completed == 1, stats
+    assert len(client.get("/v1/trajectories").json()["items"]) == 1
+
+
+def test_fallback_off_or_planning_off_is_a_miss(client_factory: ClientFactory) -> None:
+    client = client_factory()
+    _setup(client, DETOUR_SCENE)
+    body = _plan(client, options={"fallback": False})
+    assert body["status"] == "miss" and "fallback planning disabled" in body["message"]
+    assert ctx_of(client).planner is None  # no workers were started for it
+
+    off = client_factory(worker_backend="none")
+    assert ctx_of(off).planner_pool() is None
+    off_body = off.post("/v1/robots/r1/plan", json={"start": START, "goal": GOAL}).json()
+    assert off_body["status"] == "miss" and "planning is off" in off_body["message"]
+
+
+def test_unknown_planner_is_422(client_factory: ClientFactory) -> None:
+    client = client_factory()
+    _setup(client, DETOUR_SCENE)
+    body = {"start": START, "goal": GOAL, "options": {"planner": "astar"}}
+    assert_detail(client.post("/v1/robots/r1/plan", json=body), 422, "astar", "rrtconnect")
+
+
+def test_rris_is_selectable(client_factory: ClientFactory) -> None:
+    client = client_factory(worker_processes=1)
+    _setup(client, DETOUR_SCENE)
+    body = _plan(client, options={"planner": "RRIS"})
+    assert (body["status"], body["source"]) == ("success", "planner"), body
+    _assert_safe(client, body["states"])
+
+
+@pytest.mark.redis
+def test_celery_worker_plans_a_miss_sent_through_the_api(
+    client_factory: ClientFactory, tmp_path: Path
+) -> None:
+    from tests.jobs.test_celery import Worker
+
+    require_service("Redis", "127.0.0.1", 6379)
+    queue = f"plan-api-{uuid.uuid4().hex[:8]}"
+    code = "import typer; from trajcache.jobs.worker_cli import worker; typer.run(worker)"
+    command = [sys.executable, "-c", code, "--concurrency", "1", "--queues", queue]
+    worker = Worker(command, queue, tmp_path / "worker.log", REDIS_URL, task_fn=None)
+    try:
+        client = client_factory(
+            worker_backend="celery",
+            celery_queue=queue,
+            celery_broker_url=REDIS_URL,
+            celery_result_backend=REDIS_URL,
+            negative_cache_ttl_s=0,  # attempts before the worker is up must not be remembered
+        )
+        _setup(client, DETOUR_SCENE)
+        deadline = time.monotonic() + 60.0
+        body: dict[str, Any] = {}
+        while time.monotonic() < deadline:  # until the worker has started and answers
+            assert worker.process.poll() is None, worker.log_tail()
+            body = _plan(client, options={"budget_s": 5.0})
+            if body["status"] == "success":
+                break
+        assert (body.get("status"), body.get("source")) == ("success", "planner"), (
+            body,
+            worker.log_tail(),
+        )
+        _assert_safe(client, body["states"])
+        assert "succeeded" in worker.log_tail()
+        assert _plan(client)["source"] == "cache"
+    finally:
+        worker.stop()
+
+
+def test_unreachable_planner_backend_is_a_503_and_recorded(client_factory: ClientFactory) -> None:
+    client = client_factory(
+        worker_backend="celery",
+        celery_broker_url="redis://127.0.0.1:1/0",
+        celery_result_backend="redis://127.0.0.1:1/0",
+    )
+    _setup(client, DETOUR_SCENE)
+    began = time.monotonic()
+    reply = client.post("/v1/robots/r1/plan", json={"start": START, "goal": GOAL})
+    assert time.monotonic() - began < 5.0
+    assert_detail(reply, 503, "planning is unavailable", "worker backend unavailable")
+    assert [e.status for e in _events(client)] == ["error"]

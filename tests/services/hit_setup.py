@@ -1,0 +1,66 @@
+"""Shared set-up of the cache-hit tests: real service contexts on a migrated database."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+import sqlalchemy as sa
+
+from tests.api.conftest import TWO_JOINT_URDF
+from trajcache.core.config import Settings
+from trajcache.db import migrate
+from trajcache.geometry.robot import RobotModel
+from trajcache.services.context import ServiceContext
+from trajcache.services.models import register_model
+from trajcache.services.trajectories import store_trajectory
+
+
+@contextmanager
+def context(url: str, **settings: Any) -> Iterator[ServiceContext]:
+    """A service context (one replica) on the database at `url`, migrated; closed afterwards."""
+    migrate.upgrade(url)
+    ctx = ServiceContext.create(Settings(database_url=url, **settings))
+    try:
+        yield ctx
+    finally:
+        ctx.close()
+
+
+def two_joint(ctx: ServiceContext, *, base: str = "fixed") -> RobotModel:
+    """The small two-joint arm (on a planar base if asked), registered."""
+    with ctx.session() as session:
+        model, _ = register_model(
+            session=session, registry=ctx.models, urdf=TWO_JOINT_URDF, base=base
+        )
+    return model
+
+
+def store(ctx: ServiceContext, model: RobotModel, states: list[list[float]]) -> int:
+    """Store a trajectory (without quality metrics) and return its id."""
+    with ctx.session() as session:
+        trajectory_id, _ = store_trajectory(
+            session=session,
+            model=model,
+            states=np.asarray(states, dtype=float),
+            source="sim",
+            compute_quality=False,
+        )
+    return trajectory_id
+
+
+@contextmanager
+def count_statements(engine: sa.Engine) -> Iterator[list[str]]:
+    """SQL statements sent through `engine` while the block runs."""
+    statements: list[str] = []
+
+    def record(_conn: Any, _cursor: Any, statement: str, *_args: Any) -> None:
+        statements.append(statement)
+
+    sa.event.listen(engine, "before_cursor_execute", record)
+    try:
+        yield statements
+    finally:
+        sa.event.remove(engine, "before_cursor_execute", record)
