@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from tests.geometry.test_validation import SWING_URDF
 from trajcache.cache.memo import MemoScope, MemoUse, ValidationMemo, validate_with_memo
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene, SceneObject
@@ -26,22 +27,6 @@ from trajcache.geometry.validation import (
     interpolate,
 )
 
-SWING_URDF = """<?xml version="1.0"?>
-<robot name="swing">
-  <link name="root"/>
-  <link name="rod">
-    <collision>
-      <origin xyz="0.5 0 0" rpy="0 1.5707963267948966 0"/>
-      <geometry><cylinder radius="0.01" length="1.0"/></geometry>
-    </collision>
-  </link>
-  <joint name="j" type="revolute">
-    <parent link="root"/><child link="rod"/>
-    <origin xyz="0 0 0.5" rpy="0 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/>
-  </joint>
-</robot>
-"""
 PATH = np.array([[0.0], [0.4], [0.9], [1.4], [1.8]])  # segments 0–0.4, 0.4–0.9, 0.9–1.4, 1.4–1.8
 
 
