@@ -6,10 +6,11 @@ import math
 import threading
 from typing import Any
 
+import pytest
 import sqlalchemy as sa
 from fastapi.testclient import TestClient
 
-from tests.api.conftest import assert_detail, ctx_of
+from tests.api.conftest import assert_detail, ctx_of, register
 from trajcache.db.models import PlanEvent, Trajectory
 
 PATH = [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]]
@@ -152,3 +153,34 @@ def test_concurrent_plans_and_writes_keep_the_index_consistent(
         assert model is not None
         index = ctx.indexes.index(session, model)
     assert set(index.ids().tolist()) == rows
+
+
+@pytest.mark.parametrize(("rules_on", "expected"), [(True, "door_at_30"), (False, "nearest")])
+def test_ranking_serves_the_candidate_recorded_in_the_nearest_environment(
+    client_factory: Any, rules_on: bool, expected: str
+) -> None:
+    client = client_factory(
+        ranking_env_enabled=rules_on,
+        ranking_real_enabled=rules_on,
+        ranking_failure_enabled=rules_on,
+    )
+    model_id = register(client)["model_id"]
+    assert client.put("/v1/robots/robot-1", json={"model_id": model_id}).status_code == 201
+    scene = {"objects": [], "env": {"door": 30.0}}
+    assert client.put("/v1/robots/robot-1/scene", json=scene).status_code == 200
+    ids = {
+        # Nearest to the request, but recorded with the door far from today's 30°.
+        "nearest": _stored(client, model_id, [[0.0, 0.0], [1.0, 0.0]], {"door": 90.0}),
+        # 0.02 rad further (less than the env penalty, 0.05), recorded with the door at 30°.
+        "door_at_30": _stored(client, model_id, [[0.02, 0.0], [1.0, 0.0]], {"door": 30.0}),
+    }
+    body = _plan(client, [0.0, 0.0], [1.0, 0.0]).json()
+    assert body["status"] == "success" and body["source"] == "cache"
+    assert body["trajectory_id"] == ids[expected], (body, ids)
+
+
+def _stored(client: TestClient, model_id: str, states: list[list[float]], env: Any) -> int:
+    body = {"model_id": model_id, "states": states, "env": env}
+    reply = client.post("/v1/trajectories", json=body)
+    assert reply.status_code in (200, 201), reply.text
+    return int(reply.json()["trajectory_id"])

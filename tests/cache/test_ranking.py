@@ -170,3 +170,9 @@ def test_facts_from_an_orm_row() -> None:
     row = Trajectory(env={"door": 1}, last_real_validated_at=NOW, consecutive_failures=None)
     facts = facts_from_row(row)
     assert facts == CandidateFacts(env={"door": 1.0}, last_real_validated_at=NOW)
+
+
+def test_rules_are_inactive_only_when_every_rule_is_off() -> None:
+    assert RankingRules().active
+    assert RankingRules(env_enabled=False, real_enabled=False).active
+    assert not RankingRules(env_enabled=False, real_enabled=False, failure_enabled=False).active

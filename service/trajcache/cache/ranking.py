@@ -66,6 +66,11 @@ class RankingRules:
         if self.failure_demote_after < 1 or self.pool < 1:
             raise ValueError("failure_demote_after and pool must be at least 1")
 
+    @property
+    def active(self) -> bool:
+        """Whether any rule can reorder candidates (if not, lookup's order is final)."""
+        return self.env_enabled or self.real_enabled or self.failure_enabled
+
     @classmethod
     def from_settings(cls, settings: Settings) -> RankingRules:
         """The rules configured by the `ranking_*` settings."""

@@ -202,16 +202,17 @@ def _plan_in_scene(
 
     t = time.perf_counter()
     arm_only = request.arm_only and base_is_still(start, goal, arm_offset=model.arm_offset)
+    ranking = ctx.ranking.active  # no rule on: skip the facts query, lookup's order stands
     matches: list[Match] = []
     if request.lookup:
         matches = index.query(
             start,
             goal,
             threshold=request.threshold,
-            limit=max(request.max_candidates, ctx.ranking.pool),
+            limit=max(request.max_candidates, ctx.ranking.pool if ranking else 0),
             arm_only=arm_only,
         )
-    if len(matches) > 1:
+    if ranking and len(matches) > 1:
         matches = _ranked(session, ctx, matches, scene)
     matches = matches[: request.max_candidates]
     candidates = ctx.indexes.states(session, [m.trajectory_id for m in matches])
