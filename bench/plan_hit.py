@@ -48,11 +48,11 @@ import httpx
 import numpy as np
 import sqlalchemy as sa
 
-from _service import running_service, server_cpu_seconds
 from trajcache.geometry.reference.robot import reference_model, reference_urdf
 from trajcache.geometry.scene import Scene, scene_to_payload
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
+from trajcache.protocol.service import running_service, server_cpu_seconds
 from trajcache.workload.cleaning import CleaningRun, cleaning_run
 
 CONCURRENCY = 16

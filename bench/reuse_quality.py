@@ -32,13 +32,13 @@ from typing import Any
 import httpx
 import numpy as np
 
-from _service import running_service
 from trajcache.core.config import Settings
 from trajcache.geometry.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene, scene_to_payload
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
+from trajcache.protocol.service import running_service
 from trajcache.quality import Quality
 from trajcache.services.quality import TimingRequest, time_states, trajectory_quality
 from trajcache.workload.cleaning import CleaningRun, PlanCall, cleaning_run

@@ -26,9 +26,9 @@ from typing import Any
 import httpx
 import sqlalchemy as sa
 
-from _replay import RobotClient, cached_count, register_reference_model
-from _service import free_port
 from trajcache.geometry.reference.robot import STOWED_ARM
+from trajcache.protocol.replay import RobotClient, cached_count, register_reference_model
+from trajcache.protocol.service import free_port
 
 START_DEADLINE_S = 300.0  # services start side by side on a shared machine
 WARM_UP_BASE = (-20.0, -20.0, 0.0)  # far outside the restroom

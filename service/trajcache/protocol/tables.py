@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from _replay import CallRecord
+from trajcache.protocol.replay import CallRecord
 
 
 @dataclass(frozen=True)
