@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 from rich.console import Console
 
-from trajcache import cli_seed, cli_transfer
+from trajcache import cli_demo, cli_seed, cli_transfer
 from trajcache.cli_keys import app as keys_app
 from trajcache.cli_openapi import config_table_command, openapi
 from trajcache.cli_reference import app as reference_app
@@ -27,6 +27,7 @@ app.command("openapi")(openapi)
 app.command("config-table")(config_table_command)
 cli_seed.register(app)  # seed
 cli_transfer.register(app)  # export, import, prune
+cli_demo.register(app)  # demo
 
 
 def _settings() -> Settings:

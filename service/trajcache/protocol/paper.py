@@ -177,11 +177,15 @@ def play_rows(
     services: dict[str, Cache],
     calls: int | None,
     no_cache: dict[str, Any] | None,
+    on_row: Callable[[RowSpec, Row, float], None] | None = None,
+    *,
+    paired: bool = True,
 ) -> dict[str, Row]:
     """Play every row in order, each followed by its dense check (outside the timed calls).
 
-    With `no_cache` options, every call of a cached row is also planned without a cache, right
-    next to it, by a robot of the no-cache service: the row's paired baseline.
+    `no_cache` are the options that make the no-cache service plan every call. When `paired`,
+    every call of a cached row is also planned without a cache, right next to it, by a robot of
+    the no-cache service: the row's paired baseline.
     """
     model = reference_model()
     allowed = [(model.link_names[a], model.link_names[b]) for a, b in model.allowed_pairs]
@@ -194,27 +198,30 @@ def play_rows(
         name = spec.key.replace("_", "-")
         robot = RobotClient(cache.client, name, cache.model_id, spec.kind)
         shadow = None
-        if no_cache is not None and spec.options != "none":
+        if paired and no_cache is not None and spec.options != "none":
             none = services["none"]
             shadow = RobotClient(none.client, f"{name}-paired", none.model_id, spec.kind)
         began = time.perf_counter()
-        records, paired = play_paired(robot, shadow, run, options[spec.options], no_cache, calls)
+        records, baseline = play_paired(robot, shadow, run, options[spec.options], no_cache, calls)
         elapsed = time.perf_counter() - began
         cached = None if spec.options == "none" else cached_count(cache.client, cache.model_id)
-        uncached = records if spec.options == "none" else paired or []
+        uncached = records if spec.options == "none" else baseline or []
         if any(r.hit for r in uncached):
             raise RuntimeError(f"{spec.key}: the no-cache service answered from its cache")
         if "none" in services:  # nothing it planned may serve a later row's identical calls
             empty_cache(services["none"].client, services["none"].model_id)
-        row = Row(spec.key, spec.table, spec.label, spec.baseline, records, cached, paired)
+        row = Row(spec.key, spec.table, spec.label, spec.baseline, records, cached, baseline)
         dense_check(checker, run, row)
         rows[spec.key] = row
-        f = row.figures()
-        print(
-            f"  {spec.label}: {f['hits']}/{f['calls']} hits, {f['planner_calls']} planned, "
-            f"{f['collisions']} collisions, {elapsed:.1f} s",
-            file=sys.stderr,
-        )
+        if on_row is not None:
+            on_row(spec, row, elapsed)
+        else:
+            f = row.figures()
+            print(
+                f"  {spec.label}: {f['hits']}/{f['calls']} hits, {f['planner_calls']} planned, "
+                f"{f['collisions']} collisions, {elapsed:.1f} s",
+                file=sys.stderr,
+            )
     return rows
 
 
@@ -238,6 +245,58 @@ def play_paired(
             paired.append(shadow.call(run, call, no_cache))
             records.append(robot.call(run, call, options))
     return records, paired
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """What to play: the workload seed, calls per run, door sweep, rows, database, pairing."""
+
+    seed: int = 1
+    calls: int | None = None  # None: every call of each run
+    sweep: tuple[int, ...] = SWEEP_DEG
+    rows: frozenset[str] | None = None  # None: every row
+    postgres: str | None = None  # None: a temporary SQLite database per service
+    paired: bool = True
+    smoke: bool = False
+
+    def specs(self) -> list[RowSpec]:
+        """The rows to play, in order; unknown row keys are a ValueError."""
+        specs = row_specs(self.seed, self.sweep)
+        if self.rows is None:
+            return specs
+        unknown = self.rows - {s.key for s in specs}
+        if unknown:
+            raise ValueError(f"unknown rows: {', '.join(sorted(unknown))}")
+        return [s for s in specs if s.key in self.rows]
+
+    def config(self) -> dict[str, Any]:
+        """The protocol as recorded in the JSON document."""
+        db = "postgresql" if self.postgres else "sqlite"
+        return {"seed": self.seed, "calls_per_run": self.calls, "sweep_deg": list(self.sweep)} | {
+            "database": db,
+            "smoke": self.smoke,
+        }
+
+
+def run_protocol(
+    protocol: Protocol, on_row: Callable[[RowSpec, Row, float], None] | None = None
+) -> tuple[dict[str, Row], dict[str, Any]]:
+    """Start the services, play the rows (calling `on_row` after each); the rows and config."""
+    specs = protocol.specs()
+    needed = tuple(
+        name
+        for name in CACHES
+        if any(s.cache == name for s in specs) or (name == "none" and protocol.paired)
+    )
+    began = time.perf_counter()
+    with caches(protocol.postgres, needed) as services:
+        no_cache: dict[str, Any] | None = None
+        mode = "-"
+        if "none" in services:
+            no_cache, mode = no_cache_options(services["none"].client, services["none"].model_id)
+        print(f"services ready in {time.perf_counter() - began:.1f} s", file=sys.stderr)
+        rows = play_rows(specs, services, protocol.calls, no_cache, on_row, paired=protocol.paired)
+    return rows, protocol.config() | {"no_cache": mode}
 
 
 def parse_args(argv: list[str] | None = None, artifacts: Path = ARTIFACTS) -> argparse.Namespace:
@@ -265,38 +324,28 @@ def parse_args(argv: list[str] | None = None, artifacts: Path = ARTIFACTS) -> ar
 def main(argv: list[str] | None = None, artifacts: Path = ARTIFACTS) -> None:
     """Run the protocol; print the tables and the JSON line; write the JSON file and chart."""
     args = parse_args(argv, artifacts)
-    calls = args.calls or (40 if args.smoke else None)
-    sweep = (0, 90) if args.smoke else SWEEP_DEG
-    specs = row_specs(args.seed, sweep)
-    if args.rows:
-        wanted = set(args.rows.split(","))
-        unknown = wanted - {s.key for s in specs}
-        if unknown:
-            raise SystemExit(f"unknown rows: {', '.join(sorted(unknown))}")
-        specs = [s for s in specs if s.key in wanted]
-    needed = tuple(
-        name
-        for name in CACHES
-        if any(s.cache == name for s in specs) or (name == "none" and not args.unpaired)
+    protocol = Protocol(
+        seed=args.seed,
+        calls=args.calls or (40 if args.smoke else None),
+        sweep=(0, 90) if args.smoke else SWEEP_DEG,
+        rows=frozenset(args.rows.split(",")) if args.rows else None,
+        postgres=args.postgres,
+        paired=not args.unpaired,
+        smoke=args.smoke,
     )
-
-    began = time.perf_counter()
-    with caches(args.postgres, needed) as services:
-        no_cache: dict[str, Any] | None = None
-        mode = "-"
-        if "none" in services:
-            no_cache, mode = no_cache_options(services["none"].client, services["none"].model_id)
-        print(f"services ready in {time.perf_counter() - began:.1f} s", file=sys.stderr)
-        rows = play_rows(specs, services, calls, None if args.unpaired else no_cache)
-
-    db = "postgresql" if args.postgres else "sqlite"
-    config = {"seed": args.seed, "calls_per_run": calls, "sweep_deg": list(sweep)}
-    config |= {"database": db, "no_cache": mode, "smoke": args.smoke}
+    try:
+        protocol.specs()
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from None
+    rows, config = run_protocol(protocol)
     report(rows, config, args.json, args.chart)
 
 
-def report(rows: dict[str, Row], config: dict[str, Any], json_path: Path, chart: Path) -> None:
-    """Print the tables and the JSON line; write the JSON document and the chart."""
+def report(
+    rows: dict[str, Row], config: dict[str, Any], json_path: Path | None, chart: Path | None
+) -> dict[str, Any]:
+    """Print the tables and the JSON line; write the JSON document and the chart (each unless
+    None); return the summary."""
     scope = f"{config['calls_per_run'] or 'all'} calls per run, seed {config['seed']}"
     scope += f", {config['database']}"
     print(format_table(f"Table 1: simulation ({scope})", 1, rows))
@@ -318,8 +367,12 @@ def report(rows: dict[str, Row], config: dict[str, Any], json_path: Path, chart:
         "rows": [row_json(row, rows) for row in rows.values()],
         "summary": summary,
     }
-    json_path.parent.mkdir(parents=True, exist_ok=True)
-    json_path.write_text(json.dumps(document, indent=1))
-    draw_chart(rows, chart, f"Service time per run ({scope})")
-    print(f"wrote {json_path} and {chart}", file=sys.stderr)
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        json_path.write_text(json.dumps(document, indent=1))
+        print(f"wrote {json_path}", file=sys.stderr)
+    if chart is not None:
+        draw_chart(rows, chart, f"Service time per run ({scope})")
+        print(f"wrote {chart}", file=sys.stderr)
     print(json.dumps(summary))
+    return summary
