@@ -32,6 +32,7 @@ bench-smoke: setup
 	$(BIN)/python bench/reuse_quality.py --smoke
 	$(BIN)/python bench/planning.py --smoke
 	$(BIN)/python bench/paper_tables.py --smoke
+	$(BIN)/python bench/safety_soak.py --smoke
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
