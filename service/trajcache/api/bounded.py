@@ -1,38 +1,66 @@
 """Routes whose request bodies are bounded by `max_body_bytes` while they are read.
 
 `APIRouter(route_class=BoundedBodyRoute)`: the body is read chunk by chunk and refused (413) as
-soon as it passes the limit, before JSON parsing, so a huge body never sits in memory whole.
+soon as it passes the limit, before JSON or form parsing, so a huge body never sits in memory (or
+in a spooled upload file) whole. A JSON body that is not UTF-8 text, or nests too deeply, is a 422
+like any other invalid JSON.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Coroutine
+import json
+from collections.abc import AsyncGenerator, Callable, Coroutine
 from typing import Any
 
 from fastapi import Request, Response
 from fastapi.routing import APIRoute
 from starlette.exceptions import HTTPException
 
+from trajcache.core.config import Settings
+
+BodyLimitFn = Callable[[Settings], tuple[int, str]]
+
+
+def max_body_limit(settings: Settings) -> tuple[int, str]:
+    """The limit of most routes: `max_body_bytes`."""
+    return settings.max_body_bytes, f"max_body_bytes={settings.max_body_bytes}"
+
 
 class BoundedRequest(Request):
-    """A request whose `body()` stops reading past the app's `max_body_bytes`."""
+    """A request whose body stream stops past its route's limit (`max_body_bytes` by default)."""
 
-    async def body(self) -> bytes:
-        """The body, or a 413 once it exceeds the limit."""
-        if not hasattr(self, "_body"):
-            limit = int(self.app.state.ctx.settings.max_body_bytes)
-            declared = self.headers.get("content-length", "")
-            if declared.isdigit() and int(declared) > limit:
-                raise _too_large(_message(int(declared), limit))
-            chunks: list[bytes] = []
-            size = 0
-            async for chunk in self.stream():
-                size += len(chunk)
-                if size > limit:
-                    raise _too_large(_message(size, limit, at_least=True))
-                chunks.append(chunk)
-            self._body = b"".join(chunks)
-        return self._body
+    limit_fn: BodyLimitFn = staticmethod(max_body_limit)
+
+    async def stream(self) -> AsyncGenerator[bytes, None]:
+        """The body's chunks, or a 413 once they exceed the limit."""
+        if hasattr(self, "_body"):
+            async for chunk in super().stream():
+                yield chunk
+            return
+        limit, name = self.limit_fn(self.app.state.ctx.settings)
+        declared = self.headers.get("content-length", "")
+        if declared.isdigit() and int(declared) > limit:
+            raise _too_large(f"request body has {int(declared)} bytes, more than {name}")
+        size = 0
+        async for chunk in super().stream():
+            size += len(chunk)
+            if size > limit:
+                raise _too_large(f"request body has more than {limit} bytes, more than {name}")
+            yield chunk
+
+    async def json(self) -> Any:
+        """The body as JSON; undecodable text is a JSONDecodeError (a 422), not a 400."""
+        if not hasattr(self, "_json"):
+            body = await self.body()
+            try:
+                text = body.decode("utf-8-sig")
+            except UnicodeDecodeError as exc:
+                raise json.JSONDecodeError("the body is not UTF-8 text", "", exc.start) from None
+            try:
+                self._json = json.loads(text)
+            except RecursionError:
+                raise json.JSONDecodeError("the JSON nests too deeply", text, 0) from None
+        return self._json
 
 
 def _too_large(message: str) -> HTTPException:
@@ -40,19 +68,19 @@ def _too_large(message: str) -> HTTPException:
     return HTTPException(413, message)
 
 
-def _message(size: int, limit: int, *, at_least: bool = False) -> str:
-    amount = f"more than {limit}" if at_least else str(size)
-    return f"request body has {amount} bytes, more than max_body_bytes={limit}"
-
-
 class BoundedBodyRoute(APIRoute):
     """An APIRoute that reads its body through BoundedRequest."""
+
+    limit_fn: BodyLimitFn = staticmethod(max_body_limit)
 
     def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
         """The default handler, given a BoundedRequest."""
         handler = super().get_route_handler()
+        limit_fn = self.limit_fn
 
         async def bounded(request: Request) -> Response:
-            return await handler(BoundedRequest(request.scope, request.receive))
+            bounded_request = BoundedRequest(request.scope, request.receive)
+            bounded_request.limit_fn = limit_fn
+            return await handler(bounded_request)
 
         return bounded

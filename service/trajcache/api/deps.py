@@ -14,6 +14,7 @@ from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 
 DEFAULT_PAGE_SIZE = 100
+MAX_OFFSET = 2**63 - 1  # the largest OFFSET the databases take (a 64-bit integer)
 
 
 async def get_ctx(request: Request) -> ServiceContext:
@@ -50,20 +51,35 @@ class Page:
     offset: int
 
 
-def get_page(
-    settings: SettingsDep,
-    limit: Annotated[
-        int | None, Query(ge=1, description="Page size (at most the service's max_page_size).")
-    ] = None,
-    offset: Annotated[int, Query(ge=0, description="Items to skip.")] = 0,
-) -> Page:
-    """The page asked for; a `limit` above `max_page_size` is a 422 naming the limit."""
+def checked_page_size(limit: int | None, settings: Settings) -> int:
+    """`limit`, or the default page size; one above `max_page_size` is a 422 naming the limit."""
     if limit is None:
-        limit = min(DEFAULT_PAGE_SIZE, settings.max_page_size)
+        return min(DEFAULT_PAGE_SIZE, settings.max_page_size)
     if limit > settings.max_page_size:
         raise InvalidInputError(
             f"query.limit: {limit} is above max_page_size={settings.max_page_size}"
         )
+    return limit
+
+
+def get_page_size(
+    settings: SettingsDep,
+    limit: Annotated[
+        int | None, Query(ge=1, description="Page size (at most the service's max_page_size).")
+    ] = None,
+) -> int:
+    """The page size asked for (default 100, or max_page_size when that is smaller)."""
+    return checked_page_size(limit, settings)
+
+
+PageSizeDep = Annotated[int, Depends(get_page_size)]
+
+
+def get_page(
+    limit: PageSizeDep,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description="Items to skip.")] = 0,
+) -> Page:
+    """The page asked for: its size (see get_page_size) and offset."""
     return Page(limit=limit, offset=offset)
 
 

@@ -264,13 +264,14 @@ def expand(spec: SeedJobSpec, *, model: RobotModel, settings: Settings) -> SeedW
             f"concurrency: {spec.concurrency} is above seed_concurrency={settings.seed_concurrency}"
         )
     options = spec.options
-    for name, value, limit in (
-        ("threshold", options.threshold, settings.lookup_threshold_max),
-        ("max_candidates", options.max_candidates, settings.max_candidates_limit),
-        ("budget_s", options.budget_s, settings.plan_budget_max_s),
+    for name, value, setting in (
+        ("threshold", options.threshold, "lookup_threshold_max"),
+        ("max_candidates", options.max_candidates, "max_candidates_limit"),
+        ("budget_s", options.budget_s, "plan_budget_max_s"),
     ):
+        limit = getattr(settings, setting)
         if value is not None and value > limit:
-            raise InvalidInputError(f"options.{name}: {value} exceeds the service limit {limit}")
+            raise InvalidInputError(f"options.{name}: {value} is above {setting}={limit}")
     if spec.workload is not None:
         work = _workload_items(spec.workload, model)
         _check_items(len(work.items), settings)

@@ -292,6 +292,8 @@ class Importer:
                 raise _LineError(f"unknown line type {kind!r:.40}")
         except json.JSONDecodeError as exc:
             self.report.reject(line_no, f"not valid JSON: {exc.msg} (column {exc.colno})")
+        except RecursionError:
+            self.report.reject(line_no, "not valid JSON: it nests too deeply")
         except ImportFormatError:
             raise
         except (_LineError, GeometryError, ServiceError) as exc:

@@ -38,6 +38,7 @@ _NDJSON_EXAMPLE = (
     '"consecutive_failures":0,"real_validations":0}\n'
 )
 _GZIP_MAGIC = b"\x1f\x8b"
+MAX_AGE_S = 1e10  # about 300 years: ages beyond cannot be subtracted from today's date
 
 
 class PruneIn(BaseModel):
@@ -50,7 +51,10 @@ class PruneIn(BaseModel):
 
     dry_run: bool = Field(default=True, description="Only list what would be deleted.")
     cap: int | None = Field(
-        default=None, ge=1, description="Trajectories kept per model (default: the setting)."
+        default=None,
+        ge=1,
+        le=2**63 - 1,  # a 64-bit integer, as the databases store counts
+        description="Trajectories kept per model (default: the setting).",
     )
     policy: Literal["lru", "least_hit"] | None = Field(
         default=None, description="What goes first (default: the eviction_policy setting)."
@@ -196,8 +200,8 @@ def export_route(
     session: SessionDep,
     model_id: Annotated[list[str] | None, Query(max_length=64)] = None,
     source: Annotated[list[SourceName] | None, Query()] = None,
-    newer_than_s: Annotated[float | None, Query(gt=0, allow_inf_nan=False)] = None,
-    older_than_s: Annotated[float | None, Query(gt=0, allow_inf_nan=False)] = None,
+    newer_than_s: Annotated[float | None, Query(gt=0, le=MAX_AGE_S, allow_inf_nan=False)] = None,
+    older_than_s: Annotated[float | None, Query(gt=0, le=MAX_AGE_S, allow_inf_nan=False)] = None,
     models: bool = True,
 ) -> StreamingResponse:
     """The export, streamed from a session of its own."""
@@ -242,7 +246,15 @@ def _decoded(data: bytes, limit: int) -> bytes:
     "one (same model and states) is already there. Rejected lines are listed with their "
     "reasons; the rest is imported. `source` relabels every trajectory's provenance.",
     openapi_extra={
-        "requestBody": {"required": True, "content": {NDJSON: {"example": _NDJSON_EXAMPLE}}}
+        "requestBody": {
+            "required": True,
+            "content": {
+                NDJSON: {
+                    "schema": {"type": "string", "description": "JSON Lines, or gzip of them."},
+                    "example": _NDJSON_EXAMPLE,
+                }
+            },
+        }
     },
     responses=errors(
         {

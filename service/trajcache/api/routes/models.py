@@ -15,6 +15,7 @@ from pydantic import ValidationError
 from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException
 
+from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, PageDep, SessionDep, SettingsDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas import (
@@ -40,7 +41,28 @@ from trajcache.services.models import (
 )
 from trajcache.timing import kinematic_limits
 
-router = APIRouter(prefix="/robot-models", tags=["robot models"], responses=COMMON)
+
+def registration_body_limit(settings: Settings) -> tuple[int, str]:
+    """A registration carries a URDF and a mesh archive (base64 in JSON): their limits bound it."""
+    limit = settings.max_urdf_bytes + math.ceil(settings.max_archive_bytes * 4 / 3) + 65536
+    return limit, (
+        f"max_urdf_bytes={settings.max_urdf_bytes} plus "
+        f"max_archive_bytes={settings.max_archive_bytes} allow"
+    )
+
+
+class RegistrationRoute(BoundedBodyRoute):
+    """Bodies bounded by the URDF and archive limits (a mesh archive may pass max_body_bytes)."""
+
+    limit_fn = staticmethod(registration_body_limit)
+
+
+router = APIRouter(
+    prefix="/robot-models",
+    tags=["robot models"],
+    responses=COMMON,
+    route_class=RegistrationRoute,
+)
 
 _FORM_SCHEMA = {
     "type": "object",
@@ -91,15 +113,10 @@ def _validated(data: Any) -> RobotModelIn:
 
 
 def _from_json(body: bytes, settings: Settings) -> Registration:
-    limit = settings.max_urdf_bytes + math.ceil(settings.max_archive_bytes * 4 / 3) + 65536
-    if len(body) > limit:
-        raise PayloadTooLargeError(
-            f"request body has {len(body)} bytes, more than max_urdf_bytes="
-            f"{settings.max_urdf_bytes} plus max_archive_bytes={settings.max_archive_bytes} allow"
-        )
+    # The body's size is bounded while it is read (RegistrationRoute).
     try:
         data = json.loads(body, parse_constant=_reject_constant)
-    except ValueError as exc:
+    except (ValueError, RecursionError) as exc:
         raise RequestValidationError(
             [{"type": "json_invalid", "loc": ("body",), "msg": f"invalid JSON: {exc}"}]
         ) from None
@@ -130,6 +147,8 @@ async def _from_form(request: Request, settings: Settings) -> Registration:
     try:
         form = await request.form(max_files=2, max_fields=8, max_part_size=settings.max_urdf_bytes)
     except HTTPException as exc:
+        if exc.status_code == 413:  # the whole body is too large (RegistrationRoute)
+            raise
         if "size" in str(exc.detail).lower():
             raise PayloadTooLargeError(
                 f"a form field exceeds max_urdf_bytes={settings.max_urdf_bytes}: {exc.detail}"
@@ -207,6 +226,11 @@ RegistrationDep = Annotated[Registration, Depends(read_registration)]
                 413: (
                     "URDF or archive above the size limits",
                     "URDF has 3145728 bytes, more than max_urdf_bytes=2097152",
+                ),
+                409: (
+                    "Registered before with another timing or end-effector configuration",
+                    "model 5158592d is already registered with acceleration_limits=2.0; a "
+                    "model's configuration is fixed when it is first registered (asked for 3.0)",
                 ),
                 415: (
                     "Neither JSON nor multipart/form-data",

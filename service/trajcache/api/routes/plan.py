@@ -11,6 +11,7 @@ from fastapi import APIRouter, Path, Response
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 from starlette.background import BackgroundTask
 
+from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep
 from trajcache.api.quality import JointTrajectory, TimingOptions, TrajectoryQuality, answer_extras
 from trajcache.api.responses import COMMON, errors
@@ -18,7 +19,7 @@ from trajcache.metrics import record_plan
 from trajcache.planning.problem import PLANNER_NAMES
 from trajcache.services.planning import PlanAnswer, PlanRequest, plan
 
-router = APIRouter(tags=["plan"], responses=COMMON)
+router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 
@@ -152,13 +153,13 @@ class PlanResponse(BaseModel):
 
 
 def _bounded(
-    value: float | int | None, default: float | int, limit: float | int, name: str
+    value: float | int | None, default: float | int, limit: float | int, name: str, setting: str
 ) -> float:
     from trajcache.geometry.errors import GeometryError
 
     chosen = default if value is None else value
     if chosen > limit:
-        raise GeometryError(f"options.{name}={chosen} exceeds the service limit {limit}")
+        raise GeometryError(f"options.{name}: {chosen} is above {setting}={limit}")
     return chosen
 
 
@@ -191,12 +192,26 @@ def plan_route(
     request = PlanRequest(
         start=np.asarray(body.start, dtype=float),
         goal=np.asarray(body.goal, dtype=float),
-        threshold=_bounded(o.threshold, s.lookup_threshold, s.lookup_threshold_max, "threshold"),
+        threshold=_bounded(
+            o.threshold,
+            s.lookup_threshold,
+            s.lookup_threshold_max,
+            "threshold",
+            "lookup_threshold_max",
+        ),
         max_candidates=int(
-            _bounded(o.max_candidates, s.max_candidates, s.max_candidates_limit, "max_candidates")
+            _bounded(
+                o.max_candidates,
+                s.max_candidates,
+                s.max_candidates_limit,
+                "max_candidates",
+                "max_candidates_limit",
+            )
         ),
         fallback=o.fallback,
-        budget_s=_bounded(o.budget_s, s.plan_budget_s, s.plan_budget_max_s, "budget_s"),
+        budget_s=_bounded(
+            o.budget_s, s.plan_budget_s, s.plan_budget_max_s, "budget_s", "plan_budget_max_s"
+        ),
         planner=o.planner or s.default_planner,
         arm_only=o.match == "arm",
         lookup=o.lookup,

@@ -9,7 +9,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Request, Response
 from starlette.exceptions import HTTPException
 
-from trajcache.api.deps import CtxDep, SessionDep, SettingsDep
+from trajcache.api.bounded import BoundedBodyRoute
+from trajcache.api.deps import CtxDep, SessionDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas import (
     RobotIn,
@@ -22,10 +23,11 @@ from trajcache.api.schemas import (
 from trajcache.db import models as tables
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.scene import Scene, parse_scene, parse_scene_text
-from trajcache.services.errors import PayloadTooLargeError
 from trajcache.services.robots import get_robot, get_scene, patch_scene, put_robot, put_scene
 
-router = APIRouter(prefix="/robots", tags=["robots"], responses=COMMON)
+router = APIRouter(
+    prefix="/robots", tags=["robots"], responses=COMMON, route_class=BoundedBodyRoute
+)
 
 JSON_TYPES = frozenset({"", "application/json"})
 YAML_TYPES = frozenset(
@@ -50,7 +52,7 @@ _SCENE_BODY: dict[str, Any] = {
 _UNKNOWN_ROBOT = ("Unknown robot", "robot 'robot-7' not found")
 _TOO_LARGE = (
     "Body above max_body_bytes, or more objects than max_scene_objects",
-    "scene body has 17000000 bytes, more than max_body_bytes=16777216",
+    "request body has 17000000 bytes, more than max_body_bytes=16777216",
 )
 _NOT_JSON_OR_YAML = (
     "Neither JSON nor YAML",
@@ -125,19 +127,14 @@ class SceneBody:
     data: bytes
 
 
-async def read_scene_body(request: Request, settings: SettingsDep) -> SceneBody:
+async def read_scene_body(request: Request) -> SceneBody:
     """The request body (bounded by max_body_bytes); parsing happens in the worker thread."""
     media = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if media not in JSON_TYPES and media not in YAML_TYPES and not media.endswith("+json"):
         raise HTTPException(
             415, f"unsupported content type {media!r}; send application/json or application/yaml"
         )
-    data = await request.body()
-    if len(data) > settings.max_body_bytes:
-        raise PayloadTooLargeError(
-            f"scene body has {len(data)} bytes, more than max_body_bytes={settings.max_body_bytes}"
-        )
-    return SceneBody(media, data)
+    return SceneBody(media, await request.body())  # bounded while read (BoundedBodyRoute)
 
 
 SceneBodyDep = Annotated[SceneBody, Depends(read_scene_body)]
@@ -155,12 +152,14 @@ def parse_scene_body(body: SceneBody) -> Scene:
         raise SceneError("the scene body is not UTF-8 text") from None
     if not text.strip():
         raise SceneError("the scene body is empty")
-    if body.media_type in YAML_TYPES:
-        return parse_scene_text(text)
     try:
+        if body.media_type in YAML_TYPES:
+            return parse_scene_text(text)
         payload = json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
         raise SceneError(f"the scene body is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise SceneError("the scene body nests too deeply") from None
     if not isinstance(payload, dict):
         raise SceneError("a scene must be a JSON object")
     return parse_scene(payload)

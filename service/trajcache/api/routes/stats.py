@@ -8,7 +8,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query
 
-from trajcache.api.deps import SessionDep, SettingsDep
+from trajcache.api.deps import PageSizeDep, SessionDep, SettingsDep, checked_page_size
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.stats_schemas import (
     BucketOut,
@@ -23,7 +23,6 @@ from trajcache.api.stats_schemas import (
     StatsOut,
     TopTrajectoryOut,
 )
-from trajcache.services.errors import InvalidInputError
 from trajcache.services.histograms import MAX_RELATIVE_ERROR
 from trajcache.services.plan_events import list_plan_events, top_trajectories
 from trajcache.services.stats import parse_window, plan_stats
@@ -85,10 +84,14 @@ def stats_route(
 )
 def top_trajectories_route(
     session: SessionDep,
-    limit: Annotated[int, Query(ge=1, le=100, description="How many.")] = 10,
+    settings: SettingsDep,
+    limit: Annotated[
+        int, Query(ge=1, le=100, description="How many (at most max_page_size).")
+    ] = 10,
     model_id: ModelFilter = None,
 ) -> list[TopTrajectoryOut]:
     """The `limit` most reused trajectories."""
+    limit = checked_page_size(limit, settings)
     rows = top_trajectories(session=session, limit=limit, model_id=model_id)
     return [TopTrajectoryOut.model_validate(row) for row in rows]
 
@@ -106,8 +109,7 @@ def top_trajectories_route(
 )
 def plan_events_route(
     session: SessionDep,
-    settings: SettingsDep,
-    limit: Annotated[int, Query(ge=1, description="Page size (at most max_page_size).")] = 100,
+    limit: PageSizeDep,
     cursor: Annotated[
         str | None, Query(max_length=64, description="next_cursor of a page.")
     ] = None,
@@ -122,10 +124,6 @@ def plan_events_route(
     until: Annotated[datetime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
 ) -> PlanEventPageOut:
     """A page of plan events matching the filters."""
-    if limit > settings.max_page_size:
-        raise InvalidInputError(
-            f"query.limit: {limit} is above max_page_size={settings.max_page_size}"
-        )
     page = list_plan_events(
         session=session,
         limit=limit,

@@ -6,6 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Query, Response
 
+from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, PageDep, SessionDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas import (
@@ -26,7 +27,9 @@ from trajcache.services.trajectories import (
     trajectory_states,
 )
 
-router = APIRouter(prefix="/trajectories", tags=["trajectories"], responses=COMMON)
+router = APIRouter(
+    prefix="/trajectories", tags=["trajectories"], responses=COMMON, route_class=BoundedBodyRoute
+)
 
 TrajectoryId = Annotated[int, Path(ge=1, le=2**63 - 1, description="Trajectory id.")]
 _BY_ID = errors(
