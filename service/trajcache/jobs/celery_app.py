@@ -11,7 +11,7 @@ import contextlib
 import os
 import threading
 import time
-from concurrent.futures import Future
+from concurrent.futures import Future, InvalidStateError, wait
 from concurrent.futures import TimeoutError as FutureTimeout
 from functools import lru_cache
 
@@ -21,6 +21,7 @@ from celery.result import AsyncResult
 from celery.signals import worker_process_init
 from celery.utils.log import get_logger
 from kombu.exceptions import EncodeError, OperationalError
+from redis.exceptions import RedisError
 
 from trajcache.core.config import Settings, get_settings
 from trajcache.jobs.pool import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
@@ -31,6 +32,10 @@ PLAN_QUEUE = "plan"
 TASK_FN_ENV = "TRAJCACHE_CELERY_TASK_FN"  # `module:function` run by the plan task (tests, dev)
 TIME_LIMIT_GRACE_S = 5.0  # a prefork worker kills a task this long after the caller gave up
 CONNECT_TIMEOUT_S = 2.0
+LIVENESS_CHECK_S = 0.5  # this long before its deadline, an unanswered request pings the worker
+
+# Errors that say the broker or the result backend is out of reach (not that the task failed).
+_UNAVAILABLE = (OperationalError, ConnectionError, OSError, RedisError)
 
 logger = get_logger(__name__)
 
@@ -136,25 +141,64 @@ class CeleryBackend:
             name="trajcache-celery-result",
             daemon=True,
         ).start()
+        check_at = deadline - min(LIVENESS_CHECK_S, max(0.0, timeout_s - problem.budget_s))
+        if not wait([outcome], timeout=max(0.0, check_at - time.monotonic())).done:
+            lost = self._lost_worker(async_result, outcome, deadline)
+            if lost is not None:
+                return error_result(lost)
         try:
             value = outcome.result(timeout=max(0.0, deadline - time.monotonic()))
         except (FutureTimeout, CeleryTimeout):
             return self._timed_out(async_result, problem, timeout_s)
-        except (OperationalError, ConnectionError, OSError) as exc:
-            return error_result(f"worker backend unavailable: {_describe(exc)}")
-        except Exception as exc:  # the task raised in the worker (or was revoked)
+        except Exception as exc:  # the task raised in the worker (or was revoked), or Redis left
+            if isinstance(_cause(exc), _UNAVAILABLE):
+                return error_result(f"worker backend unavailable: {_describe(exc)}")
             return error_result(f"planning task failed in the worker: {_describe(exc)}")
         if not isinstance(value, PlanResult):
             return error_result(f"planning task returned {type(value).__name__}")
         return value
+
+    def _lost_worker(
+        self, async_result: AsyncResult, outcome: Future[object], deadline: float
+    ) -> str | None:
+        """Why the task will never answer, if the worker that started it is gone; else None.
+
+        A worker killed with its task (SIGKILL, out of memory, a lost machine) leaves the task
+        STARTED forever: no one reports it. The worker that started it is pinged (prefork and
+        thread pools answer while they plan; a `solo` worker cannot, so it looks lost).
+        """
+        try:
+            state, info = async_result.state, async_result.info
+        except Exception:  # the result backend is away: the timeout says what is known
+            return None
+        if state != "STARTED" or not isinstance(info, dict) or not info.get("hostname"):
+            return None
+        node = str(info["hostname"])
+        answer: Future[bool] = Future()
+        wait_s = max(0.05, deadline - time.monotonic())
+        threading.Thread(
+            target=_ping,
+            args=(self.app, node, wait_s, answer),
+            name="trajcache-celery-ping",
+            daemon=True,
+        ).start()
+        try:
+            if answer.result(timeout=wait_s) or outcome.done():
+                return None
+        except FutureTimeout:  # no reply in time
+            if outcome.done():
+                return None
+        except Exception:  # the broker is away: cannot tell
+            return None
+        return f"Celery worker {node!r} stopped answering while it planned; the task was lost"
 
     def _timed_out(
         self, async_result: AsyncResult, problem: PlanningProblem, timeout_s: float
     ) -> PlanResult:
         try:
             state = async_result.state
-        except Exception:
-            state = "UNKNOWN"
+        except Exception as exc:  # not known to have overrun: not a planning failure
+            return error_result(f"worker backend unavailable: {_describe(exc)}")
         if state == "PENDING":
             return error_result(
                 f"no Celery worker started the planning task within "
@@ -185,10 +229,37 @@ def _collect(async_result: AsyncResult, timeout_s: float, outcome: Future[object
         async_result.forget()
 
 
-def _describe(exc: BaseException) -> str:
-    # Celery wraps a failed result-store reconnect in a RuntimeError: name the real cause.
+def _ping(app: Celery, node: str, timeout_s: float, answer: Future[bool]) -> None:
+    """Ping worker `node`: True into `answer` on its reply, False without one, or the error.
+
+    The reply is passed on as it arrives: closing the reply channel afterwards takes a while.
+    """
+
+    def settle(value: bool | None = None, error: BaseException | None = None) -> None:
+        with contextlib.suppress(InvalidStateError):  # settled already
+            if error is not None:
+                answer.set_exception(error)
+            else:
+                answer.set_result(bool(value))
+
+    try:
+        app.control.ping(
+            destination=[node], timeout=timeout_s, limit=1, callback=lambda _: settle(True)
+        )
+    except Exception as exc:
+        settle(error=exc)
+    settle(False)
+
+
+def _cause(exc: BaseException) -> BaseException:
+    # Celery wraps a failed result-store reconnect in a RuntimeError: the cause is the error.
     if isinstance(exc, RuntimeError) and exc.__cause__ is not None:
-        exc = exc.__cause__
+        return exc.__cause__
+    return exc
+
+
+def _describe(exc: BaseException) -> str:
+    exc = _cause(exc)
     return f"{type(exc).__name__}: {' '.join(str(exc).split())}"
 
 

@@ -30,6 +30,8 @@ CoalescingKey = tuple[str, str, str, tuple[float, ...], tuple[float, ...]]
 
 DEFAULT_TASK_FN = "trajcache.planning.run:run_planning"
 OVERHEAD_S = 1.0  # allowance for scheduling and IPC on top of a request's planning budget
+CRASH_RETRIES = 1  # runs again of a task whose local worker crashed (make_pool's choice)
+MIN_RETRY_BUDGET_S = 0.1  # a crashed task is not run again with less budget left than this
 NEGATIVE_CACHE_MAX_ENTRIES = 10_000
 _NEGATIVE = (PlannerStatus.TIMEOUT, PlannerStatus.INVALID_START, PlannerStatus.INVALID_GOAL)
 
@@ -187,7 +189,9 @@ class PlannerPool:
             self._counts["queue_depth"] -= 1
             self._counts["completed"] += 1
             self._counts["solved" if result.status is PlannerStatus.SOLVED else "failures"] += 1
-            if result.status in _NEGATIVE and self.negative_cache_ttl_s > 0:
+            # A timeout after a crash retry had less than the flight's budget: not remembered.
+            shortened = result.status is PlannerStatus.TIMEOUT and result.stats.get("crash_retries")
+            if result.status in _NEGATIVE and self.negative_cache_ttl_s > 0 and not shortened:
                 self._remember_failure(key, _Failure(result, flight.budget_s, time.monotonic()))
         flight.future.set_result(result)
 
@@ -257,6 +261,10 @@ class LocalBackend:
 
     A task is handed to the executor only once a worker is free (one slot per worker), so a
     request that times out waiting in line is told apart from one whose planning overran.
+
+    A worker that dies (killed, out of memory, a crash in native code) breaks the whole executor:
+    every task running on it fails, not only the dead worker's. Each of them is run again on the
+    new workers, up to `crash_retries` times, with what is left of its planning budget.
     """
 
     def __init__(
@@ -266,6 +274,7 @@ class LocalBackend:
         processes: int,
         overrun_grace_s: float = 5.0,
         start_method: str | None = None,
+        crash_retries: int = 0,
     ) -> None:
         if start_method is None:
             start_method = "forkserver" if sys.platform.startswith("linux") else "spawn"
@@ -276,6 +285,7 @@ class LocalBackend:
         self.task_fn = task_fn
         self.processes = processes
         self.overrun_grace_s = overrun_grace_s
+        self.crash_retries = crash_retries
         self._lock = threading.Lock()
         self._counts = {"crashes": 0, "recycles": 0}
         self._generation: _Generation | None = self._new_generation()
@@ -297,7 +307,10 @@ class LocalBackend:
 
     def run(self, problem: PlanningProblem, timeout_s: float) -> PlanResult:
         """Run the task in a worker; ERROR on a crash, TIMEOUT or ERROR past `timeout_s`."""
-        deadline = time.monotonic() + timeout_s
+        began = time.monotonic()
+        deadline = began + timeout_s
+        budget_ends = began + problem.budget_s  # a retry plans in what is left of the budget
+        retries = 0
         while (generation := self._claim_slot(deadline)) is not None:
             try:
                 future = generation.executor.submit(self.task_fn, problem)
@@ -313,15 +326,26 @@ class LocalBackend:
             except CancelledError:  # retired before it started: try the new executor
                 continue
             except FutureTimeout:
-                return self._overran(generation, future, problem, timeout_s)
+                return _retried(self._overran(generation, future, problem, timeout_s), retries)
             except BrokenProcessPool as exc:
                 self._replace(generation, crashed=True)
-                return error_result(f"planning worker crashed ({exc}); the pool was restarted")
+                if retries < self.crash_retries:
+                    # Planning starts once the new workers are up: that time is not planning time.
+                    self.wait_ready(max(0.0, budget_ends - time.monotonic()))
+                    left_s = budget_ends - time.monotonic()
+                    if left_s >= MIN_RETRY_BUDGET_S:
+                        retries += 1
+                        problem = replace(problem, budget_s=left_s)
+                        continue
+                tried = f" {retries + 1} times" if retries else ""
+                return error_result(
+                    f"planning worker crashed{tried} ({exc}); the pool was restarted"
+                )
             except Exception as exc:
                 return error_result(f"planning task raised {exc!r}")
             if not isinstance(result, PlanResult):
                 return error_result(f"planning task returned {type(result).__name__}")
-            return result
+            return _retried(result, retries)
         if self._generation is None:
             return error_result("planner pool is closed")
         return error_result(
@@ -408,6 +432,13 @@ class LocalBackend:
             self._retire(old, None, patient=False)
 
 
+def _retried(result: PlanResult, retries: int) -> PlanResult:
+    """`result`, marked with the number of crash retries it took (if any)."""
+    if retries:
+        result.stats["crash_retries"] = float(retries)
+    return result
+
+
 def make_pool(settings: Settings, *, task_fn: TaskFn | None = None) -> PlannerPool:
     """The planner pool chosen by `settings.worker_backend`."""
     backend: PlanBackend
@@ -418,7 +449,11 @@ def make_pool(settings: Settings, *, task_fn: TaskFn | None = None) -> PlannerPo
 
         backend = CeleryBackend(settings, queue=settings.celery_queue)
     else:
-        backend = LocalBackend(task_fn or load_task_fn(), processes=settings.worker_processes)
+        backend = LocalBackend(
+            task_fn or load_task_fn(),
+            processes=settings.worker_processes,
+            crash_retries=CRASH_RETRIES,
+        )
     return PlannerPool(
         backend,
         negative_cache_ttl_s=settings.negative_cache_ttl_s,

@@ -17,6 +17,12 @@ def worker(
         str | None,
         typer.Option(help="Comma-separated queues to consume [default: TRAJCACHE_CELERY_QUEUE]."),
     ] = None,
+    hostname: Annotated[
+        str | None,
+        typer.Option(
+            help="Node name, unique per worker (e.g. 'planner1@%h') [default: celery@%h]."
+        ),
+    ] = None,
 ) -> None:
     """Run a Celery worker that plans `trajcache.plan` tasks from the configured broker."""
     from trajcache.core.config import get_settings
@@ -27,6 +33,12 @@ def worker(
         concurrency = settings.worker_processes
     if queues is None:
         queues = settings.celery_queue
-    celery_app.worker_main(
-        ["worker", f"--concurrency={concurrency}", f"--loglevel={loglevel}", f"--queues={queues}"]
-    )
+    argv = [
+        "worker",
+        f"--concurrency={concurrency}",
+        f"--loglevel={loglevel}",
+        f"--queues={queues}",
+    ]
+    if hostname is not None:
+        argv.append(f"--hostname={hostname}")
+    celery_app.worker_main(argv)
