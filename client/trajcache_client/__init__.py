@@ -27,6 +27,8 @@ from trajcache_client._exceptions import (
 )
 from trajcache_client._models import (
     Health,
+    JointTrajectory,
+    JointTrajectoryPoint,
     ModelFile,
     Page,
     PlanOptions,
@@ -38,8 +40,10 @@ from trajcache_client._models import (
     RobotModelSummary,
     Scene,
     SceneVersion,
+    TimingOptions,
     Trajectory,
     TrajectoryCreated,
+    TrajectoryQuality,
     TrajectorySummary,
 )
 from trajcache_client._operations import Operation
@@ -58,6 +62,8 @@ __all__ = [
     "Client",
     "ConflictError",
     "Health",
+    "JointTrajectory",
+    "JointTrajectoryPoint",
     "ModelFile",
     "NotFoundError",
     "Operation",
@@ -74,9 +80,11 @@ __all__ = [
     "Scene",
     "SceneVersion",
     "ServerError",
+    "TimingOptions",
     "TrajcacheError",
     "Trajectory",
     "TrajectoryCreated",
+    "TrajectoryQuality",
     "TrajectorySummary",
     "TransportError",
     "TransportTimeoutError",

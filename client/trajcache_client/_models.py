@@ -92,6 +92,46 @@ class Scene(SceneVersion):
     env: dict[str, float]
 
 
+class TimingOptions(BaseModel):
+    """How to time a plan answer (it then carries `joint_trajectory`); None: service default."""
+
+    model_config = ConfigDict(extra="allow")
+
+    method: Literal["toppra", "jerk_limited", "none"] | None = None
+    path: Literal["spline", "linear"] | None = None
+    velocity_scaling: float | None = Field(default=None, gt=0, le=1)
+    acceleration_scaling: float | None = Field(default=None, gt=0, le=1)
+    sample_period_s: float | None = Field(default=None, ge=0.001, le=60)
+
+
+class JointTrajectoryPoint(_Answer):
+    """One timed point: positions, velocities and accelerations per state value."""
+
+    positions: list[float]
+    velocities: list[float]
+    accelerations: list[float]
+    time_from_start: float
+
+
+class JointTrajectory(_Answer):
+    """A timed trajectory, shaped like ROS trajectory_msgs/JointTrajectory."""
+
+    joint_names: list[str]
+    points: list[JointTrajectoryPoint]
+    method: str
+    path: str
+    duration_s: float
+
+
+class TrajectoryQuality(_Answer):
+    """Measures of a returned trajectory (min_clearance only with full quality)."""
+
+    path_length: float
+    ee_path_length: float | None = None
+    min_clearance: float | None = None
+    duration_s: float | None = None
+
+
 class PlanOptions(BaseModel):
     """Per-request plan options; None leaves the service default. Unknown options pass through."""
 
@@ -103,6 +143,9 @@ class PlanOptions(BaseModel):
     budget_s: float | None = Field(default=None, gt=0)
     planner: str | None = None
     match: Literal["full", "arm"] | None = None
+    lookup: bool | None = None
+    quality: Literal["basic", "full"] | None = None
+    timing: TimingOptions | None = None
 
 
 class Rejection(_Answer):
@@ -128,6 +171,8 @@ class PlanResult(_Answer):
     timings_ms: dict[str, float]
     message: str = ""
     rejected: list[Rejection] = Field(default_factory=list)
+    quality: TrajectoryQuality | None = None
+    joint_trajectory: JointTrajectory | None = None
 
     @property
     def ok(self) -> bool:

@@ -88,6 +88,16 @@ def test_trajectories_are_stored_listed_planned_with_and_deleted(client: Client)
     assert answer.trajectory_id == stored.trajectory_id
     assert answer.states is not None and answer.states[0] == [0.05, 0.02]
     assert set(answer.timings_ms) >= {"lookup", "validate", "plan", "total"}
+    assert answer.quality is not None and answer.quality.path_length > 0
+    assert answer.joint_trajectory is None
+
+    options = tc.PlanOptions(fallback=False, quality="full", timing=tc.TimingOptions(path="linear"))
+    timed = client.plan("robot-1", [0.05, 0.02], [0.98, -0.03], options)
+    assert timed.ok and timed.joint_trajectory is not None and timed.quality is not None
+    points = timed.joint_trajectory.points
+    assert points[0].positions == pytest.approx([0.05, 0.02]) and points[0].time_from_start == 0
+    assert timed.joint_trajectory.duration_s == pytest.approx(points[-1].time_from_start)
+    assert timed.quality.duration_s == pytest.approx(timed.joint_trajectory.duration_s)
 
     trajectory = client.get_trajectory(stored.trajectory_id)
     assert trajectory.states == PATH and trajectory.source == "sim"
