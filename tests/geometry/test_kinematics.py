@@ -95,6 +95,10 @@ def test_check_states_names_the_problem() -> None:
         check_states(model, bad, name="goal")
     with pytest.raises(StateError, match="numbers"):
         check_states(model, ["a"] * 8)
+    ragged = [[0.0] * 8, [0.0] * 8, [0.0] * 3]
+    with pytest.raises(StateError, match=r"^waypoint 2 has 3 values, expected 8 \(base_x") as err:
+        check_states(model, ragged, name="waypoint")
+    assert "inhomogeneous" not in str(err.value)  # numpy's own words are not the message
     assert check_states(model, np.zeros(8)).shape == (1, 8)
 
 

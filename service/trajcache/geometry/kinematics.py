@@ -72,12 +72,12 @@ def _tables(model: RobotModel) -> _Tables:
 
 def check_states(model: RobotModel, states: ArrayLike, *, name: str = "state") -> FloatArray:
     """Return `states` as an (N, D) float array; raise StateError on a wrong length or NaN/Inf."""
-    try:
-        arr = np.asarray(states, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise StateError(f"{name} must be a list of numbers: {exc}") from exc
     names = model.state_names
     expected = f"expected {model.dof} ({', '.join(names)})"
+    try:
+        arr = np.asarray(states, dtype=float)
+    except (TypeError, ValueError):
+        raise StateError(_ragged_message(states, name, model.dof, expected)) from None
     if arr.ndim == 1:
         if arr.shape[0] != model.dof:
             raise StateError(f"{name} has {arr.shape[0]} values, {expected}")
@@ -91,6 +91,16 @@ def check_states(model: RobotModel, states: ArrayLike, *, name: str = "state") -
         where = name if arr.shape[0] == 1 else f"{name} {row}"
         raise StateError(f"{where} value {col} ({names[col]}) is not finite: {arr[row, col]}")
     return arr
+
+
+def _ragged_message(states: object, name: str, dof: int, expected: str) -> str:
+    """Why `states` is not an (N, D) array of numbers: the first row of another length, or
+    that it holds something other than numbers."""
+    if isinstance(states, (list, tuple)):
+        for row, values in enumerate(states):
+            if isinstance(values, (list, tuple)) and len(values) != dof:
+                return f"{name} {row} has {len(values)} values, {expected}"
+    return f"{name} must be a list of numbers, or a list of such lists ({expected})"
 
 
 def check_limits(model: RobotModel, states: ArrayLike, *, name: str = "state") -> None:
