@@ -6,6 +6,7 @@ import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
+from anyio import to_thread
 from fastapi import FastAPI
 from starlette.concurrency import run_in_threadpool
 
@@ -40,6 +41,9 @@ def create_app(settings: Settings | None = None, *, migrate: bool | None = None)
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         if run_migrations:
             await run_in_threadpool(db_migrate.upgrade, settings.database_url)
+        # Few request threads (anyio's default is 40): more would only queue for the
+        # interpreter lock, and switching between them costs CPU (bench/load.py shows it).
+        to_thread.current_default_thread_limiter().total_tokens = settings.request_threads
         ctx = ServiceContext.create(settings)
         app.state.ctx = ctx
         if settings.worker_prestart:

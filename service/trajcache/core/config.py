@@ -92,6 +92,14 @@ class Settings(BaseSettings):
         description="Start the planner pool with the service, so the first miss does not wait "
         "for workers to start (off: start it on the first miss).",
     )
+    request_threads: int = Field(
+        default=12,
+        ge=1,
+        le=1000,
+        description="Threads answering requests per server process. Few beat many: more only "
+        "queue for the interpreter lock. A request waiting for the planner holds one for up to "
+        "its budget, so allow for the misses expected at once.",
+    )
     plan_budget_s: float = Field(
         default=2.0, gt=0, description="Default planner time budget per request (s)."
     )

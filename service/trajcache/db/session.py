@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import DisconnectionError
 from sqlalchemy.orm import Session, sessionmaker
 
 SQLITE_PRAGMAS = (
@@ -36,14 +38,37 @@ def make_engine(url: str, *, pool_size: int = 10, echo: bool = False) -> Engine:
         event.listen(engine, "connect", _set_sqlite_pragmas)
         return engine
     if backend == "postgresql":
-        return create_engine(
-            sa_url,
-            echo=echo,
-            pool_size=pool_size,
-            max_overflow=pool_size,
-            pool_pre_ping=True,
-        )
+        engine = create_engine(sa_url, echo=echo, pool_size=pool_size, max_overflow=pool_size)
+        _ping_idle_connections(engine)
+        return engine
     return create_engine(sa_url, echo=echo, pool_pre_ping=True)
+
+
+PING_IDLE_S = 1.0  # a pooled connection unused for longer is checked before it is handed out
+
+
+def _ping_idle_connections(engine: Engine) -> None:
+    """Pre-ping only connections that sat in the pool for more than PING_IDLE_S.
+
+    A connection handed back moments ago is alive, and pinging it would cost every request a
+    round trip. If the database went away meanwhile, the first statement fails (a 503), and
+    SQLAlchemy invalidates the whole pool on that disconnect, so later checkouts reconnect.
+    """
+
+    def checkin(_dbapi_connection: Any, record: Any) -> None:
+        record.info["checked_in_at"] = time.monotonic()
+
+    def checkout(dbapi_connection: Any, record: Any, _proxy: Any) -> None:
+        idle_since = record.info.get("checked_in_at")
+        if idle_since is not None and time.monotonic() - idle_since < PING_IDLE_S:
+            return
+        try:
+            engine.dialect.do_ping(dbapi_connection)
+        except engine.dialect.loaded_dbapi.Error as exc:  # the pool reconnects and retries
+            raise DisconnectionError(f"stale pooled connection: {exc}") from exc
+
+    event.listen(engine, "checkin", checkin)
+    event.listen(engine, "checkout", checkout)
 
 
 def make_sessionmaker(engine: Engine) -> sessionmaker[Session]:

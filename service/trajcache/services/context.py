@@ -22,6 +22,7 @@ from trajcache.services.index_store import IndexStore
 from trajcache.services.keys import KeyCache
 from trajcache.services.models import ModelRegistry
 from trajcache.services.plan_records import PlanRecorder
+from trajcache.services.ranking_facts import RankingFactsCache
 from trajcache.services.robots import SceneCache
 
 
@@ -39,6 +40,7 @@ class ServiceContext:
     memo: ValidationMemo  # key states already certified per model, scene and validator settings
     records: PlanRecorder  # plan bookkeeping, written off the request path
     ranking: RankingRules  # how lookup candidates are ordered before validation
+    facts: RankingFactsCache = field(default_factory=RankingFactsCache)  # what ranking reads
     planner: PlannerPool | None = None  # started by planner_pool(), closed by close()
     _planner_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 

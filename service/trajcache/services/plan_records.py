@@ -51,30 +51,27 @@ __all__ = ["PlanRecord", "PlanRecorder", "RecorderStats"]
 _log = logging.getLogger(__name__)
 _T = Trajectory
 
-# A served trajectory: counters up, failure streak set to what followed the last hit in the batch.
-_SERVED = (
+_AT = _T.last_used_at.type
+# The counters of one trajectory for a batch, served or not. Every row of a batch is updated by
+# this one statement in id order, so writers (of all replicas) lock rows in the same order and
+# cannot deadlock. A served row's failure streak is what followed its last hit in the batch; the
+# streak of a row that only failed validation grows.
+_USAGE = (
     sa.update(_T)
     .where(_T.id == sa.bindparam("b_id"))
     .values(
         hits=_T.hits + sa.bindparam("b_hits"),
         failures=_T.failures + sa.bindparam("b_failures"),
-        consecutive_failures=sa.bindparam("b_streak"),
-        last_used_at=sa.bindparam("b_at"),
-        last_validated_at=sa.bindparam("b_at"),
+        consecutive_failures=sa.case(
+            (sa.bindparam("b_served", type_=sa.Boolean), sa.bindparam("b_streak")),
+            else_=_T.consecutive_failures + sa.bindparam("b_failures"),
+        ),
+        last_used_at=sa.func.coalesce(sa.bindparam("b_at", type_=_AT), _T.last_used_at),
+        last_validated_at=sa.func.coalesce(sa.bindparam("b_at", type_=_AT), _T.last_validated_at),
         real_validations=_T.real_validations + sa.bindparam("b_real"),
         last_real_validated_at=sa.func.coalesce(
-            sa.bindparam("b_real_at", type_=_T.last_real_validated_at.type),
-            _T.last_real_validated_at,
+            sa.bindparam("b_real_at", type_=_AT), _T.last_real_validated_at
         ),
-    )
-)
-# A trajectory that only failed validation in the batch.
-_FAILED = (
-    sa.update(_T)
-    .where(_T.id == sa.bindparam("b_id"))
-    .values(
-        failures=_T.failures + sa.bindparam("b_failures"),
-        consecutive_failures=_T.consecutive_failures + sa.bindparam("b_failures"),
     )
 )
 
@@ -340,20 +337,13 @@ def _write(engine: Engine, records: Iterable[PlanRecord]) -> None:
                 u.real += 1
                 u.real_at = record.at
         events.append({**record.event, "created_at": record.at})
-    served = [
-        {"b_id": i, "b_hits": u.hits, "b_failures": u.failures, "b_streak": u.streak,
-         "b_at": u.served_at, "b_real": u.real, "b_real_at": u.real_at}
-        for i, u in sorted(usage.items()) if u.served_at is not None
-    ]  # fmt: skip
-    failed = [
-        {"b_id": i, "b_failures": u.failures}
+    rows = [
+        {"b_id": i, "b_hits": u.hits, "b_failures": u.failures, "b_served": u.served_at is not None,
+         "b_streak": u.streak, "b_at": u.served_at, "b_real": u.real, "b_real_at": u.real_at}
         for i, u in sorted(usage.items())
-        if u.served_at is None
-    ]
+    ]  # fmt: skip
     with engine.begin() as conn:
-        if served:
-            conn.execute(_SERVED, served)
-        if failed:
-            conn.execute(_FAILED, failed)
+        if rows:
+            conn.execute(_USAGE, rows)
         if events:
             conn.execute(sa.insert(PlanEvent), events)

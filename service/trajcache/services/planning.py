@@ -3,7 +3,8 @@
 A cache hit, the hot path, reads the database twice: the robot with its current scene version
 (parsed scenes are cached by hash), and one replica sync (what other replicas stored or deleted
 since the last sync; with `index_sync_interval_s=0` a sync that began after the request arrived).
-Candidates' key states come from a per-process cache (stored states never change). The read
+Candidates' key states come from a per-process cache (stored states never change), and so do
+their ranking facts while less than a second old (`services.ranking_facts`). The read
 transaction ends before validation, so no connection is held while checking collisions.
 
 Validation memo (`cache.memo`). A cached trajectory's verdict depends on its key states, the
@@ -247,6 +248,7 @@ def _plan_in_scene(
         failed.append(match.trajectory_id)
         rejected.append(_rejection(match, result))
     clock.validate += time.perf_counter() - t
+    ctx.facts.record(served=None, failed=failed, real=False, at=utcnow())
 
     _raise_if_endpoint_collides(validator, start, goal)
     planner = ctx.planner_pool() if request.fallback else None
@@ -285,13 +287,17 @@ def _plan_in_scene(
 def _ranked(
     session: Session, ctx: ServiceContext, matches: list[Match], scene: Scene
 ) -> list[Match]:
-    """`matches` in the order the ranking rules give (one query for the candidates' facts)."""
-    rows = session.execute(
-        sa.select(*(getattr(Trajectory, c) for c in RANKING_COLUMNS)).where(
-            Trajectory.id.in_([m.trajectory_id for m in matches])
-        )
-    ).all()
-    facts = {row.id: facts_from_row(row) for row in rows}
+    """`matches` in the order the ranking rules give (facts not fresh in `ctx.facts`: one query)."""
+    facts, missing = ctx.facts.get_many(m.trajectory_id for m in matches)
+    if missing:
+        rows = session.execute(
+            sa.select(*(getattr(Trajectory, c) for c in RANKING_COLUMNS)).where(
+                Trajectory.id.in_(missing)
+            )
+        ).all()
+        read = {row.id: facts_from_row(row) for row in rows}
+        ctx.facts.put_many(read)
+        facts.update(read)
     return rank_matches(matches, facts, env=scene.env, now=utcnow(), rules=ctx.ranking)
 
 
@@ -348,15 +354,18 @@ def _record_usage(session: Session, hit: int | None, failed: list[int]) -> None:
                 last_validated_at=now,
             )
         )
-    if failed:
-        session.execute(
-            sa.update(Trajectory)
-            .where(Trajectory.id.in_(failed))
-            .values(
-                failures=Trajectory.failures + 1,
-                consecutive_failures=Trajectory.consecutive_failures + 1,
-            )
-        )
+    if failed:  # row by row in id order, as the plan-record writer locks them: no deadlock
+        session.connection().execute(_FAILED_ONE, [{"b_id": i} for i in sorted(set(failed))])
+
+
+_FAILED_ONE = (
+    sa.update(Trajectory)
+    .where(Trajectory.id == sa.bindparam("b_id"))
+    .values(
+        failures=Trajectory.failures + 1,
+        consecutive_failures=Trajectory.consecutive_failures + 1,
+    )
+)
 
 
 def _event(
@@ -424,9 +433,11 @@ def _answer_hit(
         robot_id, model, scene, PlanStatus.SUCCESS, PlanSource.CACHE, match.trajectory_id,
         tried, timings,
     )  # fmt: skip
+    now = utcnow()
     record = ctx.records.submit(
-        PlanRecord(utcnow(), match.trajectory_id, tuple(failed), event, real=origin.real)
+        PlanRecord(now, match.trajectory_id, tuple(failed), event, real=origin.real)
     )
+    ctx.facts.record(served=match.trajectory_id, failed=failed, real=origin.real, at=now)
     return PlanAnswer(
         PlanStatus.SUCCESS,
         PlanSource.CACHE,
@@ -531,6 +542,8 @@ def _plan_fallback(
         planning_time_ms=clock.plan * 1e3,
         max_states=ctx.settings.max_trajectory_states,
         commit=False,
+        scene=scene,  # quality (clearance) in the scene it was planned in, without a re-read
+        settings=ctx.settings,
     )
     session.add(
         _event(
