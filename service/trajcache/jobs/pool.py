@@ -189,8 +189,11 @@ class PlannerPool:
             self._counts["queue_depth"] -= 1
             self._counts["completed"] += 1
             self._counts["solved" if result.status is PlannerStatus.SOLVED else "failures"] += 1
-            # A timeout after a crash retry had less than the flight's budget: not remembered.
-            shortened = result.status is PlannerStatus.TIMEOUT and result.stats.get("crash_retries")
+            # A timeout after a crash retry, or of a task that waited in line for a worker past
+            # the overhead allowance, had less than the flight's budget: not remembered.
+            shortened = result.status is PlannerStatus.TIMEOUT and (
+                result.stats.get("crash_retries") or result.stats.get("queued_s")
+            )
             if result.status in _NEGATIVE and self.negative_cache_ttl_s > 0 and not shortened:
                 self._remember_failure(key, _Failure(result, flight.budget_s, time.monotonic()))
         flight.future.set_result(result)
@@ -312,6 +315,7 @@ class LocalBackend:
         budget_ends = began + problem.budget_s  # a retry plans in what is left of the budget
         retries = 0
         while (generation := self._claim_slot(deadline)) is not None:
+            queued_s = time.monotonic() - began  # waiting for a free worker is not planning
             try:
                 future = generation.executor.submit(self.task_fn, problem)
             except (BrokenProcessPool, RuntimeError) as exc:  # broken, or retired meanwhile
@@ -326,7 +330,10 @@ class LocalBackend:
             except CancelledError:  # retired before it started: try the new executor
                 continue
             except FutureTimeout:
-                return _retried(self._overran(generation, future, problem, timeout_s), retries)
+                result = self._overran(generation, future, problem, timeout_s)
+                if queued_s > timeout_s - problem.budget_s:  # it started too late for its budget
+                    result.stats["queued_s"] = queued_s
+                return _retried(result, retries)
             except BrokenProcessPool as exc:
                 self._replace(generation, crashed=True)
                 if retries < self.crash_retries:
