@@ -19,10 +19,10 @@ import pytest
 import sqlalchemy as sa
 
 from tests.api.conftest import TWO_JOINT_URDF
-from tests.api.test_health import TcpProxy
 from tests.client.conftest import LiveServer
 from tests.conftest import POSTGRES_URL, require_service
 from tests.faults.load import ROBOT, Load, Outcome, check_database, seed_trajectories
+from tests.proxy import TcpProxy
 from trajcache.core.config import Settings
 from trajcache.jobs.pool import OVERHEAD_S, LocalBackend
 from trajcache.main import create_app

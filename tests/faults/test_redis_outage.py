@@ -12,7 +12,6 @@ from fastapi.testclient import TestClient
 
 from tests.api.conftest import assert_detail
 from tests.api.test_fallback import GOAL, START
-from tests.api.test_health import TcpProxy
 from tests.faults.held import HELD_TASK, Hold
 from tests.faults.support import (
     SLACK_S,
@@ -25,6 +24,7 @@ from tests.faults.support import (
     worker_command,
 )
 from tests.jobs.test_celery import Worker
+from tests.proxy import TcpProxy
 from trajcache.jobs.pool import OVERHEAD_S
 
 pytestmark = pytest.mark.redis

@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
-import socket
 import subprocess
 import sys
-import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -21,6 +18,7 @@ from typer.testing import CliRunner
 
 from tests.conftest import REDIS_URL, require_service
 from tests.jobs.test_pool import make_problem, runs, submit_all, two_link_problem
+from tests.proxy import TcpProxy
 from trajcache.core.config import Settings
 from trajcache.jobs.celery_app import TASK_FN_ENV, CeleryBackend
 from trajcache.jobs.pool import PlannerPool
@@ -255,54 +253,6 @@ def test_unreachable_broker_is_an_error_result_quickly(tmp_path: Path) -> None:
         assert pool.stats().negative_hits == 0
     finally:
         pool.close()
-
-
-class TcpProxy:
-    """Forwards a local port to Redis; stopping it looks like Redis going down."""
-
-    def __init__(self, target: tuple[str, int]) -> None:
-        self.target = target
-        with socket.socket() as probe:
-            probe.bind(("127.0.0.1", 0))
-            self.port = probe.getsockname()[1]
-        self._sockets: list[socket.socket] = []
-        self._running = False
-
-    def start(self) -> None:
-        server = socket.create_server(("127.0.0.1", self.port))
-        server.settimeout(0.1)
-        self._running = True
-        self._sockets = [server]
-        threading.Thread(target=self._accept, args=(server,), daemon=True).start()
-
-    def _accept(self, server: socket.socket) -> None:
-        while self._running:
-            try:
-                client, _ = server.accept()
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            upstream = socket.create_connection(self.target)
-            client.settimeout(None)
-            self._sockets += [client, upstream]
-            for src, dst in ((client, upstream), (upstream, client)):
-                threading.Thread(target=self._pump, args=(src, dst), daemon=True).start()
-
-    @staticmethod
-    def _pump(src: socket.socket, dst: socket.socket) -> None:
-        try:
-            while data := src.recv(65536):
-                dst.sendall(data)
-        except OSError:
-            pass
-
-    def stop(self) -> None:
-        self._running = False
-        for sock in self._sockets:
-            with contextlib.suppress(OSError):
-                sock.shutdown(socket.SHUT_RDWR)
-            sock.close()
 
 
 def test_recovers_when_redis_comes_back(
