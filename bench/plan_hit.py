@@ -39,19 +39,18 @@ import json
 import statistics
 import threading
 import time
-import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import httpx
 import numpy as np
-import sqlalchemy as sa
 
 from trajcache.geometry.reference.robot import reference_model, reference_urdf
 from trajcache.geometry.scene import Scene, scene_to_payload
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
+from trajcache.protocol.caches import fresh_schema
 from trajcache.protocol.service import running_service, server_cpu_seconds
 from trajcache.workload.cleaning import CleaningRun, cleaning_run
 
@@ -246,17 +245,8 @@ def database(url: str | None) -> Iterator[str | None]:
     if url is None or not url.startswith("postgresql"):
         yield url
         return
-    schema = f"plan_hit_{uuid.uuid4().hex[:10]}"
-    admin = sa.create_engine(url, isolation_level="AUTOCOMMIT")
-    with admin.connect() as conn:
-        conn.execute(sa.text(f'CREATE SCHEMA "{schema}"'))
-    sep = "&" if "?" in url else "?"
-    try:
-        yield f"{url}{sep}options=-csearch_path%3D{schema}"
-    finally:
-        with admin.connect() as conn:
-            conn.execute(sa.text(f'DROP SCHEMA "{schema}" CASCADE'))
-        admin.dispose()
+    with fresh_schema(url) as schema_url:
+        yield schema_url
 
 
 def pct(values: list[float], q: float) -> float:
