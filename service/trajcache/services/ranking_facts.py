@@ -70,8 +70,3 @@ class RankingFactsCache:
                 last_real = at if real else item[0].last_real_validated_at
                 facts = replace(item[0], consecutive_failures=0, last_real_validated_at=last_real)
                 self._items[served] = (facts, item[1])
-
-    def clear(self) -> None:
-        """Forget everything."""
-        with self._lock:
-            self._items.clear()

@@ -15,6 +15,7 @@ from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep
 from trajcache.api.quality import JointTrajectory, TimingOptions, TrajectoryQuality, answer_extras
 from trajcache.api.responses import COMMON, errors
+from trajcache.core.config import Settings
 from trajcache.metrics import record_plan
 from trajcache.planning.problem import PLANNER_NAMES
 from trajcache.services.planning import PlanAnswer, PlanRequest, plan
@@ -153,11 +154,13 @@ class PlanResponse(BaseModel):
 
 
 def _bounded(
-    value: float | int | None, default: float | int, limit: float | int, name: str, setting: str
+    value: float | int | None, default: float | int, settings: Settings, name: str, setting: str
 ) -> float:
+    """`value` (or `default`), or a 422 when it is above the limit in `settings.<setting>`."""
     from trajcache.geometry.errors import GeometryError
 
     chosen = default if value is None else value
+    limit = getattr(settings, setting)
     if chosen > limit:
         raise GeometryError(f"options.{name}: {chosen} is above {setting}={limit}")
     return chosen
@@ -192,26 +195,14 @@ def plan_route(
     request = PlanRequest(
         start=np.asarray(body.start, dtype=float),
         goal=np.asarray(body.goal, dtype=float),
-        threshold=_bounded(
-            o.threshold,
-            s.lookup_threshold,
-            s.lookup_threshold_max,
-            "threshold",
-            "lookup_threshold_max",
-        ),
+        threshold=_bounded(o.threshold, s.lookup_threshold, s, "threshold", "lookup_threshold_max"),
         max_candidates=int(
             _bounded(
-                o.max_candidates,
-                s.max_candidates,
-                s.max_candidates_limit,
-                "max_candidates",
-                "max_candidates_limit",
+                o.max_candidates, s.max_candidates, s, "max_candidates", "max_candidates_limit"
             )
         ),
         fallback=o.fallback,
-        budget_s=_bounded(
-            o.budget_s, s.plan_budget_s, s.plan_budget_max_s, "budget_s", "plan_budget_max_s"
-        ),
+        budget_s=_bounded(o.budget_s, s.plan_budget_s, s, "budget_s", "plan_budget_max_s"),
         planner=o.planner or s.default_planner,
         arm_only=o.match == "arm",
         lookup=o.lookup,
