@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import re
 import sys
 import time
@@ -50,19 +49,18 @@ import httpx
 import numpy as np
 
 from soak_geometry import (
-    adapted,
     grazing_radius,
     judge,
-    make_checker,
     path_obstacle,
     sphere,
-    wrapped,
 )
+from trajcache.cache.adapt import adapt_trajectory, base_is_still
+from trajcache.cache.metric import PLANAR_ARM_OFFSET, wrap_angle
 from trajcache.geometry.reference.restroom import STALL_COUNT, restroom_scene
 from trajcache.geometry.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
 from trajcache.geometry.scene import Scene, apply_patch, object_to_payload, scene_to_payload
 from trajcache.geometry.shapes import FloatArray
-from trajcache.protocol.dense import DenseChecker
+from trajcache.protocol.dense import DenseChecker, reference_checker
 from trajcache.protocol.replay import RobotClient, cached_count
 from trajcache.protocol.service import running_service
 from trajcache.workload.cleaning import PlanCall, cleaning_run
@@ -258,7 +256,7 @@ class Soak:
             base_noise = self.rng.uniform(-0.02, 0.02, 3)
         arm_noise = self.rng.uniform(-0.02, 0.02, 7)
         state = np.concatenate([np.asarray(base, float) + base_noise, np.asarray(arm) + arm_noise])
-        state[2] = (state[2] + math.pi) % (2 * math.pi) - math.pi  # the heading wraps
+        state[2] = wrap_angle(state[2])  # the heading wraps
         return np.clip(state, self.lower, self.upper)
 
     def _task_pair(self) -> Request:
@@ -296,7 +294,7 @@ class Soak:
             reverse = bool(self.rng.random() < 0.25)
             first, last = (stored[-1], stored[0]) if reverse else (stored[0], stored[-1])
             base_noise = self.rng.uniform(-0.01, 0.01, 3)
-            still = float(np.max(np.abs(wrapped(last[:3] - first[:3])))) <= 1e-9
+            still = base_is_still(first, last, arm_offset=PLANAR_ARM_OFFSET)
             start = self._noisy(first[:3], first[3:], base_noise)
             goal = self._noisy(last[:3], last[3:], base_noise if still else None)
             placed = self._obstacle_for(stored, start, goal, reverse)
@@ -320,7 +318,7 @@ class Soak:
         obstacle = path_obstacle(self.checker, stored, oid, self.rng)
         if obstacle is None:
             return None
-        path = adapted(stored, start, goal, reverse)
+        path = adapt_trajectory(stored, start, goal, arm_offset=PLANAR_ARM_OFFSET, reverse=reverse)
         grazing = bool(self.rng.random() < GRAZING_SHARE)
         if grazing:  # moved off the link, then grown until both paths just reach into it
             direction = self.rng.normal(size=3)
@@ -402,7 +400,7 @@ class Soak:
 def soak(plans: int, warm_calls: int | None, seed: int) -> dict[str, Any]:
     """Run the soak against a fresh service; its figures."""
     began = time.perf_counter()
-    checker = make_checker()
+    checker = reference_checker()
     with running_service() as base, httpx.Client(base_url=base, timeout=120) as client:
         reply = client.post(
             "/v1/robot-models",

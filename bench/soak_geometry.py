@@ -3,13 +3,12 @@ into the path of a cached trajectory (on the robot part that moves farthest, or 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from trajcache.geometry.reference.robot import reference_model, reference_urdf
+from trajcache.cache.metric import wrap_angle
 from trajcache.geometry.scene import Scene, scene_to_payload
 from trajcache.geometry.shapes import FloatArray
 from trajcache.protocol.dense import DenseChecker
@@ -33,16 +32,10 @@ class Verdict:
         return self.collides or self.out_of_limits or self.misjoined
 
 
-def make_checker() -> DenseChecker:
-    """The independent dense check of the reference robot."""
-    model = reference_model()
-    allowed = [(model.link_names[a], model.link_names[b]) for a, b in model.allowed_pairs]
-    return DenseChecker(reference_urdf(), allowed)
-
-
-def wrapped(diff: FloatArray) -> FloatArray:
+def _wrapped(diff: FloatArray) -> FloatArray:
+    """A difference of planar-base states with the base angle taking the short way."""
     out = np.array(diff, dtype=float)
-    out[2] = (out[2] + math.pi) % (2 * math.pi) - math.pi
+    out[2] = wrap_angle(out[2])
     return out
 
 
@@ -53,22 +46,13 @@ def judge(
     states = np.asarray(states, dtype=float)
     verdict = checker.check(states, scene.hash, scene_to_payload(scene))
     misjoined = any(
-        float(np.max(np.abs(wrapped(s - w)))) > 1e-6
+        float(np.max(np.abs(_wrapped(s - w)))) > 1e-6
         for s, w in ((states[0], start), (states[-1], goal))
     )
     contacts = tuple(sorted(f"{a}–{b}" for a, b in verdict.contacts))
     return Verdict(
         verdict.collides, verdict.limit_samples > 0, misjoined, verdict.samples, contacts
     )
-
-
-def adapted(states: FloatArray, start: FloatArray, goal: FloatArray, reverse: bool) -> FloatArray:
-    """The stored path adapted to a request as the paper does (endpoints replaced, base still)."""
-    path = np.array(states[::-1] if reverse else states, dtype=float)
-    if float(np.max(np.abs(wrapped(goal[:3] - start[:3])))) <= 1e-9:
-        path[1:-1, :3] = start[:3]
-    path[0], path[-1] = start, goal
-    return path
 
 
 def _centres(checker: DenseChecker, states: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -12,10 +12,12 @@ import numpy as np
 import pytest
 
 from safety_soak import SMOKE_PLANS, Request, Soak
-from soak_geometry import adapted, grazing_radius, judge, make_checker, path_obstacle, sphere
+from soak_geometry import grazing_radius, judge, path_obstacle, sphere
+from trajcache.cache.adapt import adapt_trajectory
+from trajcache.cache.metric import PLANAR_ARM_OFFSET
 from trajcache.geometry.reference.restroom import restroom_scene
 from trajcache.geometry.scene import Scene, apply_patch
-from trajcache.protocol.dense import DenseChecker
+from trajcache.protocol.dense import DenseChecker, reference_checker
 from trajcache.workload.tasks import task_state, work_station
 
 SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "safety_soak.py"
@@ -23,7 +25,7 @@ SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "safety_soak.py"
 
 @pytest.fixture(scope="module")
 def checker() -> DenseChecker:
-    return make_checker()
+    return reference_checker()
 
 
 def _arm_move(first: str, second: str) -> np.ndarray:
@@ -102,7 +104,7 @@ def test_answers_off_the_request_or_out_of_limits_are_unsafe(checker: DenseCheck
 def test_adaptation_keeps_a_still_base_and_reverses() -> None:
     path = np.array([[0.0] * 10, [0.5, 0.0, 0.0, *[0.3] * 7], [0.0, 0.0, 0.0, *[0.6] * 7]])
     start, goal = np.full(10, 0.01), np.r_[0.01, 0.01, 0.01, [0.02] * 7]
-    out = adapted(path, start, goal, reverse=True)
+    out = adapt_trajectory(path, start, goal, arm_offset=PLANAR_ARM_OFFSET, reverse=True)
     assert np.allclose(out[0], start) and np.allclose(out[-1], goal)
     assert np.allclose(out[1], [0.01, 0.01, 0.01, *[0.3] * 7])
 
