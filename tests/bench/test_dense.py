@@ -7,19 +7,17 @@ import pytest
 
 from trajcache.geometry.collision import CollisionChecker
 from trajcache.geometry.reference import restroom_scene
-from trajcache.geometry.reference.robot import STOWED_ARM, reference_model, reference_urdf
+from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
 from trajcache.geometry.scene import make_scene, scene_to_payload
 from trajcache.geometry.validation import TrajectoryValidator
-from trajcache.protocol.dense import DenseChecker
+from trajcache.protocol.dense import DenseChecker, reference_checker
 from trajcache.workload.cleaning import cleaning_run
 from trajcache.workload.tasks import work_stations
 
 
 @pytest.fixture(scope="module")
 def checker() -> DenseChecker:
-    model = reference_model()
-    allowed = [(model.link_names[a], model.link_names[b]) for a, b in model.allowed_pairs]
-    return DenseChecker(reference_urdf(), allowed)
+    return reference_checker()
 
 
 def test_interpolation_is_four_times_finer_than_the_paper(checker: DenseChecker) -> None:

@@ -303,3 +303,12 @@ def _primitives(link: Any) -> list[Primitive]:
         radius = float(np.linalg.norm(half)) if g.sphere is None else float(half[0])
         out.append(Primitive(link.name, origin, radius, fcl.CollisionObject(geometry)))
     return out
+
+
+def reference_checker() -> DenseChecker:
+    """The dense checker of the reference robot, with its model's allowed-collision pairs."""
+    from trajcache.geometry.reference.robot import reference_model, reference_urdf
+
+    model = reference_model()
+    allowed = [(model.link_names[a], model.link_names[b]) for a, b in model.allowed_pairs]
+    return DenseChecker(reference_urdf(), allowed)

@@ -50,10 +50,9 @@ from typing import Any
 
 import numpy as np
 
-from trajcache.geometry.reference.robot import reference_model, reference_urdf
 from trajcache.geometry.scene import scene_to_payload
 from trajcache.protocol.caches import Cache, caches, empty_cache, no_cache_options
-from trajcache.protocol.dense import DenseChecker
+from trajcache.protocol.dense import DenseChecker, reference_checker
 from trajcache.protocol.replay import CallRecord, RobotClient, cached_count
 from trajcache.protocol.tables import (
     PAPER_MEAN_FALLBACK_MS,
@@ -187,9 +186,7 @@ def play_rows(
     every call of a cached row is also planned without a cache, right next to it, by a robot of
     the no-cache service: the row's paired baseline.
     """
-    model = reference_model()
-    allowed = [(model.link_names[a], model.link_names[b]) for a, b in model.allowed_pairs]
-    checker = DenseChecker(reference_urdf(), allowed)
+    checker = reference_checker()
     options = {"full": FULL, "arm": ARM, "none": no_cache or {}}
     rows: dict[str, Row] = {}
     for spec in specs:
