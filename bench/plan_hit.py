@@ -13,10 +13,14 @@ PostgreSQL server given with --database-url) and drives it with the reference wo
   as its own robot, and every query goes to the robot whose scene it was made in. Before timing,
   each robot answers one request of an unrelated run (its validator is built, as it would be
   after the first call that follows a scene change).
-- Sequential: one keep-alive client sends each query once, in run order. No request repeats, so
-  every answer is validated against the scene (the validation memo only helps where a cached
-  interior recurs exactly). Latency percentiles are over the answers served from the cache;
-  misses are counted, not timed.
+- Sequential: one keep-alive connection per client library sends each query once, in run order,
+  the two taking turns: a lean client (the standard library's http.client, as any compiled
+  robot-side HTTP client is at least as lean) and httpx (which the Python client package uses;
+  it spends about 0.4 ms more CPU per request on the client side). No request repeats, so every
+  answer is validated against the scene (the validation memo only helps where a cached interior
+  recurs exactly). Latency percentiles are over the answers served from the cache; misses are
+  counted, not timed. `p50_ms` and `p99_ms` are the lean client's, `httpx_p50_ms` and
+  `httpx_p99_ms` the other's.
 - Repeat: the same sequential requests once more. Exact repeats are answered from the validation
   memo without collision checks: the most the memo can give, not what a robot sees.
 - Concurrent: 16 clients, each sending its own share of further fresh queries; plans per second
@@ -24,7 +28,7 @@ PostgreSQL server given with --database-url) and drives it with the reference wo
 
 Server-side breakdown: `timings_ms` (db, lookup, validate, total of the plan flow) and the
 `Server-Timing` header (answer extras such as quality metrics, serialize); "http" is client
-latency minus all of those, and GET /healthz with the same client shows the transport and
+latency minus all of those, and GET /healthz with the same clients shows the transport and
 framework floor. The last line printed is one JSON object with `p50_ms`, `p99_ms` and
 `concurrent_rps`. Server CPU per plan (the service's processes, from /proc) is reported too:
 unlike latency, it hardly moves when other programs load the machine.
@@ -35,6 +39,7 @@ unlike latency, it hardly moves when other programs load the machine.
 from __future__ import annotations
 
 import argparse
+import http.client
 import json
 import statistics
 import threading
@@ -42,6 +47,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
 import httpx
 import numpy as np
@@ -173,18 +179,38 @@ def _timed(query: Query) -> Query:
 
 
 def send(client: httpx.Client, query: Query) -> Sample:
-    """Send one plan request and time it."""
+    """Send one plan request with httpx and time it."""
     began = time.perf_counter()
     reply = client.post(f"/v1/robots/{query.robot_id}/plan", json=query.body)
     latency = (time.perf_counter() - began) * 1e3
     if reply.status_code != 200:
         raise RuntimeError(f"plan answered {reply.status_code}: {reply.text[:300]}")
-    body = reply.json()
+    return _sample(latency, reply.json(), reply.headers.get("server-timing", ""))
+
+
+def send_lean(conn: http.client.HTTPConnection, query: Query) -> Sample:
+    """Send one plan request with http.client on a keep-alive connection and time it."""
+    began = time.perf_counter()
+    conn.request(
+        "POST",
+        f"/v1/robots/{query.robot_id}/plan",
+        body=json.dumps(query.body).encode(),
+        headers={"content-type": "application/json"},
+    )
+    reply = conn.getresponse()
+    data = reply.read()
+    latency = (time.perf_counter() - began) * 1e3
+    if reply.status != 200:
+        raise RuntimeError(f"plan answered {reply.status}: {data[:300]!r}")
+    return _sample(latency, json.loads(data), reply.getheader("server-timing", ""))
+
+
+def _sample(latency: float, body: dict[str, Any], server_timing: str) -> Sample:
     return Sample(
         latency,
         body.get("source") == "cache",
         body.get("timings_ms", {}),
-        _server_timing(reply.headers.get("server-timing", "")),
+        _server_timing(server_timing),
     )
 
 
@@ -198,20 +224,48 @@ def _server_timing(header: str) -> dict[str, float]:
 
 
 def run_sequential(base: str, queries: list[Query]) -> list[Sample]:
-    """Each query once, one client, in order."""
+    """Each query once, one httpx client, in order."""
     with httpx.Client(base_url=base, timeout=30) as client:
         return [send(client, q) for q in queries]
 
 
-def http_floor(base: str, n: int = 200) -> float:
-    """Median latency (ms) of GET /healthz with the same client: transport and framework only."""
-    with httpx.Client(base_url=base, timeout=30) as client:
-        times = []
-        for _ in range(n):
-            began = time.perf_counter()
-            client.get("/healthz").raise_for_status()
-            times.append((time.perf_counter() - began) * 1e3)
-    return statistics.median(times)
+def run_both(base: str, queries: list[Query]) -> tuple[list[Sample], list[Sample]]:
+    """Each query once, in order, the lean client and httpx taking turns: (lean, httpx)."""
+    url = httpx.URL(base)
+    lean: list[Sample] = []
+    other: list[Sample] = []
+    conn = http.client.HTTPConnection(url.host, url.port, timeout=30)
+    try:
+        with httpx.Client(base_url=base, timeout=30) as client:
+            for k, query in enumerate(queries):
+                if k % 2 == 0:
+                    lean.append(send_lean(conn, query))
+                else:
+                    other.append(send(client, query))
+    finally:
+        conn.close()
+    return lean, other
+
+
+def http_floor(base: str, n: int = 200) -> tuple[float, float]:
+    """Median latency (ms) of GET /healthz, transport and framework only: (lean, httpx)."""
+    url = httpx.URL(base)
+    conn = http.client.HTTPConnection(url.host, url.port, timeout=30)
+    lean, other = [], []
+    try:
+        with httpx.Client(base_url=base, timeout=30) as client:
+            for _ in range(n):
+                began = time.perf_counter()
+                conn.request("GET", "/healthz")
+                reply = conn.getresponse()
+                json.loads(reply.read())
+                lean.append((time.perf_counter() - began) * 1e3)
+                began = time.perf_counter()
+                client.get("/healthz").raise_for_status()
+                other.append((time.perf_counter() - began) * 1e3)
+    finally:
+        conn.close()
+    return statistics.median(lean), statistics.median(other)
 
 
 def run_concurrent(base: str, queries: list[Query]) -> tuple[float, int]:
@@ -309,25 +363,28 @@ def main() -> None:
         run_sequential(base, list(warmup.values()))
         seq_queries, conc_queries = queries[:sequential], queries[sequential:]
         conc_queries = conc_queries[:concurrent]
-        floor = http_floor(base)
+        floor, floor_httpx = http_floor(base)
         cpu = server_cpu_seconds(base)
-        first = run_sequential(base, seq_queries)
-        cpu_seq = (server_cpu_seconds(base) - cpu) / len(first) * 1e3
-        again = run_sequential(base, seq_queries)
-        timed = run_sequential(base, [_timed(q) for q in seq_queries])
+        first, first_httpx = run_both(base, seq_queries)
+        cpu_seq = (server_cpu_seconds(base) - cpu) / len(seq_queries) * 1e3
+        again, _ = run_both(base, seq_queries)
+        timed, _ = run_both(base, [_timed(q) for q in seq_queries])
         cpu = server_cpu_seconds(base)
         rps, conc_hits = run_concurrent(base, conc_queries)
         cpu_conc = (server_cpu_seconds(base) - cpu) / len(conc_queries) * 1e3
 
     fresh, repeat, timed_repeat = summarize(first), summarize(again), summarize(timed)
+    fresh_httpx = summarize(first_httpx)
     timing_cost = timed_repeat.get("p50", float("nan")) - repeat.get("p50", float("nan"))
     rows: list[tuple[str, object]] = [
         ("trajectories cached (run 1)", stored),
         ("scenes (robots)", len(robots.by_hash)),
-        ("sequential requests", len(first)),
-        ("cache hits", fresh["hits"]),
-        ("client p50 ms", fresh.get("p50")),
-        ("client p99 ms", fresh.get("p99")),
+        ("sequential requests", len(seq_queries)),
+        ("cache hits", fresh["hits"] + fresh_httpx["hits"]),
+        ("client p50 ms (http.client)", fresh.get("p50")),
+        ("client p99 ms (http.client)", fresh.get("p99")),
+        ("client p50 ms (httpx)", fresh_httpx.get("p50")),
+        ("client p99 ms (httpx)", fresh_httpx.get("p99")),
         ("server db p50 ms", fresh.get("db")),
         ("server lookup p50 ms", fresh.get("lookup")),
         ("server validate p50 ms", fresh.get("validate")),
@@ -335,8 +392,9 @@ def main() -> None:
         ("server total p99 ms", fresh.get("total_p99")),
         ("answer extras (quality) p50 ms", fresh.get("extras")),
         ("server serialize p50 ms", fresh.get("serialize")),
-        ("http p50 ms", fresh.get("http")),
+        ("http p50 ms (http.client)", fresh.get("http")),
         ("http floor: GET /healthz p50 ms", floor),
+        ("http floor: GET /healthz p50 ms (httpx)", floor_httpx),
         ("server CPU per plan, sequential ms", cpu_seq),
         ("repeat: client p50 ms", repeat.get("p50")),
         ("repeat: client p99 ms", repeat.get("p99")),
@@ -357,7 +415,11 @@ def main() -> None:
                 "p50_ms": round(fresh.get("p50", float("nan")), 3),
                 "p99_ms": round(fresh.get("p99", float("nan")), 3),
                 "concurrent_rps": round(rps, 1),
-                "hit_rate": round(fresh["hits"] / max(len(first), 1), 4),
+                "httpx_p50_ms": round(fresh_httpx.get("p50", float("nan")), 3),
+                "httpx_p99_ms": round(fresh_httpx.get("p99", float("nan")), 3),
+                "hit_rate": round(
+                    (fresh["hits"] + fresh_httpx["hits"]) / max(len(seq_queries), 1), 4
+                ),
                 "repeat_p50_ms": round(repeat.get("p50", float("nan")), 3),
                 "repeat_p99_ms": round(repeat.get("p99", float("nan")), 3),
                 "timed_repeat_p50_ms": round(timed_repeat.get("p50", float("nan")), 3),
@@ -371,6 +433,7 @@ def main() -> None:
                 "server_serialize_ms": round(fresh.get("serialize", float("nan")), 3),
                 "http_ms": round(fresh.get("http", float("nan")), 3),
                 "healthz_ms": round(floor, 3),
+                "httpx_healthz_ms": round(floor_httpx, 3),
                 "server_cpu_ms_sequential": round(cpu_seq, 3),
                 "server_cpu_ms_concurrent": round(cpu_conc, 3),
                 "database": "postgresql" if url and url.startswith("postgresql") else "sqlite",
