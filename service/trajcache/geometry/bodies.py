@@ -72,7 +72,31 @@ class RobotGeometry:
         anc = self.motion.ancestors
         li, lj = self.element_link[self.pair_i], self.element_link[self.pair_j]
         self.pair_mask = ~(anc[li] & anc[lj])  # (P, D)
+        self.proven_free: list[tuple[int, int]] = []  # element pairs dropped by `drop_pairs`
         self._local = threading.local()
+
+    def pair_motion(self) -> tuple[FloatArray, FloatArray]:
+        """Configuration-independent relative motion per unit step of each dof, (D, P): of the
+        pairs' element centres, and of any point of the whole elements."""
+        turning = self.motion.rotation & self.motion.ancestors
+        i, j, mask = self.pair_i, self.pair_j, self.pair_mask
+        centre = ((self.centre_coef[i] + self.centre_coef[j]) * mask).T
+        turn_i = (turning[self.element_link[i]] & mask) * self.radius[i, None]
+        turn_j = (turning[self.element_link[j]] & mask) * self.radius[j, None]
+        return centre, centre + (turn_i + turn_j).T
+
+    def drop_pairs(self, drop: NDArray[np.bool_]) -> None:
+        """Stop checking the self-collision pairs where `drop` (P,) is True.
+
+        Only for pairs proven never to collide within the joint limits (`free_pairs`), and
+        only before the geometry is shared.
+        """
+        self.proven_free += [
+            (int(i), int(j)) for i, j in zip(self.pair_i[drop], self.pair_j[drop], strict=True)
+        ]
+        keep = ~np.asarray(drop, dtype=bool)
+        self.pair_i, self.pair_j = self.pair_i[keep], self.pair_j[keep]
+        self.pair_mask = self.pair_mask[keep]
 
     def objects(self) -> list[fcl.CollisionObject]:
         """This thread's FCL objects (transforms are mutated during a check)."""
@@ -198,6 +222,11 @@ def robot_geometry(model: RobotModel) -> RobotGeometry:
     if isinstance(cached, RobotGeometry) and cached.model is model:
         return cached
     built = RobotGeometry(model)
+    # Imported here: the proof poses this geometry through clearance and narrow phase, which
+    # import this module.
+    from trajcache.geometry.free_pairs import proven_free_pairs
+
+    built.drop_pairs(proven_free_pairs(built))
     _robots.put(model.model_id, built)
     return built
 

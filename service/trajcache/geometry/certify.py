@@ -54,11 +54,7 @@ class SegmentCertifier:
         self._turn = turning[rg.element_link].T.astype(float)  # (D, E)
         # Configuration-independent motion per unit step: element centres (D, E), pairs (D, P).
         self._centre_coef = rg.centre_coef.T.copy()
-        mask = rg.pair_mask
-        self._pair_coef = ((rg.centre_coef[rg.pair_i] + rg.centre_coef[rg.pair_j]) * mask).T
-        turn_i = (turning[rg.element_link[rg.pair_i]] & mask) * rg.radius[rg.pair_i, None]
-        turn_j = (turning[rg.element_link[rg.pair_j]] & mask) * rg.radius[rg.pair_j, None]
-        self._pair_whole = self._pair_coef + (turn_i + turn_j).T  # whole elements, (D, P)
+        self._pair_coef, self._pair_whole = rg.pair_motion()
 
     def certify(self, states: FloatArray) -> Finding:
         """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it."""
