@@ -12,7 +12,10 @@ import sqlalchemy as sa
 
 from tests.services.hit_setup import context, count_statements, store, two_joint
 from trajcache.db.models import Trajectory
+from trajcache.geometry.robot import RobotModel
+from trajcache.services.context import ServiceContext
 from trajcache.services.index_store import StatesCache
+from trajcache.services.robots import ROBOT_SCENE, put_robot
 from trajcache.services.trajectories import delete_trajectory
 
 
@@ -21,6 +24,12 @@ def url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
     if request.param == "sqlite":
         return f"sqlite:///{tmp_path / 'index.db'}"
     return str(request.getfixturevalue("postgres_url"))
+
+
+def robot(ctx: ServiceContext, model: RobotModel, robot_id: str = "r1") -> str:
+    with ctx.session() as session:
+        put_robot(session=session, robot_id=robot_id, model_id=model.model_id)
+    return robot_id
 
 
 def test_a_sync_is_one_query_and_sees_rows_and_deletions_of_another_replica(url: str) -> None:
@@ -38,6 +47,43 @@ def test_a_sync_is_one_query_and_sees_rows_and_deletions_of_another_replica(url:
             index = b.indexes.index(session, model)
         assert len(statements) == 1, statements
         assert fresh in index and kept in index and gone not in index
+
+
+def test_a_rider_reads_its_row_with_the_sync_and_the_index_then_needs_no_query(url: str) -> None:
+    with context(url) as a, context(url) as b:
+        model = two_joint(a)
+        rid = robot(a, model)
+        with b.session() as session:
+            b.indexes.index(session, model)  # b has loaded the model's index
+        fresh = store(a, model, [[0.4, 0.0], [1.0, 0.5]])  # committed before b's request
+        before = b.indexes.syncs
+        with b.session() as session, count_statements(b.engine) as statements:
+            row = b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid})
+            index = b.indexes.index(session, model)
+        assert len(statements) == 1, statements
+        assert b.indexes.syncs == before + 1
+        assert row is not None and row[0] == model.model_id
+        assert fresh in index
+        with b.session() as session:
+            assert b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": "ghost"}) is None
+        with b.session() as session:  # a later request syncs again (interval 0)
+            b.indexes.index(session, model)
+        assert b.indexes.syncs == before + 3
+
+
+def test_a_rider_alone_is_read_when_no_sync_is_due(url: str) -> None:
+    with context(url, index_sync_interval_s=60.0) as ctx:
+        model = two_joint(ctx)
+        rid = robot(ctx, model)
+        with ctx.session() as session:
+            ctx.indexes.index(session, model)
+        before = ctx.indexes.syncs
+        with ctx.session() as session, count_statements(ctx.engine) as statements:
+            row = ctx.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid})
+            ctx.indexes.index(session, model)
+        assert ctx.indexes.syncs == before
+        assert len(statements) == 1 and "trajectory_tombstones" not in statements[0]
+        assert row is not None and row[0] == model.model_id
 
 
 def test_every_call_syncs_at_interval_zero_and_not_within_the_interval(url: str) -> None:

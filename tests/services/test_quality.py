@@ -9,17 +9,16 @@ import numpy as np
 import pytest
 
 from tests.api.conftest import TWO_JOINT_URDF
+from tests.services.hit_setup import count_statements
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import Trajectory
 from trajcache.geometry.collision import CollisionChecker
 from trajcache.geometry.scene import parse_scene
 from trajcache.quality import ee_path_length, min_clearance, path_length
-from trajcache.services import quality as service_quality
 from trajcache.services.context import ServiceContext
 from trajcache.services.models import ModelRegistry, get_model, register_model
 from trajcache.services.quality import QualityLevel, TimingRequest, answer_details
-from trajcache.services.robots import put_robot
 from trajcache.services.trajectories import store_trajectory
 from trajcache.timing import PathShape, TimingMethod
 
@@ -82,36 +81,42 @@ def test_a_fresh_registry_loads_the_configuration_from_the_database(
         assert m.jerk_limits is None and m.end_effector_link == "upper"
 
 
-def test_answer_quality_follows_a_repointed_robot_after_the_ttl(
-    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+def test_answer_quality_uses_the_model_and_scene_of_the_plan_without_reading_them(
+    ctx: ServiceContext,
 ) -> None:
     with ctx.session() as session:
         first, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
         second, _ = register_model(
             session=session, registry=ctx.models, urdf=OTHER_URDF, end_effector_link="upper"
         )
-        put_robot(session=session, robot_id="r-ttl", model_id=first.model_id)
     states = np.array([[0.0, 0.0], [1.0, 0.5]])
-    basic = answer_details(
-        ctx=ctx, robot_id="r-ttl", states=states, timing=None, level=QualityLevel.BASIC
-    )
+    empty = parse_scene({"objects": []})
+    with count_statements(ctx.engine) as statements:
+        basic = answer_details(
+            ctx=ctx, model=first, scene=empty, states=states, timing=None, level=QualityLevel.BASIC
+        )
+        other = answer_details(
+            ctx=ctx, model=second, scene=empty, states=states, timing=None, level=QualityLevel.BASIC
+        )
+        timed = answer_details(
+            ctx=ctx,
+            model=first,
+            scene=SCENE,
+            states=states,
+            timing=TimingRequest(TimingMethod.TOPPRA, PathShape.LINEAR, sample_period_s=0.1),
+            level=QualityLevel.FULL,
+        )
+        bare = answer_details(
+            ctx=ctx, model=first, scene=empty, states=states, timing=None, level=QualityLevel.FULL
+        )
+    assert statements == []
     assert basic.quality.ee_path_length == pytest.approx(ee_path_length(first, states))
+    assert other.quality.ee_path_length == pytest.approx(ee_path_length(second, states))
+    assert basic.quality.ee_path_length != pytest.approx(other.quality.ee_path_length)
     assert basic.quality.min_clearance is None and basic.timed is None
-    with ctx.session() as session:
-        put_robot(session=session, robot_id="r-ttl", model_id=second.model_id)
-    monkeypatch.setattr(service_quality, "ROBOT_MODEL_TTL_S", 0.0)
-    again = answer_details(
-        ctx=ctx, robot_id="r-ttl", states=states, timing=None, level=QualityLevel.BASIC
-    )
-    assert again.quality.ee_path_length == pytest.approx(ee_path_length(second, states))
-    timed = answer_details(
-        ctx=ctx,
-        robot_id="r-ttl",
-        states=states,
-        timing=TimingRequest(TimingMethod.TOPPRA, PathShape.LINEAR, sample_period_s=0.1),
-        level=QualityLevel.FULL,
-    )
     assert timed.timed is not None and timed.samples is not None
     assert timed.quality.duration_s == pytest.approx(timed.timed.duration)
-    assert timed.quality.min_clearance is None  # the robot has no scene yet
+    found = min_clearance(CollisionChecker(first, SCENE), states)
+    assert found is not None and timed.quality.min_clearance == pytest.approx(found.distance)
     assert set(timed.timings_ms) == {"timing", "quality"}
+    assert bare.quality.min_clearance is None and bare.quality.duration_s is not None

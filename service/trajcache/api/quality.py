@@ -7,6 +7,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.scene import Scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.quality import QualityLevel, TimingRequest, answer_details
@@ -87,14 +89,20 @@ class TrajectoryQuality(BaseModel):
 def answer_extras(
     *,
     ctx: ServiceContext,
-    robot_id: str,
+    model: RobotModel | None,
+    scene: Scene | None,
     states: np.ndarray | None,
     timing: TimingOptions | None,
     quality: Literal["basic", "full"],
 ) -> tuple[dict[str, Any], dict[str, float]]:
-    """The `joint_trajectory` and `quality` fields of an answer, and what they cost (ms)."""
+    """The `joint_trajectory` and `quality` fields of an answer, and what they cost (ms).
+
+    `model` and `scene` are those the answer was planned and validated in (see PlanAnswer).
+    """
     if states is None:
         return {"joint_trajectory": None, "quality": None}, {}
+    if model is None or scene is None:
+        raise ValueError("an answer with states needs the model and scene it was validated in")
     request = None
     if timing is not None and timing.method != "none":
         request = TimingRequest(
@@ -106,7 +114,12 @@ def answer_extras(
         )
     try:
         details = answer_details(
-            ctx=ctx, robot_id=robot_id, states=states, timing=request, level=QualityLevel(quality)
+            ctx=ctx,
+            model=model,
+            scene=scene,
+            states=states,
+            timing=request,
+            level=QualityLevel(quality),
         )
     except TimingError as exc:
         raise InvalidInputError(f"options.timing: {exc}") from None

@@ -15,6 +15,10 @@ ALL), so both come from the same snapshot. With `sync_interval_s=0` every plan n
 began after the plan arrived (so it sees every row committed before); requests that arrive while
 a sync runs share the next one instead of queueing one each.
 
+A plan's own first read (its robot and scene) can ride along as one more branch of that query
+(`read_with_sync`): a cache hit then needs one round trip before lookup, not two. The session
+remembers when its request arrived, so the `index` call that follows does not sync again.
+
 Key states of candidates are kept in a byte-bounded LRU (`states`): a trajectory's states never
 change after it is stored, and a deleted one leaves the cache with its tombstone.
 """
@@ -25,9 +29,9 @@ import functools
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sqlalchemy as sa
@@ -38,9 +42,16 @@ from trajcache.cache.metric import FloatArray
 from trajcache.db.models import Trajectory, TrajectoryTombstone, unpack_states
 from trajcache.geometry.robot import RobotModel
 
+if TYPE_CHECKING:
+    from typing import TypeAlias
+
+    AnySelect: TypeAlias = sa.Select[*tuple[Any, ...]]  # a select of any columns
+
 _STARTUP_WINDOW = 10_000  # ids below the first high-water mark that may still be in flight
 _MAX_GAPS = 100_000
-_ROW, _TOMBSTONE = 0, 1
+_ROW, _TOMBSTONE, _RIDER = 0, 1, 2
+_SYNC_COLUMNS = 6  # kind, id, model_id, start, goal, ref: a rider's columns follow them
+_ARRIVED = "trajcache.index_store.arrived"  # session.info: when its request arrived (monotonic)
 
 
 @dataclass
@@ -92,15 +103,37 @@ class IndexStore:
         self._states = StatesCache(states_cache_bytes)
 
     def index(self, session: Session, model: RobotModel) -> TrajectoryIndex:
-        """The model's index, after picking up what other replicas wrote."""
-        asked = time.monotonic()
+        """The model's index, after picking up what other replicas wrote.
+
+        What they wrote before the request arrived: when `read_with_sync` ran in this session,
+        its time, else now.
+        """
+        asked = session.info.get(_ARRIVED) or time.monotonic()
         with self._lock:
-            if not self._started or self._synced_from < asked - self.sync_interval_s:
+            if self._sync_due(asked):
                 self._sync(session)
             index = self._indexes.get(model.model_id)
             if index is None:
                 index = self._load_model(session, model)
             return index
+
+    def read_with_sync(
+        self, session: Session, rider: AnySelect, params: Mapping[str, Any]
+    ) -> tuple[Any, ...] | None:
+        """The row of `rider` (a query of at most one row), read together with the sync a plan
+        needs when one is due: one query instead of two.
+
+        `rider` is one more UNION ALL branch of the sync query (no ORDER BY or LIMIT of its own),
+        so it reads the same snapshot. The session remembers when this request arrived: `index`
+        in the same session then needs no sync of its own.
+        """
+        asked = time.monotonic()
+        session.info[_ARRIVED] = asked
+        with self._lock:
+            if self._sync_due(asked):
+                return self._sync(session, rider, params)
+        row = session.connection().execute(rider, params).one_or_none()
+        return None if row is None else tuple(row)
 
     def sync(self, session: Session) -> None:
         """Read new rows and tombstones now."""
@@ -137,16 +170,33 @@ class IndexStore:
             stream.hwm = max(stream.hwm, int(top))
         self._started = True
 
-    def _sync(self, session: Session) -> None:
+    def _sync_due(self, asked: float) -> bool:
+        """Whether a request that arrived at `asked` needs a sync (call holding the lock)."""
+        return not self._started or self._synced_from < asked - self.sync_interval_s
+
+    def _sync(
+        self,
+        session: Session,
+        rider: AnySelect | None = None,
+        rider_params: Mapping[str, Any] | None = None,
+    ) -> tuple[Any, ...] | None:
         began = time.monotonic()
         if not self._started:
             self._start(session, began)
-        self._read_changes(session, began)
+        found = self._read_changes(session, began, rider, rider_params or {})
         self.syncs += 1
         self._synced_from = began
+        return found
 
-    def _read_changes(self, session: Session, now: float) -> None:
-        """New and missing rows and tombstones in one query; rows are applied first."""
+    def _read_changes(
+        self,
+        session: Session,
+        now: float,
+        rider: AnySelect | None,
+        rider_params: Mapping[str, Any],
+    ) -> tuple[Any, ...] | None:
+        """New and missing rows and tombstones (and `rider`'s row) in one query; rows are
+        applied first. Returns the row of `rider`, if any."""
         row_gaps = self._rows.wanted_gaps(now, self.gap_ttl_s)
         tomb_gaps = self._tombs.wanted_gaps(now, self.gap_ttl_s)
         params: dict[str, Any] = {"row_hwm": self._rows.hwm, "tomb_hwm": self._tombs.hwm}
@@ -154,10 +204,13 @@ class IndexStore:
             params["row_gaps"] = row_gaps
         if tomb_gaps:
             params["tomb_gaps"] = tomb_gaps
-        statement = _changes_statement(bool(row_gaps), bool(tomb_gaps))
+        statement = _changes_statement(bool(row_gaps), bool(tomb_gaps), rider)
+        if rider is not None:
+            params.update(rider_params)
         changes = session.connection().execute(statement, params).all()
         new_rows = [c for c in changes if c.kind == _ROW]
         tombstones = [c for c in changes if c.kind == _TOMBSTONE]
+        ridden = next((tuple(c)[_SYNC_COLUMNS:] for c in changes if c.kind == _RIDER), None)
         by_model: dict[str, list[Any]] = {}
         for row in new_rows:
             if row.model_id in self._indexes:
@@ -171,6 +224,7 @@ class IndexStore:
                 index.remove(np.array([tomb.ref], dtype=np.int64))
         self._rows.advance([int(r.id) for r in new_rows], now)
         self._tombs.advance([int(t.id) for t in tombstones], now)
+        return ridden
 
     def _load_model(self, session: Session, model: RobotModel) -> TrajectoryIndex:
         rows = session.execute(
@@ -235,9 +289,14 @@ class StatesCache:
 
 
 @functools.cache
-def _changes_statement(row_gaps: bool, tomb_gaps: bool) -> sa.CompoundSelect[Any]:
+def _changes_statement(
+    row_gaps: bool, tomb_gaps: bool, rider: AnySelect | None = None
+) -> sa.CompoundSelect[Any]:
     """Rows and tombstones above their high-water marks (`:row_hwm`, `:tomb_hwm`) or, when
-    asked, among the gaps (`:row_gaps`, `:tomb_gaps`); built once per shape."""
+    asked, among the gaps (`:row_gaps`, `:tomb_gaps`), and the row of `rider` if given (its
+    columns after the sync's, null in the other branches); built once per shape and rider."""
+    extra = list(rider.selected_columns) if rider is not None else []
+    blanks = [sa.cast(sa.null(), c.type).label(f"rider_{i}") for i, c in enumerate(extra)]
     rows = sa.select(
         sa.literal_column(str(_ROW), sa.Integer).label("kind"),
         Trajectory.id.label("id"),
@@ -245,6 +304,7 @@ def _changes_statement(row_gaps: bool, tomb_gaps: bool) -> sa.CompoundSelect[Any
         Trajectory.start.label("start"),
         Trajectory.goal.label("goal"),
         sa.cast(sa.null(), sa.BigInteger).label("ref"),
+        *blanks,
     ).where(_above_or_in(Trajectory.id, "row", row_gaps))
     tombs = sa.select(
         sa.literal_column(str(_TOMBSTONE), sa.Integer),
@@ -253,8 +313,21 @@ def _changes_statement(row_gaps: bool, tomb_gaps: bool) -> sa.CompoundSelect[Any
         sa.cast(sa.null(), Trajectory.start.type),
         sa.cast(sa.null(), Trajectory.goal.type),
         TrajectoryTombstone.trajectory_id,
+        *blanks,
     ).where(_above_or_in(TrajectoryTombstone.id, "tomb", tomb_gaps))
-    return sa.union_all(rows, tombs)
+    if rider is None:
+        return sa.union_all(rows, tombs)
+    ridden = rider.with_only_columns(
+        sa.literal_column(str(_RIDER), sa.Integer),
+        sa.cast(sa.null(), sa.BigInteger),
+        sa.cast(sa.null(), Trajectory.model_id.type),
+        sa.cast(sa.null(), Trajectory.start.type),
+        sa.cast(sa.null(), Trajectory.goal.type),
+        sa.cast(sa.null(), sa.BigInteger),
+        *extra,
+        maintain_column_froms=True,
+    )
+    return sa.union_all(rows, tombs, ridden)
 
 
 def _above_or_in(

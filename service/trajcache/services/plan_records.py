@@ -75,6 +75,8 @@ _USAGE = (
     )
 )
 
+_EVENTS = sa.insert(PlanEvent)
+
 
 @dataclass(frozen=True)
 class PlanRecord:
@@ -344,6 +346,12 @@ def _write(engine: Engine, records: Iterable[PlanRecord]) -> None:
     ]  # fmt: skip
     with engine.begin() as conn:
         if rows:
-            conn.execute(_USAGE, rows)
+            conn.execute(_USAGE, _one_or_many(rows))
         if events:
-            conn.execute(sa.insert(PlanEvent), events)
+            conn.execute(_EVENTS, _one_or_many(events))
+
+
+def _one_or_many(params: list[dict[str, Any]]) -> dict[str, Any] | list[dict[str, Any]]:
+    """A lone parameter set is executed as such: an executemany of one costs the driver more
+    (psycopg runs it as a pipeline with its own sync)."""
+    return params[0] if len(params) == 1 else params

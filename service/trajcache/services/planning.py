@@ -1,8 +1,9 @@
 """The plan flow (paper, section 3): lookup → adapt → validate → fallback → store → answer.
 
-A cache hit, the hot path, reads the database twice: the robot with its current scene version
-(parsed scenes are cached by hash), and one replica sync (what other replicas stored or deleted
-since the last sync; with `index_sync_interval_s=0` a sync that began after the request arrived).
+A cache hit, the hot path, reads the database once: the robot with its current scene version
+(parsed scenes are cached by hash), and in the same query the replica sync (what other replicas
+stored or deleted since the last sync; with `index_sync_interval_s=0` a sync that began after the
+request arrived).
 Candidates' key states come from a per-process cache (stored states never change), and so do
 their ranking facts while less than a second old (`services.ranking_facts`). The read
 transaction ends before validation, so no connection is held while checking collisions.
@@ -34,6 +35,7 @@ answer, until its record is committed.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from enum import Enum
@@ -116,6 +118,10 @@ class PlanAnswer:
     rejected: list[dict[str, object]] = field(default_factory=list)
     record: int | None = None  # sequence number of the bookkeeping in `ctx.records`, if queued
     memo: MemoUse | None = None  # how the served cached trajectory was validated
+    # What the answer was planned and validated in, so its extras (quality, timing) need not
+    # read the robot again; set by `plan` and `plan_in_scene`.
+    model: RobotModel | None = None
+    scene: Scene | None = None
 
 
 @dataclass
@@ -143,12 +149,19 @@ def plan(*, ctx: ServiceContext, robot_id: str, request: PlanRequest) -> PlanAns
     with ctx.sessions() as session:
         t = time.perf_counter()
         _read_without_transaction(session)
-        robot = robot_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
+        robot = robot_scene(  # one query, the replica sync riding along
+            session=session,
+            scenes=ctx.scenes,
+            robot_id=robot_id,
+            read_fn=functools.partial(ctx.indexes.read_with_sync, session),
+        )
         model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
         scene = robot.scene
         clock.db += time.perf_counter() - t
         origin = _Origin("planner", robot_id, real=robot.kind == "real")
-        return _plan_in_scene(session, ctx, robot_id, model, scene, request, origin, clock)
+        answer = _plan_in_scene(session, ctx, robot_id, model, scene, request, origin, clock)
+    answer.model, answer.scene = model, scene
+    return answer
 
 
 def plan_in_scene(
@@ -171,7 +184,9 @@ def plan_in_scene(
         model = get_model(session=session, registry=ctx.models, model_id=model_id)
         clock.db += time.perf_counter() - t
         origin = _Origin(store_as, None, real=False)
-        return _plan_in_scene(session, ctx, caller, model, scene, request, origin, clock)
+        answer = _plan_in_scene(session, ctx, caller, model, scene, request, origin, clock)
+    answer.model, answer.scene = model, scene
+    return answer
 
 
 def _plan_in_scene(

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -10,19 +9,14 @@ from enum import Enum
 from typing import Any
 
 import numpy as np
-import sqlalchemy as sa
 
 from trajcache.core.config import Settings
-from trajcache.db import models as tables
 from trajcache.geometry.robot import BaseType, RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
 from trajcache.geometry.validation import TrajectoryValidator, validator_for
 from trajcache.quality import Quality, ee_path_length, min_clearance, motion_bound, path_length
 from trajcache.services.context import ServiceContext
-from trajcache.services.errors import NotFoundError
-from trajcache.services.models import get_model
-from trajcache.services.robots import current_scene
 from trajcache.timing import (
     PathShape,
     Samples,
@@ -125,32 +119,32 @@ def trajectory_quality(
 def answer_details(
     *,
     ctx: ServiceContext,
-    robot_id: str,
+    model: RobotModel,
+    scene: Scene,
     states: FloatArray,
     timing: TimingRequest | None,
     level: QualityLevel,
 ) -> AnswerDetails:
     """Quality of an answered trajectory, and its timing when `timing` asks for it.
 
-    The basic level is cheap (about 0.1 ms): path lengths from the robot's model, which comes
-    from a short-lived per-process cache (`ROBOT_MODEL_TTL_S`). Timing and the full level read
-    the robot's model from the database, and its scene when a spline is to be certified or
-    clearance measured; they cost milliseconds.
+    `model` and `scene` are the ones the plan flow validated the answer with: nothing is read
+    again. The basic level is cheap (tens of microseconds: path lengths); timing and the full
+    level cost milliseconds (a spline is certified, clearance measured, in `scene`).
     """
     timed_wanted = timing is not None and timing.method is not TimingMethod.NONE
-    cheap = not timed_wanted and level is QualityLevel.BASIC
     began = time.perf_counter()
-    model = _robot_model(ctx, robot_id, cached=cheap)
     details = AnswerDetails(_basic(model, states), joint_names=model.state_names)
-    if cheap:
+    if not timed_wanted and level is QualityLevel.BASIC:
         details.timings_ms["quality"] = (time.perf_counter() - began) * 1e3
         return details
-    validator_fn = _scene_validator(ctx, robot_id, model)
+    validator = validator_for(model, scene, ctx.settings)
     duration = None
     if timed_wanted:
         assert timing is not None
         t = time.perf_counter()
-        details.timed = time_states(model, states, ctx.settings, timing, validator_fn=validator_fn)
+        details.timed = time_states(
+            model, states, ctx.settings, timing, validator_fn=lambda: validator
+        )
         details.samples = details.timed.sample(
             timing.sample_period_s, max_points=ctx.settings.timing_max_points
         )
@@ -160,10 +154,9 @@ def answer_details(
     if level is QualityLevel.FULL:
         if duration is None:
             default = time_states(
-                model, states, ctx.settings, TimingRequest(), validator_fn=validator_fn
+                model, states, ctx.settings, TimingRequest(), validator_fn=lambda: validator
             )
             duration = default.duration
-        validator = validator_fn()
         found = min_clearance(validator.checker, states, resolution=validator.resolution)
         clearance = None if found is None else found.distance
     details.quality = replace(details.quality, min_clearance=clearance, duration_s=duration)
@@ -172,71 +165,8 @@ def answer_details(
     return details
 
 
-def _scene_validator(
-    ctx: ServiceContext, robot_id: str, model: RobotModel
-) -> Callable[[], TrajectoryValidator]:
-    """A function giving the validator of the robot's current scene, read on first use."""
-    found: list[TrajectoryValidator] = []
-
-    def validator_fn() -> TrajectoryValidator:
-        if not found:
-            with ctx.sessions() as session:
-                _, scene, _ = current_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
-            found.append(validator_for(model, scene, ctx.settings))
-        return found[0]
-
-    return validator_fn
-
-
 def _basic(model: RobotModel, states: FloatArray) -> Quality:
     array = np.asarray(states, dtype=float)
     return Quality(
         path_length(array, planar=model.base is BaseType.PLANAR), ee_path_length(model, array)
     )
-
-
-ROBOT_MODEL_TTL_S = 5.0  # how long a robot's model id is trusted without a database lookup
-
-
-class _RobotModels:
-    """Per-process robot id → model id, each entry trusted for ROBOT_MODEL_TTL_S seconds.
-
-    Only informational metrics use it (a robot re-pointed to another model shows the old
-    model's path lengths for at most the TTL); timing and clearance always look the model up.
-    """
-
-    def __init__(self, capacity: int = 4096) -> None:
-        self._entries: dict[str, tuple[str, float]] = {}
-        self._capacity = capacity
-        self._lock = threading.Lock()
-
-    def get(self, robot_id: str) -> str | None:
-        with self._lock:
-            entry = self._entries.get(robot_id)
-        if entry is None or time.monotonic() - entry[1] > ROBOT_MODEL_TTL_S:
-            return None
-        return entry[0]
-
-    def put(self, robot_id: str, model_id: str) -> None:
-        with self._lock:
-            if len(self._entries) >= self._capacity:
-                self._entries.clear()
-            self._entries[robot_id] = (model_id, time.monotonic())
-
-
-_ROBOT_MODELS = _RobotModels()
-
-
-def _robot_model(ctx: ServiceContext, robot_id: str, *, cached: bool) -> RobotModel:
-    """The robot's model; from the short-lived cache only when `cached` (informational use)."""
-    model_id = _ROBOT_MODELS.get(robot_id) if cached else None
-    model = ctx.models.get(model_id) if model_id is not None else None
-    if model is not None:
-        return model
-    with ctx.sessions() as session:
-        found = session.scalar(sa.select(tables.Robot.model_id).where(tables.Robot.id == robot_id))
-        if found is None:
-            raise NotFoundError(f"robot {robot_id!r} not found")
-        model = get_model(session=session, registry=ctx.models, model_id=found)
-    _ROBOT_MODELS.put(robot_id, model.model_id)
-    return model

@@ -5,9 +5,9 @@ from __future__ import annotations
 import re
 import threading
 from collections import OrderedDict
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import sqlalchemy as sa
 from sqlalchemy.exc import IntegrityError
@@ -21,6 +21,9 @@ from trajcache.services.errors import (
     NotFoundError,
     PayloadTooLargeError,
 )
+
+if TYPE_CHECKING:
+    from trajcache.services.index_store import AnySelect
 
 ROBOT_ID_PATTERN = r"^[A-Za-z0-9._:-]{1,128}$"
 _ROBOT_ID = re.compile(ROBOT_ID_PATTERN)
@@ -137,9 +140,24 @@ class RobotScene:
     kind: str = "real"  # "real" or "sim"
 
 
-def robot_scene(*, session: Session, scenes: SceneCache, robot_id: str) -> RobotScene:
-    """The robot's model id and current scene; one query when the scene is cached."""
-    row = session.connection().execute(_ROBOT_SCENE, {"robot_id": robot_id}).one_or_none()
+def robot_scene(
+    *,
+    session: Session,
+    scenes: SceneCache,
+    robot_id: str,
+    read_fn: Callable[[AnySelect, Mapping[str, Any]], Sequence[Any] | None] | None = None,
+) -> RobotScene:
+    """The robot's model id and current scene; one query when the scene is cached.
+
+    `read_fn` runs that query (a select of at most one row, and its parameters) and returns its
+    row: the plan flow reads it together with the replica sync (`IndexStore.read_with_sync`).
+    """
+    params = {"robot_id": robot_id}
+    row: Sequence[Any] | None
+    if read_fn is None:
+        row = session.connection().execute(ROBOT_SCENE, params).one_or_none()
+    else:
+        row = read_fn(ROBOT_SCENE, params)
     if row is None:
         raise NotFoundError(f"robot {robot_id!r} not found")
     model_id, version, scene_hash, kind = row
@@ -170,7 +188,7 @@ def _current_version() -> sa.ColumnElement[bool]:
     )
 
 
-_ROBOT_SCENE = (  # built once: the plan flow runs it on every request
+ROBOT_SCENE: AnySelect = (  # built once: the plan flow runs it on every request
     sa.select(
         tables.Robot.model_id,
         tables.Robot.scene_version,

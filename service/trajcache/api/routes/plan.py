@@ -16,6 +16,7 @@ from trajcache.api.deps import CtxDep
 from trajcache.api.quality import JointTrajectory, TimingOptions, TrajectoryQuality, answer_extras
 from trajcache.api.responses import COMMON, errors
 from trajcache.core.config import Settings
+from trajcache.geometry.errors import GeometryError
 from trajcache.metrics import record_plan
 from trajcache.planning.problem import PLANNER_NAMES
 from trajcache.services.planning import PlanAnswer, PlanRequest, plan
@@ -157,8 +158,6 @@ def _bounded(
     value: float | int | None, default: float | int, settings: Settings, name: str, setting: str
 ) -> float:
     """`value` (or `default`), or a 422 when it is above the limit in `settings.<setting>`."""
-    from trajcache.geometry.errors import GeometryError
-
     chosen = default if value is None else value
     limit = getattr(settings, setting)
     if chosen > limit:
@@ -210,7 +209,12 @@ def plan_route(
     answer = plan(ctx=ctx, robot_id=robot_id, request=request)
     record_plan(answer)
     extras, extra_ms = answer_extras(
-        ctx=ctx, robot_id=robot_id, states=answer.states, timing=o.timing, quality=o.quality
+        ctx=ctx,
+        model=answer.model,
+        scene=answer.scene,
+        states=answer.states,
+        timing=o.timing,
+        quality=o.quality,
     )
     answer.timings_ms.update(extra_ms)
     # The answer is a PlanResponse by construction: serialized once, without a second validation.
