@@ -14,6 +14,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from trajcache.db import migrate
 from trajcache.db.models import PlanEvent, RobotModel, Trajectory, utcnow
 from trajcache.db.session import make_engine, make_sessionmaker
+from trajcache.services import plan_records
 from trajcache.services.plan_records import PlanRecord, PlanRecorder
 
 
@@ -190,6 +191,46 @@ def test_records_wait_in_order_until_the_database_is_back(tmp_path: Path) -> Non
     assert recorder.stats().dropped == 0
     recorder.close()
     engine.dispose()
+
+
+def test_a_write_whose_commit_answer_was_lost_is_not_counted_twice(
+    engine: sa.Engine, sessions: sessionmaker[Session], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    real_write = plan_records._write
+    lost: list[int] = []
+
+    def commit_then_lose_the_answer(bind: sa.Engine, records: object) -> None:
+        real_write(bind, records)  # type: ignore[arg-type]
+        if not lost:  # the first COMMIT reaches the database, its answer does not
+            lost.append(1)
+            raise sa.exc.OperationalError("COMMIT", {}, Exception("server closed the connection"))
+
+    monkeypatch.setattr(plan_records, "_write", commit_then_lose_the_answer)
+    recorder = PlanRecorder(engine, retry_max_s=0.05, linger_s=0.05)
+    for r in (record(1), record(2, (1,))):
+        recorder.submit(r)
+    assert recorder.flush(timeout=10)
+    recorder.close()
+    assert lost == [1]
+    assert usage(sessions) == {1: (1, 1, 1), 2: (1, 0, 0), 3: (0, 0, 0)}
+    assert [e.trajectory_id for e in events(sessions)] == [1, 2]
+    assert recorder.stats().dropped == 0
+
+
+def test_every_written_event_has_its_own_record_key(
+    engine: sa.Engine, sessions: sessionmaker[Session]
+) -> None:
+    recorder = PlanRecorder(engine, linger_s=0.0)
+    for r in (record(1), record(None), record(3)):
+        recorder.submit(r)
+    recorder.close()
+    keys = [e.record_key for e in events(sessions)]
+    assert len(keys) == 3 and None not in keys and len(set(keys)) == 3
+    with pytest.raises(sa.exc.IntegrityError), engine.begin() as conn:  # the key is unique
+        conn.execute(
+            sa.insert(PlanEvent),
+            {**record(1).event, "created_at": utcnow(), "record_key": keys[0]},
+        )
 
 
 def test_the_queue_is_bounded_while_the_database_is_away(tmp_path: Path) -> None:

@@ -244,6 +244,7 @@ class PlanEvent(Base):
         Index("ix_plan_events_model_id_created_at", "model_id", "created_at"),
         Index("ix_plan_events_status_created_at", "status", "created_at"),
         Index("ix_plan_events_trajectory_id_created_at", "trajectory_id", "created_at"),
+        Index("uq_plan_events_record_key", "record_key", unique=True),
         {"sqlite_autoincrement": True},
     )
 
@@ -261,6 +262,9 @@ class PlanEvent(Base):
     plan_ms: Mapped[float] = mapped_column(Float, default=0.0)
     total_ms: Mapped[float] = mapped_column(Float, default=0.0)
     error: Mapped[str | None] = mapped_column(String(500))
+    # Set by the background bookkeeping writer: a write retried after its COMMIT reached the
+    # database (only the answer was lost) is recognised by it instead of being counted twice.
+    record_key: Mapped[str | None] = mapped_column(String(32))
 
 
 class PlanEventRollup(Base):

@@ -15,6 +15,9 @@ the HTTP layer awaits once the answer is sent), at shutdown, or when the batch i
 Reliability:
 - a transaction that fails is rolled back and retried with backoff; its records stay at the head
   of the queue, so nothing is reordered or skipped while the database is busy or away;
+- a retry is never counted twice: each record's event carries a unique key (`record_key`), and
+  before writing a batch again the writer looks for its first key, since a COMMIT can reach the
+  database while its answer is lost (the connection dropped);
 - a batch the database rejects for its data is retried record by record, and only a record that
   fails on its own is dropped (logged and counted);
 - :meth:`PlanRecorder.close` (service shutdown) writes everything still queued before it returns,
@@ -34,6 +37,7 @@ import itertools
 import logging
 import threading
 import time
+import uuid
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -87,6 +91,7 @@ class PlanRecord:
     failed: tuple[int, ...]  # cached candidates that failed validation
     event: Mapping[str, Any]  # plan_events column values (without id and created_at)
     real: bool = False  # served to a real robot: counts as a real-world validation
+    key: str = field(default_factory=lambda: uuid.uuid4().hex)  # its event's record_key
 
 
 @dataclass(frozen=True)
@@ -300,6 +305,9 @@ class PlanRecorder:
         failing = False
         while True:
             try:
+                if failing and _committed(self._engine, batch[0][1]):
+                    _log.info("plan records: the failed write had been committed")
+                    return 0
                 _write(self._engine, (record for _, record in batch))
             except (DataError, IntegrityError) as exc:
                 if len(batch) == 1:
@@ -338,7 +346,7 @@ def _write(engine: Engine, records: Iterable[PlanRecord]) -> None:
             if record.real:
                 u.real += 1
                 u.real_at = record.at
-        events.append({**record.event, "created_at": record.at})
+        events.append({**record.event, "created_at": record.at, "record_key": record.key})
     rows = [
         {"b_id": i, "b_hits": u.hits, "b_failures": u.failures, "b_served": u.served_at is not None,
          "b_streak": u.streak, "b_at": u.served_at, "b_real": u.real, "b_real_at": u.real_at}
@@ -349,6 +357,17 @@ def _write(engine: Engine, records: Iterable[PlanRecord]) -> None:
             conn.execute(_USAGE, _one_or_many(rows))
         if events:
             conn.execute(_EVENTS, _one_or_many(events))
+
+
+def _committed(engine: Engine, record: PlanRecord) -> bool:
+    """Whether `record` is in the database: its batch's transaction was committed (a batch is
+    written whole or not at all)."""
+    with engine.connect() as conn:
+        found = conn.execute(_KEY_FOUND, {"key": record.key}).first()
+    return found is not None
+
+
+_KEY_FOUND = sa.select(PlanEvent.id).where(PlanEvent.record_key == sa.bindparam("key"))
 
 
 def _one_or_many(params: list[dict[str, Any]]) -> dict[str, Any] | list[dict[str, Any]]:
