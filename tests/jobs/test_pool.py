@@ -210,6 +210,19 @@ def test_crashed_worker_gives_an_error_and_the_pool_recovers(
     assert (stats.crashes, stats.recycles, stats.queue_depth) == (1, 1, 0)
 
 
+def test_an_interrupt_sent_to_the_workers_is_left_to_the_service(
+    pool: PlannerPool, tmp_path: Path
+) -> None:
+    # Ctrl-C in a terminal signals the whole process group, the planning workers included
+    pid = int(pool.submit(make_problem(tmp_path)).stats["pid"])
+    os.kill(pid, signal.SIGINT)
+    time.sleep(0.5)
+    assert pid_alive(pid)
+    after = [pool.submit(make_problem(tmp_path, scene=f"after-{i}")) for i in range(4)]
+    assert all(r.solved for r in after), [r.message for r in after]
+    assert pool.stats().crashes == 0
+
+
 def test_worker_killed_mid_request(pool: PlannerPool, tmp_path: Path) -> None:
     pid_file = tmp_path / "pid"
     problem = make_problem(tmp_path, budget_s=20.0, sleep=20.0, pid_file=pid_file)

@@ -11,6 +11,7 @@ import contextlib
 import importlib
 import math
 import multiprocessing
+import signal
 import sys
 import threading
 import time
@@ -245,6 +246,12 @@ class PlannerPool:
         self.close()
 
 
+def _ignore_interrupts() -> None:
+    """Runs first in every worker: Ctrl-C reaches the whole process group, but only the service
+    decides when its workers stop (it stops them when it shuts down)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _warm_up(task_fn: TaskFn) -> None:
     """Runs in a fresh worker: unpickling `task_fn` has imported its module."""
 
@@ -294,7 +301,9 @@ class LocalBackend:
         self._generation: _Generation | None = self._new_generation()
 
     def _new_generation(self) -> _Generation:
-        executor = ProcessPoolExecutor(max_workers=self.processes, mp_context=self._context)
+        executor = ProcessPoolExecutor(
+            max_workers=self.processes, mp_context=self._context, initializer=_ignore_interrupts
+        )
         # Start the workers (and import the task's module) now, not on the first request.
         warm_ups = [executor.submit(_warm_up, self.task_fn) for _ in range(self.processes)]
         return _Generation(executor, threading.BoundedSemaphore(self.processes), warm_ups)
