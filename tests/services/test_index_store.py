@@ -69,6 +69,12 @@ def test_a_rider_reads_its_row_with_the_sync_and_the_index_then_needs_no_query(u
         with b.session() as session:  # a later request syncs again (interval 0)
             b.indexes.index(session, model)
         assert b.indexes.syncs == before + 3
+        with b.session() as session:  # so does a later one in a reused session
+            b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid})
+            b.indexes.index(session, model)
+            time.sleep(0.01)
+            b.indexes.index(session, model)
+        assert b.indexes.syncs == before + 5
 
 
 def test_a_rider_alone_is_read_when_no_sync_is_due(url: str) -> None:

@@ -105,10 +105,11 @@ class IndexStore:
     def index(self, session: Session, model: RobotModel) -> TrajectoryIndex:
         """The model's index, after picking up what other replicas wrote.
 
-        What they wrote before the request arrived: when `read_with_sync` ran in this session,
-        its time, else now.
+        What they wrote before the request arrived: when `read_with_sync` ran in this session
+        (the time is used once, so a session reused for another request syncs afresh), its
+        time, else now.
         """
-        asked = session.info.get(_ARRIVED) or time.monotonic()
+        asked = session.info.pop(_ARRIVED, None) or time.monotonic()
         with self._lock:
             if self._sync_due(asked):
                 self._sync(session)
