@@ -57,21 +57,27 @@ def test_a_rider_reads_its_row_with_the_sync_and_the_index_then_needs_no_query(u
             b.indexes.index(session, model)  # b has loaded the model's index
         fresh = store(a, model, [[0.4, 0.0], [1.0, 0.5]])  # committed before b's request
         before = b.indexes.syncs
+        arrived = time.monotonic()
         with b.session() as session, count_statements(b.engine) as statements:
-            row = b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid})
-            index = b.indexes.index(session, model)
+            row = b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived)
+            index = b.indexes.index(session, model, arrived=arrived)
         assert len(statements) == 1, statements
         assert b.indexes.syncs == before + 1
         assert row is not None and row[0] == model.model_id
         assert fresh in index
         with b.session() as session:
-            assert b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": "ghost"}) is None
+            ghost = {"robot_id": "ghost"}
+            assert (
+                b.indexes.read_with_sync(session, ROBOT_SCENE, ghost, arrived=time.monotonic())
+                is None
+            )
         with b.session() as session:  # a later request syncs again (interval 0)
             b.indexes.index(session, model)
         assert b.indexes.syncs == before + 3
         with b.session() as session:  # so does a later one in a reused session
-            b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid})
-            b.indexes.index(session, model)
+            arrived = time.monotonic()
+            b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived)
+            b.indexes.index(session, model, arrived=arrived)
             time.sleep(0.01)
             b.indexes.index(session, model)
         assert b.indexes.syncs == before + 5
@@ -85,8 +91,11 @@ def test_a_rider_alone_is_read_when_no_sync_is_due(url: str) -> None:
             ctx.indexes.index(session, model)
         before = ctx.indexes.syncs
         with ctx.session() as session, count_statements(ctx.engine) as statements:
-            row = ctx.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid})
-            ctx.indexes.index(session, model)
+            arrived = time.monotonic()
+            row = ctx.indexes.read_with_sync(
+                session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived
+            )
+            ctx.indexes.index(session, model, arrived=arrived)
         assert ctx.indexes.syncs == before
         assert len(statements) == 1 and "trajectory_tombstones" not in statements[0]
         assert row is not None and row[0] == model.model_id

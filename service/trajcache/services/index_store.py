@@ -16,8 +16,8 @@ began after the plan arrived (so it sees every row committed before); requests t
 a sync runs share the next one instead of queueing one each.
 
 A plan's own first read (its robot and scene) can ride along as one more branch of that query
-(`read_with_sync`): a cache hit then needs one round trip before lookup, not two. The session
-remembers when its request arrived, so the `index` call that follows does not sync again.
+(`read_with_sync`): a cache hit then needs one round trip before lookup, not two. Both calls are
+given the time the request arrived, so the `index` call that follows does not sync again.
 
 Key states of candidates are kept in a byte-bounded LRU (`states`): a trajectory's states never
 change after it is stored, and a deleted one leaves the cache with its tombstone.
@@ -51,7 +51,6 @@ _STARTUP_WINDOW = 10_000  # ids below the first high-water mark that may still b
 _MAX_GAPS = 100_000
 _ROW, _TOMBSTONE, _RIDER = 0, 1, 2
 _SYNC_COLUMNS = 6  # kind, id, model_id, start, goal, ref: a rider's columns follow them
-_ARRIVED = "trajcache.index_store.arrived"  # session.info: when its request arrived (monotonic)
 
 
 @dataclass
@@ -102,14 +101,12 @@ class IndexStore:
         self._lock = threading.Lock()
         self._states = StatesCache(states_cache_bytes)
 
-    def index(self, session: Session, model: RobotModel) -> TrajectoryIndex:
-        """The model's index, after picking up what other replicas wrote.
-
-        What they wrote before the request arrived: when `read_with_sync` ran in this session
-        (the time is used once, so a session reused for another request syncs afresh), its
-        time, else now.
-        """
-        asked = session.info.pop(_ARRIVED, None) or time.monotonic()
+    def index(
+        self, session: Session, model: RobotModel, *, arrived: float | None = None
+    ) -> TrajectoryIndex:
+        """The model's index, after picking up what other replicas wrote before the request
+        arrived (`time.monotonic()`; default now)."""
+        asked = time.monotonic() if arrived is None else arrived
         with self._lock:
             if self._sync_due(asked):
                 self._sync(session)
@@ -119,19 +116,16 @@ class IndexStore:
             return index
 
     def read_with_sync(
-        self, session: Session, rider: AnySelect, params: Mapping[str, Any]
+        self, session: Session, rider: AnySelect, params: Mapping[str, Any], *, arrived: float
     ) -> tuple[Any, ...] | None:
-        """The row of `rider` (a query of at most one row), read together with the sync a plan
-        needs when one is due: one query instead of two.
+        """The row of `rider` (a query of at most one row), read together with the sync that a
+        request which arrived at `arrived` (`time.monotonic()`) needs: one query instead of two.
 
         `rider` is one more UNION ALL branch of the sync query (no ORDER BY or LIMIT of its own),
-        so it reads the same snapshot. The session remembers when this request arrived: `index`
-        in the same session then needs no sync of its own.
+        so it reads the same snapshot. `index(..., arrived=arrived)` then needs no sync of its own.
         """
-        asked = time.monotonic()
-        session.info[_ARRIVED] = asked
         with self._lock:
-            if self._sync_due(asked):
+            if self._sync_due(arrived):
                 return self._sync(session, rider, params)
         row = session.connection().execute(rider, params).one_or_none()
         return None if row is None else tuple(row)

@@ -127,6 +127,7 @@ class PlanAnswer:
 @dataclass
 class _Clock:
     began: float = field(default_factory=time.perf_counter)
+    arrived: float = field(default_factory=time.monotonic)  # what replica syncs must cover
     lookup: float = 0.0
     validate: float = 0.0
     plan: float = 0.0
@@ -153,7 +154,7 @@ def plan(*, ctx: ServiceContext, robot_id: str, request: PlanRequest) -> PlanAns
             session=session,
             scenes=ctx.scenes,
             robot_id=robot_id,
-            read_fn=functools.partial(ctx.indexes.read_with_sync, session),
+            read_fn=functools.partial(ctx.indexes.read_with_sync, session, arrived=clock.arrived),
         )
         model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
         scene = robot.scene
@@ -213,7 +214,8 @@ def _plan_in_scene(
     clock.db += time.perf_counter() - t
 
     t = time.perf_counter()
-    index = ctx.indexes.index(session, model)  # one query: what other replicas wrote
+    # what other replicas wrote before the request arrived (no query if `plan` read it already)
+    index = ctx.indexes.index(session, model, arrived=clock.arrived)
     clock.db += time.perf_counter() - t
 
     t = time.perf_counter()
