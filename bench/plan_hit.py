@@ -105,7 +105,6 @@ def fill_cache(client: httpx.Client, model_id: str, run: CleaningRun, calls: int
         urdf=reference_urdf(),
         base="planar",
         joint_names=tuple(model.state_names[3:]),
-        allowed_pairs=tuple(sorted(model.allowed_pairs)),
     )
     stored = 0
     for call in run.calls[:calls]:

@@ -101,7 +101,6 @@ def run_pairs(
         urdf=reference_urdf(),
         base=model.base.value,
         joint_names=model.joint_names,
-        allowed_pairs=tuple(sorted(model.allowed_pairs)),
     )
     sources = {h: SceneSource(h, scene_to_payload(s)) for h, s in scenes.items()}
     results = []

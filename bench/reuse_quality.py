@@ -196,7 +196,6 @@ def main() -> None:
         urdf=reference_urdf(),
         base=REFERENCE_BASE,
         joint_names=model.joint_names,
-        allowed_pairs=tuple(sorted(model.allowed_pairs)),
     )
     runs = [cleaning_run(args.seed), cleaning_run(args.seed + 1)]
 

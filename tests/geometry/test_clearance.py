@@ -72,7 +72,7 @@ def _box_distance(points: FloatArray, box: SceneObject) -> float:
 
 
 def test_fcl_distance_is_not_trusted_where_it_is_wrong() -> None:
-    model = load_robot_model(BLOCK_URDF, acm_samples=0)
+    model = load_robot_model(BLOCK_URDF)
     pose = np.eye(4)
     pose[:3, :3], pose[:3, 3] = BAD_ROTATION, BAD_POSITION
     cylinder = Shape(ShapeKind.CYLINDER, (0.045, 0.19))

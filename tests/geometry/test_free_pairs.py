@@ -38,7 +38,7 @@ FOLD_URDF = """<?xml version="1.0"?>
 
 
 def _fold(limit: float) -> RobotModel:
-    return load_robot_model(FOLD_URDF.format(limit=limit), acm_samples=0)
+    return load_robot_model(FOLD_URDF.format(limit=limit))
 
 
 def _links(robot: RobotGeometry, pairs: list[tuple[int, int]]) -> set[tuple[str, str]]:
@@ -89,8 +89,8 @@ def test_near_the_limit_where_the_pair_starts_touching_only_the_touching_side_is
 def test_dropped_pairs_of_the_reference_robot_never_collide_within_the_limits(seed: int) -> None:
     model = reference_model()
     robot = robot_geometry(model)
-    assert _links(robot, robot.proven_free) == {("link5", "link7")}  # the wrist pair
-    posed = Posed.build(robot, _random_states(model, 20_000, seed))
+    assert ("link5", "link7") in _links(robot, robot.proven_free)  # the wrist pair
+    posed = Posed.build(robot, _random_states(model, 5_000, seed))
     poses = posed.elements
     request = fcl.DistanceRequest()
     for i, j in robot.proven_free:

@@ -40,7 +40,7 @@ def _random_states(model: RobotModel, n: int, rng: np.random.Generator) -> Float
 
 
 def test_fk_matches_yourdfpy() -> None:
-    model = load_robot_model(ARM, acm_samples=0)
+    model = load_robot_model(ARM)
     reference = URDF.load(str(ARM_PATH), build_scene_graph=True, load_meshes=False)
     states = _random_states(model, 60, np.random.default_rng(1))
     tf = link_transforms(model, states)
@@ -53,7 +53,7 @@ def test_fk_matches_yourdfpy() -> None:
 
 
 def test_fk_holds_non_planning_joints_at_their_default() -> None:
-    model = load_robot_model(ARM, joint_names=["j1", "j2"], acm_samples=0)
+    model = load_robot_model(ARM, joint_names=["j1", "j2"])
     reference = URDF.load(str(ARM_PATH), build_scene_graph=True, load_meshes=False)
     reference.update_cfg({"j1": 0.4, "j2": -1.0, "j4": 0.0, "slide": 0.0, "flag_joint": 0.2})
     tf = link_transforms(model, [0.4, -1.0])
@@ -63,7 +63,7 @@ def test_fk_holds_non_planning_joints_at_their_default() -> None:
 
 
 def test_planar_base_fk_by_hand() -> None:
-    model = load_robot_model(PLANAR_URDF, base="planar", acm_samples=0)
+    model = load_robot_model(PLANAR_URDF, base="planar")
     x, y, theta, q = 1.0, 2.0, math.pi / 2, math.pi / 4
     tf = link_transforms(model, np.array([x, y, theta, q]))[0]
     c, s = math.cos(theta + q), math.sin(theta + q)
@@ -74,7 +74,7 @@ def test_planar_base_fk_by_hand() -> None:
 
 
 def test_element_transforms_compose_link_and_origin() -> None:
-    model = load_robot_model(ARM, base="planar", acm_samples=0)
+    model = load_robot_model(ARM, base="planar")
     states = _random_states(model, 5, np.random.default_rng(2))
     links = link_transforms(model, states)
     elements = element_transforms(model, links)
@@ -84,7 +84,7 @@ def test_element_transforms_compose_link_and_origin() -> None:
 
 
 def test_check_states_names_the_problem() -> None:
-    model = load_robot_model(ARM, base="planar", acm_samples=0)
+    model = load_robot_model(ARM, base="planar")
     with pytest.raises(StateError, match=r"start has 7 values, expected 8 \(base_x, base_y"):
         check_states(model, np.zeros(7), name="start")
     with pytest.raises(StateError, match="each state has 9 values"):
@@ -103,7 +103,7 @@ def test_check_states_names_the_problem() -> None:
 
 
 def test_check_limits_names_joints_and_wraps_theta() -> None:
-    model = load_robot_model(ARM, base="planar", acm_samples=0)
+    model = load_robot_model(ARM, base="planar")
     ok = np.array([100.0, -50.0, 12.0, 0.0, 0.0, 0.0, 0.0, 0.5])
     check_limits(model, ok)
     bad = ok.copy()
@@ -138,7 +138,7 @@ def _local_points(model: RobotModel) -> list[FloatArray]:
 
 @pytest.mark.parametrize("base", ["fixed", "planar"])
 def test_link_motion_bounds_hold_empirically(base: str) -> None:
-    model = load_robot_model(ARM, base=base, acm_samples=0)
+    model = load_robot_model(ARM, base=base)
     bounds = link_motion_bounds(model)
     assert bounds.shape == (len(model.link_names), model.dof)
     assert not bounds[model.link_names.index("camera_link")].any()  # no geometry
@@ -162,7 +162,7 @@ def test_link_motion_bounds_hold_empirically(base: str) -> None:
 
 
 def test_link_motion_bounds_only_count_ancestors() -> None:
-    model = load_robot_model(ARM, acm_samples=0)
+    model = load_robot_model(ARM)
     bounds = link_motion_bounds(model)
     flag = model.link_names.index("flag")
     tool = model.link_names.index("tool")
@@ -185,7 +185,7 @@ TIGHT_URDF = """<robot name="t">
 
 @pytest.mark.parametrize("moving", [2, 3, 4])
 def test_link_motion_bounds_are_tight_at_full_extension(moving: int) -> None:
-    model = load_robot_model(TIGHT_URDF, base="planar", acm_samples=0)
+    model = load_robot_model(TIGHT_URDF, base="planar")
     bounds = link_motion_bounds(model)
     np.testing.assert_allclose(bounds[2], [1.0, 1.0, 0.9, 0.9, 1.0])
     start = np.array([0.0, 0.0, 0.0, 0.2, 0.5])

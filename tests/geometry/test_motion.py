@@ -67,7 +67,7 @@ def _levers(
 
 @pytest.mark.parametrize("base", ["fixed", "planar"])
 def test_no_point_moves_farther_than_its_bound(base: str) -> None:
-    model = load_robot_model(ARM, base=base, acm_samples=0)
+    model = load_robot_model(ARM, base=base)
     bounds = motion_bounds(model)
     rng = np.random.default_rng(3)
     a, b = _segments(model, rng, 60)
@@ -127,7 +127,7 @@ def test_pairs_only_count_the_dofs_between_them() -> None:
 
 
 def test_a_ball_around_a_point_moves_at_most_lever_plus_radius_times_turn() -> None:
-    model = load_robot_model(ARM, base="planar", acm_samples=0)
+    model = load_robot_model(ARM, base="planar")
     bounds = motion_bounds(model)
     rng = np.random.default_rng(5)
     a, b = _segments(model, rng, 40)

@@ -54,7 +54,7 @@ def make_problem(
     scene: str = "scene-a",
     **script: Any,
 ) -> PlanningProblem:
-    model = ModelSource("model-1", "<robot name='r'/>", "fixed", ("j1", "j2"), ())
+    model = ModelSource("model-1", "<robot name='r'/>", "fixed", ("j1", "j2"))
     payload = {"log": str(tmp_path / f"{scene}.log"), **script}
     return PlanningProblem(model, SceneSource(scene, payload), start, goal, budget_s=budget_s)
 
@@ -85,7 +85,7 @@ WALL = {
 
 def two_link_problem(goal: tuple[float, float]) -> PlanningProblem:
     """A real problem for `run_planning`: a planar two-link arm next to a wall."""
-    model = ModelSource("two-link", TWO_LINK_URDF, "fixed", ("shoulder", "elbow"), ())
+    model = ModelSource("two-link", TWO_LINK_URDF, "fixed", ("shoulder", "elbow"))
     return PlanningProblem(model, SceneSource("wall", WALL), (0.0, 0.0), goal, budget_s=2.0)
 
 

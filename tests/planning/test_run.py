@@ -36,7 +36,6 @@ def problem() -> PlanningProblem:
         urdf=reference_urdf(),
         base=model.base.value,
         joint_names=model.joint_names,
-        allowed_pairs=tuple(sorted(model.allowed_pairs)),
     )
     return PlanningProblem(
         model=source,

@@ -64,7 +64,7 @@ BRANCHED_URDF = """<?xml version="1.0"?>
 
 @pytest.fixture(scope="module")
 def branched() -> RobotModel:
-    return load_robot_model(BRANCHED_URDF, base="planar", acm_samples=0)
+    return load_robot_model(BRANCHED_URDF, base="planar")
 
 
 def test_path_length_takes_the_base_angle_the_short_way() -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import uuid
 from collections.abc import Sequence
 from typing import Any
 
@@ -17,6 +18,7 @@ from sqlalchemy.exc import (
     OperationalError,
 )
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from trajcache.geometry.errors import GeometryError
 from trajcache.services.errors import (
@@ -131,5 +133,40 @@ async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
 
 
 async def _unexpected_error(request: Request, exc: Exception) -> JSONResponse:
-    logger.error("unhandled error in %s %s", request.method, request.url.path, exc_info=exc)
-    return _detail(500, "internal server error")
+    return _internal_error(request.method, request.url.path, exc)
+
+
+def _internal_error(method: str, path: str, exc: BaseException) -> JSONResponse:
+    error_id = uuid.uuid4().hex[:12]
+    logger.error("unhandled error %s in %s %s", error_id, method, path, exc_info=exc)
+    return _detail(500, f"internal server error (error id {error_id})", error_id=error_id)
+
+
+class UnexpectedErrorMiddleware:
+    """Answers an exception no handler took with a 500 that carries an error id (also logged
+    with the traceback), instead of letting it reach the server: the server would then close
+    the keep-alive connection, and the client's next request on it would get no answer. An
+    exception after the response has started cannot be answered and is raised as before."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def tracked(message: Message) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+            await send(message)
+
+        try:
+            await self.app(scope, receive, tracked)
+        except Exception as exc:
+            if started:
+                raise
+            response = _internal_error(scope.get("method", ""), scope.get("path", ""), exc)
+            await response(scope, receive, send)

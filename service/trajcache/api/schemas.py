@@ -11,6 +11,7 @@ from trajcache.services.robots import ROBOT_ID_PATTERN
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 BaseName = Literal["fixed", "planar"]
+FiniteNumber = Annotated[float, Field(allow_inf_nan=False)]
 SourceName = Literal["real", "sim", "import", "planner"]
 ModelId = Annotated[str, Field(min_length=1, max_length=64)]
 RobotId = Annotated[str, Field(pattern=ROBOT_ID_PATTERN)]
@@ -113,9 +114,34 @@ class RobotModelIn(BaseModel):
     )
 
     urdf: str = Field(min_length=1, description="URDF XML text (no DOCTYPE/ENTITY).")
+    srdf: str | None = Field(
+        default=None,
+        min_length=1,
+        description="SRDF XML text: its `disable_collisions` pairs are not checked, its "
+        "`group_state`s become named states, and `group` picks one of its groups.",
+    )
     base: BaseName = Field(default="fixed", description="'planar' adds x, y, θ base states.")
     joint_names: list[Annotated[str, Field(min_length=1, max_length=200)]] | None = Field(
-        default=None, max_length=512, description="Planning joints (default: all movable)."
+        default=None,
+        max_length=512,
+        description="Planning joints (default: the SRDF `group`'s, else every movable joint "
+        "that does not mimic another).",
+    )
+    group: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=200,
+        description="An SRDF group whose movable joints are the planning joints.",
+    )
+    joint_values: (
+        dict[Annotated[str, Field(min_length=1, max_length=200)], FiniteNumber]
+        | Annotated[str, Field(min_length=1, max_length=200)]
+        | None
+    ) = Field(
+        default=None,
+        description="Values of joints held outside the planning joints (e.g. a gripper's "
+        "opening), by joint name or as the name of an SRDF group_state; others are held at 0 "
+        "within their limits, and mimic joints follow their leader. Part of the model id.",
     )
     name: str | None = Field(default=None, min_length=1, max_length=200)
     archive_base64: str | None = Field(
@@ -141,6 +167,17 @@ class RobotModelIn(BaseModel):
     )
 
 
+class SkippedPairOut(BaseModel):
+    """A pair of links whose self-collisions are not checked."""
+
+    links: tuple[str, str]
+    reason: Literal["adjacent", "rigid", "proven", "srdf"] = Field(
+        description="'adjacent': in one rigid body or joined by a joint; 'rigid': no planning "
+        "joint moves one relative to the other; 'proven': proven apart within the joint limits; "
+        "'srdf': disabled by the SRDF."
+    )
+
+
 class RobotModelOut(BaseModel):
     """A registered model; `created` is false when the same content was registered before."""
 
@@ -152,6 +189,16 @@ class RobotModelOut(BaseModel):
     base: BaseName
     state_names: list[str]
     created: bool
+    skipped_pairs: list[SkippedPairOut] = Field(
+        default_factory=list, description="Self-collision pairs that are not checked, and why."
+    )
+    held_joints: dict[str, float] = Field(
+        default_factory=dict, description="Joints outside the planning joints and their values."
+    )
+    named_states: dict[str, list[float]] = Field(
+        default_factory=dict,
+        description="SRDF group states usable as a plan's start or goal: planning joint values.",
+    )
 
 
 class ModelFileOut(BaseModel):
@@ -211,6 +258,16 @@ class RobotModelDetail(RobotModelSummary):
         default=None, description="The link whose path is the end-effector path."
     )
     files: list[ModelFileOut]
+    skipped_pairs: list[SkippedPairOut] = Field(
+        default_factory=list, description="Self-collision pairs that are not checked, and why."
+    )
+    held_joints: dict[str, float] = Field(
+        default_factory=dict, description="Joints outside the planning joints and their values."
+    )
+    named_states: dict[str, list[float]] = Field(
+        default_factory=dict,
+        description="SRDF group states usable as a plan's start or goal: planning joint values.",
+    )
 
 
 class RobotModelPage(BaseModel):

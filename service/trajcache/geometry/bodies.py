@@ -98,6 +98,22 @@ class RobotGeometry:
         self.pair_i, self.pair_j = self.pair_i[keep], self.pair_j[keep]
         self.pair_mask = self.pair_mask[keep]
 
+    def skipped_link_pairs(self) -> list[tuple[str, str, str]]:
+        """Every link pair whose self-collisions are not checked, with the reason: the model's
+        (`adjacent`, `rigid`, `srdf`), or `proven` when every element pair of the two links was
+        proven free (`drop_pairs`)."""
+        names = self.model.link_names
+        out = [(names[a], names[b], why) for (a, b), why in sorted(self.model.pair_reasons.items())]
+        link = self.element_link
+
+        def links(i: int, j: int) -> tuple[int, int]:
+            a, b = int(link[i]), int(link[j])
+            return min(a, b), max(a, b)
+
+        checked = {links(i, j) for i, j in zip(self.pair_i, self.pair_j, strict=True)}
+        proven = {links(i, j) for i, j in self.proven_free} - checked
+        return out + [(names[a], names[b], "proven") for a, b in sorted(proven)]
+
     def objects(self) -> list[fcl.CollisionObject]:
         """This thread's FCL objects (transforms are mutated during a check)."""
         objs: list[fcl.CollisionObject] | None = getattr(self._local, "objects", None)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import weakref
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,6 +102,50 @@ def _ragged_message(states: object, name: str, dof: int, expected: str) -> str:
             if isinstance(values, (list, tuple)) and len(values) != dof:
                 return f"{name} {row} has {len(values)} values, {expected}"
     return f"{name} must be a list of numbers, or a list of such lists ({expected})"
+
+
+HELD_TOLERANCE = 1e-6  # how far a held joint's value in a named-joint state may be off
+
+
+StateInput = ArrayLike | Mapping[str, float] | str
+
+
+def resolve_state(model: RobotModel, value: StateInput, *, name: str = "state") -> ArrayLike:
+    """A state given as values in `state_names` order, as a {joint name: value} map, or as the
+    name of one of the model's named states (SRDF group states), as values in order.
+
+    A map needs every state name; it may also give joints held outside the planning joints,
+    whose values must then be the held ones. StateError names what does not fit.
+    """
+    if isinstance(value, str):
+        if value not in model.named_states:
+            known = sorted(model.named_states)
+            raise StateError(f"{name}: no named state {value!r}; the model has {known}")
+        if model.arm_offset:
+            raise StateError(
+                f"{name}: a named state gives the planning joints only; a planar base needs "
+                f"base_x, base_y and base_theta too: send a map of {', '.join(model.state_names)}"
+            )
+        return list(model.named_states[value])
+    if not isinstance(value, Mapping):
+        return value
+    names = model.state_names
+    if missing := [n for n in names if n not in value]:
+        raise StateError(f"{name} lacks {', '.join(missing)} (expected {', '.join(names)})")
+    for joint, given in value.items():
+        if joint in names:
+            continue
+        held = model.held_values.get(joint)
+        if held is None:
+            raise StateError(
+                f"{name}: {joint!r} is neither a state name ({', '.join(names)}) nor a held joint"
+            )
+        if not abs(float(given) - held) <= HELD_TOLERANCE:
+            raise StateError(
+                f"{name}: {joint} = {float(given):.6g}, but the model holds it at {held:.6g} "
+                "(held joints are set at registration)"
+            )
+    return [value[n] for n in names]
 
 
 def check_limits(model: RobotModel, states: ArrayLike, *, name: str = "state") -> None:

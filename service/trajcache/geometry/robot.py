@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -64,7 +65,13 @@ class RobotModel:
     lower: FloatArray  # per state value; base x, y are -inf/+inf, θ is -π/π (wrapped)
     upper: FloatArray
     velocity_limits: FloatArray  # per state value
-    allowed_pairs: frozenset[tuple[int, int]] = field(default_factory=frozenset)  # (i < j) links
+    # Link pairs (i < j) whose self-collisions are not checked, and why ("adjacent", "srdf").
+    allowed_pairs: frozenset[tuple[int, int]] = field(default_factory=frozenset)
+    pair_reasons: Mapping[tuple[int, int], str] = field(default_factory=dict)
+    # Values of the movable joints outside the planning joints (held, mimic joints included).
+    held_values: Mapping[str, float] = field(default_factory=dict)
+    # SRDF group states that give every planning joint a value, in joint_names order.
+    named_states: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     # Configuration given at registration: acceleration and jerk limits per planning joint
     # (joint_names order; NaN or None: the service default) and the end-effector link (None: the
     # tip of the longest kinematic chain).

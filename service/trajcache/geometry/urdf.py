@@ -16,16 +16,14 @@ import tarfile
 import xml.etree.ElementTree as ET
 import zipfile
 import zlib
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
 import defusedxml.ElementTree as DefusedET
-import fcl
 import numpy as np
 import trimesh
 from defusedxml import DefusedXmlException
-from numpy.typing import NDArray
 from yourdfpy import URDF
 from yourdfpy.urdf import filename_handler_null
 
@@ -35,9 +33,9 @@ from trajcache.geometry.errors import (
     RobotModelError,
     UnsafePathError,
 )
-from trajcache.geometry.kinematics import element_transforms, link_transforms
 from trajcache.geometry.robot import BaseType, CollisionElement, KinematicJoint, RobotModel
 from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.srdf import Srdf, group_joints, parse_srdf
 
 MiB = 1024 * 1024
 DEFAULT_JOINT_VELOCITY = 3.14
@@ -46,9 +44,6 @@ MOVABLE = ("revolute", "continuous", "prismatic")
 _JOINT_TYPES = (*MOVABLE, "fixed", "floating", "planar")
 _GEOMETRY_ATTRS = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length")}
 _SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*:")
-_REQUEST = fcl.CollisionRequest()
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 
 def unpack_archive(
@@ -276,16 +271,18 @@ def _topology(robot: Any) -> tuple[list[str], list[Any]]:
     return links, joints
 
 
-def _joint_limits(joint: Any) -> tuple[float, float, float]:
-    """Planning (lower, upper, velocity) of a movable joint."""
+def _joint_limits(joint: Any) -> tuple[float, float, float] | None:
+    """Planning (lower, upper, velocity) of a movable joint; None for a prismatic joint without
+    limits (it can be held, not planned). A revolute joint without limits turns freely."""
     limit = joint.limit
     velocity = getattr(limit, "velocity", None)
     if velocity is None or not math.isfinite(velocity) or velocity <= 0:
         velocity = DEFAULT_JOINT_VELOCITY
-    if joint.type == "continuous":
+    unbounded = limit is None or (limit.lower is None and limit.upper is None)
+    if joint.type == "continuous" or (joint.type == "revolute" and unbounded):
         return -math.pi, math.pi, velocity
-    if limit is None:
-        raise RobotModelError(f"{joint.type} joint {joint.name!r} has no <limit>")
+    if unbounded:
+        return None
     lower = 0.0 if limit.lower is None else float(limit.lower)
     upper = 0.0 if limit.upper is None else float(limit.upper)
     if not (math.isfinite(lower) and math.isfinite(upper)) or lower > upper:
@@ -296,14 +293,34 @@ def _joint_limits(joint: Any) -> tuple[float, float, float]:
     return lower, upper, velocity
 
 
-def _planning_joints(robot: Any, joint_names: Sequence[str] | None) -> list[str]:
-    movable = [j.name for j in robot.joints if j.type in MOVABLE]
+def _planning_joints(
+    ordered: list[Any],
+    joint_names: Sequence[str] | None,
+    group: str | None,
+    srdf: Srdf | None,
+) -> list[str]:
+    """The planning joints: listed, an SRDF group's movable joints, or every movable joint that
+    does not mimic another (both in the URDF's order, `ordered` being the file's joints)."""
+    movable = [j.name for j in ordered if j.type in MOVABLE]
+    if group is not None:
+        if joint_names is not None:
+            raise RobotModelError("give either joint_names or group, not both")
+        if srdf is None:
+            raise RobotModelError(f"group {group!r} needs an SRDF that defines it")
+        parent_of = {j.child: (j.name, j.parent) for j in ordered}
+        members, _ = group_joints(
+            srdf, group, parent_of=parent_of, joints=[j.name for j in ordered]
+        )
+        names = [n for n in movable if n in members]
+        if not names:
+            raise RobotModelError(f"SRDF group {group!r} has no movable joints")
+        return names
     if joint_names is None:
-        return movable
+        return [j.name for j in ordered if j.type in MOVABLE and j.mimic is None]
     if isinstance(joint_names, str):
         raise RobotModelError("joint_names must be a list of joint names, not a string")
     names = list(joint_names)
-    all_joints = {j.name for j in robot.joints}
+    all_joints = {j.name for j in ordered}
     if unknown := [n for n in names if n not in all_joints]:
         raise RobotModelError(f"unknown joint names {unknown}; movable joints are {movable}")
     if fixed := [n for n in names if n not in movable]:
@@ -313,35 +330,94 @@ def _planning_joints(robot: Any, joint_names: Sequence[str] | None) -> list[str]
     return names
 
 
+def _held_values(
+    ordered: list[Any],
+    planning: list[str],
+    limits: Mapping[str, tuple[float, float, float] | None],
+    joint_values: Mapping[str, float] | str | None,
+    srdf: Srdf | None,
+) -> dict[str, float]:
+    """Values of the movable joints outside the planning group.
+
+    Each is 0 clipped into its limits unless `joint_values` gives it (by name, or an SRDF
+    group_state's name); a mimic joint follows its leader (multiplier · leader + offset). A
+    planning joint that another joint mimics is not supported.
+    """
+    by_name = {j.name: j for j in ordered}
+    followers = {j.name: j.mimic for j in ordered if j.type in MOVABLE and j.mimic is not None}
+    for name, mimic in followers.items():
+        leader = by_name.get(mimic.joint)
+        if leader is None or leader.type not in MOVABLE:
+            raise RobotModelError(f"joint {name!r} mimics {mimic.joint!r}, not a movable joint")
+        if mimic.joint in planning or name in planning:
+            raise RobotModelError(
+                f"joint {name!r} mimics {mimic.joint!r}: mimic joints are supported outside the "
+                "planning joints only (leave both out, and give the leader in joint_values)"
+            )
+    values: dict[str, float] = {}
+    for joint in ordered:
+        if joint.type in MOVABLE and joint.name not in planning and joint.name not in followers:
+            bounds = limits[joint.name]
+            values[joint.name] = 0.0 if bounds is None else min(max(0.0, bounds[0]), bounds[1])
+    given: Mapping[str, float]
+    if isinstance(joint_values, str):
+        if srdf is None:
+            raise RobotModelError(f"joint_values {joint_values!r} names a group_state: no SRDF")
+        state = srdf.state(joint_values)
+        given = {k: v for k, v in state.values.items() if k not in planning}
+    else:
+        given = joint_values or {}
+    for name, value in given.items():
+        if name not in by_name:
+            raise RobotModelError(f"joint_values: unknown joint {name!r}")
+        if name in planning:
+            raise RobotModelError(
+                f"joint_values: {name!r} is a planning joint; its value comes with each state"
+            )
+        if name in followers:
+            raise RobotModelError(
+                f"joint_values: {name!r} mimics {followers[name].joint!r}; give that joint"
+            )
+        if name not in values:
+            raise RobotModelError(f"joint_values: {name!r} is a fixed joint")
+        value = float(value)
+        bounds = limits[name]
+        if not math.isfinite(value):
+            raise RobotModelError(f"joint_values: {name!r} is not finite")
+        if bounds is not None and not bounds[0] - 1e-9 <= value <= bounds[1] + 1e-9:
+            raise RobotModelError(
+                f"joint_values: {name} = {value:.6g} not in [{bounds[0]:.6g}, {bounds[1]:.6g}]"
+            )
+        values[name] = value
+    pending = dict(followers)
+    while pending:
+        ready = {n: m for n, m in pending.items() if m.joint in values}
+        if not ready:
+            raise RobotModelError(f"mimic joints {sorted(pending)} follow each other in a cycle")
+        for name, mimic in ready.items():
+            multiplier = 1.0 if mimic.multiplier is None else float(mimic.multiplier)
+            offset = 0.0 if mimic.offset is None else float(mimic.offset)
+            values[name] = multiplier * values[mimic.joint] + offset
+            del pending[name]
+    return values
+
+
 def _kinematic_joints(
-    ordered: list[Any], links: list[str], planning: list[str], offset: int
-) -> tuple[list[KinematicJoint], list[tuple[float, float, float]]]:
-    """KinematicJoints in topological order and the planning limits in `planning` order."""
+    ordered: list[Any],
+    links: list[str],
+    planning: list[str],
+    offset: int,
+    held: Mapping[str, float],
+) -> list[KinematicJoint]:
+    """KinematicJoints in topological order; joints outside `planning` are held at `held`."""
     link_index = {name: i for i, name in enumerate(links)}
-    limits: dict[str, tuple[float, float, float]] = {}
-    defaults: dict[str, float] = {}
+    result = []
     for joint in ordered:
         if joint.type in ("floating", "planar"):
             raise RobotModelError(
                 f"joint {joint.name!r} is {joint.type}, which is not supported "
                 "(use base='planar' for a mobile base)"
             )
-        if joint.type in MOVABLE:
-            limits[joint.name] = lo, hi, _ = _joint_limits(joint)
-            defaults[joint.name] = min(max(0.0, lo), hi)
-    for joint in ordered:
-        if joint.mimic is None:
-            continue
-        if joint.name in planning or joint.mimic.joint in planning:
-            raise RobotModelError(
-                f"joint {joint.name!r} mimics {joint.mimic.joint!r}; mimic joints are not "
-                "supported unless both are left out of the planning joints"
-            )
-        lo, hi, _ = limits[joint.name]
-        value = (joint.mimic.multiplier or 1.0) * defaults.get(joint.mimic.joint, 0.0)
-        defaults[joint.name] = min(max(value + (joint.mimic.offset or 0.0), lo), hi)
-    result = []
-    for joint in ordered:
         origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=float)
         axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), float)
         norm = float(np.linalg.norm(axis))
@@ -360,10 +436,10 @@ def _kinematic_joints(
                 origin=origin,
                 axis=axis / norm if norm >= 1e-12 else np.array([1.0, 0.0, 0.0]),
                 index=index,
-                default=defaults.get(joint.name, 0.0),
+                default=held.get(joint.name, 0.0),
             )
         )
-    return result, [limits[name] for name in planning]
+    return result
 
 
 def _elements(robot: Any, links: list[str], resolver: _MeshResolver) -> list[CollisionElement]:
@@ -393,9 +469,25 @@ def _elements(robot: Any, links: list[str], resolver: _MeshResolver) -> list[Col
     return elements
 
 
-def _model_id(urdf: str, base: BaseType, joint_names: list[str], files: dict[str, str]) -> str:
+def _model_id(
+    urdf: str,
+    base: BaseType,
+    joint_names: list[str],
+    files: dict[str, str],
+    srdf: str | None,
+    held: Mapping[str, float],
+) -> str:
     text = urdf.replace("\r\n", "\n").strip()
-    payload = {"urdf": text, "base": base.value, "joint_names": joint_names, "files": files}
+    payload: dict[str, Any] = {
+        "urdf": text,
+        "base": base.value,
+        "joint_names": joint_names,
+        "files": files,
+    }
+    if srdf is not None:  # only when given: models registered without one keep their ids
+        payload["srdf"] = srdf.replace("\r\n", "\n").strip()
+    if any(value != 0.0 for value in held.values()):
+        payload["held"] = {name: repr(float(value)) for name, value in sorted(held.items())}
     canonical = json.dumps(payload, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
 
@@ -406,28 +498,44 @@ def load_robot_model(
     files: Mapping[str, bytes] | None = None,
     base: BaseType | str = "fixed",
     joint_names: Sequence[str] | None = None,
+    group: str | None = None,
+    srdf: str | None = None,
+    joint_values: Mapping[str, float] | str | None = None,
     name: str | None = None,
-    acm_samples: int = 2000,
-    seed: int = 0,
-    allowed_pairs: Iterable[Sequence[int]] | None = None,
 ) -> RobotModel:
-    """Build a RobotModel from URDF text and its mesh files; raise RobotModelError if unusable."""
+    """Build a RobotModel from URDF text, its mesh files and optionally its SRDF.
+
+    The planning joints are `joint_names`, or the SRDF group `group`, or every movable joint that
+    does not mimic another. Movable joints outside them are held: at `joint_values` (by name, or
+    an SRDF group_state's name), else at 0 within their limits; mimic joints follow their
+    leader. RobotModelError names whatever makes the description unusable.
+    """
     try:
         base_type = BaseType(base)
     except ValueError as exc:
         raise RobotModelError(f"unknown base type {base!r}; expected 'fixed' or 'planar'") from exc
     robot = _parse(urdf)
     links, ordered = _topology(robot)
-    planning = _planning_joints(robot, joint_names)
+    semantic = parse_srdf(srdf) if srdf is not None else None
+    planning = _planning_joints(list(robot.joints), joint_names, group, semantic)
+    limits = {j.name: _joint_limits(j) for j in ordered if j.type in MOVABLE}
+    if unbounded := [n for n in planning if limits[n] is None]:
+        raise RobotModelError(
+            f"prismatic joints {unbounded} have no <limit>; they cannot be planned"
+        )
+    held = _held_values(ordered, planning, limits, joint_values, semantic)
     planar = base_type is BaseType.PLANAR
-    joints, limits = _kinematic_joints(ordered, links, planning, 3 if planar else 0)
+    joints = _kinematic_joints(ordered, links, planning, 3 if planar else 0, held)
     resolver = _MeshResolver(files or {})
     elements = _elements(robot, links, resolver)
     base_limits = [(-math.inf, math.inf, v) for v in BASE_VELOCITY[:2]]
     base_limits.append((-math.pi, math.pi, BASE_VELOCITY[2]))
-    table = np.array((base_limits if planar else []) + limits, dtype=float).reshape(-1, 3)
+    planned = [limits[n] for n in planning]
+    table = np.array((base_limits if planar else []) + planned, dtype=float).reshape(-1, 3)
     model = RobotModel(
-        model_id=_model_id(urdf, base_type, planning, dict(sorted(resolver.used.items()))),
+        model_id=_model_id(
+            urdf, base_type, planning, dict(sorted(resolver.used.items())), srdf, held
+        ),
         name=name or robot.name,
         base=base_type,
         joint_names=tuple(planning),
@@ -437,15 +545,17 @@ def load_robot_model(
         lower=table[:, 0].copy(),
         upper=table[:, 1].copy(),
         velocity_limits=table[:, 2].copy(),
+        held_values=dict(held),
     )
-    if allowed_pairs is not None:  # stored with the model: skip the sampling
-        pairs = frozenset((min(int(a), int(b)), max(int(a), int(b))) for a, b in allowed_pairs)
-        return replace(model, allowed_pairs=pairs)
-    return replace(model, allowed_pairs=allowed_collision_pairs(model, acm_samples, seed))
+    reasons = skipped_pairs(model, semantic)
+    named = named_states(model, semantic) if semantic is not None else {}
+    return replace(
+        model, allowed_pairs=frozenset(reasons), pair_reasons=reasons, named_states=named
+    )
 
 
-def _adjacent_pairs(model: RobotModel) -> set[tuple[int, int]]:
-    """Link pairs joined by one planning joint, treating fixed and held joints as rigid."""
+def _rigid_bodies(model: RobotModel) -> list[int]:
+    """Body of each link: links joined by fixed joints form one rigid body."""
     group = list(range(len(model.link_names)))
 
     def find(i: int) -> int:
@@ -454,75 +564,89 @@ def _adjacent_pairs(model: RobotModel) -> set[tuple[int, int]]:
         return i
 
     for joint in model.joints:
-        if joint.index < 0:
+        if joint.kind == "fixed":
             group[find(joint.child)] = find(joint.parent)
-    members: dict[int, list[int]] = {}
-    for link in range(len(group)):
-        members.setdefault(find(link), []).append(link)
-    pairs = {(a, b) for body in members.values() for a in body for b in body if a < b}
+    return [find(link) for link in range(len(group))]
+
+
+def adjacent_pairs(model: RobotModel) -> set[tuple[int, int]]:
+    """Link pairs (i < j, both with geometry) that are adjacent: in one rigid body (links joined
+    by fixed joints), or in two bodies joined by a joint. A body without collision geometry that
+    only links one parent body to one child body passes adjacency through, as a bare frame in a
+    chain does; a bare body with several children joins none of them to each other."""
+    body = _rigid_bodies(model)
+    geometric = {int(link) for link in model.geometric_links()}
+    solid = {body[link] for link in geometric}
+    parent: dict[int, int] = {}
+    children: dict[int, set[int]] = {}
     for joint in model.joints:
-        if joint.index >= 0:
-            for a in members[find(joint.parent)]:
-                pairs.update((min(a, b), max(a, b)) for b in members[find(joint.child)])
+        a, b = body[joint.parent], body[joint.child]
+        if a != b:
+            parent[b] = a
+            children.setdefault(a, set()).add(b)
+    neighbours: dict[int, set[int]] = {b: set() for b in solid}
+    for b in solid:
+        current = b
+        while current in parent:
+            up = parent[current]
+            if up in solid:
+                neighbours[b].add(up)
+                break
+            if len(children.get(up, ())) != 1:
+                break
+            current = up
+    pairs: set[tuple[int, int]] = set()
+    links = sorted(geometric)
+    for k, a in enumerate(links):
+        for b in links[k + 1 :]:
+            ba, bb = body[a], body[b]
+            if ba == bb or bb in neighbours[ba] or ba in neighbours[bb]:
+                pairs.add((a, b))
     return pairs
 
 
-def allowed_collision_pairs(
-    model: RobotModel, samples: int, seed: int
-) -> frozenset[tuple[int, int]]:
-    """Link pairs (i < j) to skip: adjacent, colliding in the default state, or never colliding.
-
-    "Never" is judged on `samples` uniform random states within limits (none when samples is 0);
-    a bounding-sphere test filters out states where a pair cannot touch before FCL runs.
-    """
-    geometric = [int(v) for v in model.geometric_links()]
-    allowed = {p for p in _adjacent_pairs(model) if p[0] in geometric and p[1] in geometric}
-    candidates = [(a, b) for a in geometric for b in geometric if a < b and (a, b) not in allowed]
-    if not candidates:
-        return frozenset(allowed)
-    rng = np.random.default_rng(seed)
-    arm = slice(model.arm_offset, model.dof)
-    states = np.zeros((max(samples, 0) + 1, model.dof))
-    states[0, arm] = np.clip(0.0, model.lower[arm], model.upper[arm])
-    states[1:, arm] = rng.uniform(
-        model.lower[arm], model.upper[arm], (states.shape[0] - 1, model.dof - model.arm_offset)
-    )
-    poses = element_transforms(model, link_transforms(model, states))
-    centers = poses[:, :, :3, 3]
-    radius = np.array([e.shape.bounding_radius() for e in model.elements])
-    objects = [fcl.CollisionObject(e.shape.to_fcl(), fcl.Transform()) for e in model.elements]
-    of_link: dict[int, list[int]] = {}
-    for index, element in enumerate(model.elements):
-        of_link.setdefault(element.link, []).append(index)
-    for a, b in candidates:
-        ea = np.repeat(of_link[a], len(of_link[b]))
-        eb = np.tile(of_link[b], len(of_link[a]))
-        gap = np.linalg.norm(centers[:, ea] - centers[:, eb], axis=-1) - radius[ea] - radius[eb]
-        near = gap <= 1e-9  # (S, element pairs): only these can touch
-
-        if _any_collision(objects, poses, ea, eb, near, np.array([0])):
-            allowed.add((a, b))  # colliding in the default state: always ignored
-        elif samples > 0:
-            sampled = np.flatnonzero(near[1:].any(axis=1)) + 1
-            if not _any_collision(objects, poses, ea, eb, near, sampled):
-                allowed.add((a, b))  # never in collision across the samples
-    return frozenset(allowed)
+def rigid_pairs(model: RobotModel) -> set[tuple[int, int]]:
+    """Link pairs (i < j, both with geometry) that no planning joint moves relative to each
+    other: the planning joints above one are exactly those above the other (the base moves
+    every link alike). Their contact is the same in every state, so no motion can change it."""
+    parent_joint = {joint.child: joint for joint in model.joints}
+    above: list[frozenset[int]] = []
+    for link in range(len(model.link_names)):
+        dofs: set[int] = set()
+        current = link
+        while current in parent_joint:
+            joint = parent_joint[current]
+            if joint.index >= 0:
+                dofs.add(joint.index)
+            current = joint.parent
+        above.append(frozenset(dofs))
+    links = [int(link) for link in model.geometric_links()]
+    return {(a, b) for k, a in enumerate(links) for b in links[k + 1 :] if above[a] == above[b]}
 
 
-def _any_collision(
-    objects: list[Any],
-    poses: FloatArray,
-    ea: IntArray,
-    eb: IntArray,
-    near: BoolArray,
-    states: IntArray,
-) -> bool:
-    """Whether element pairs (ea[k], eb[k]) flagged in `near` collide in any of `states`."""
-    for state in states:
-        for i, j in zip(ea[near[state]], eb[near[state]], strict=True):
-            for e in (i, j):
-                pose = poses[state, e]
-                objects[e].setTransform(fcl.Transform(pose[:3, :3], pose[:3, 3]))
-            if fcl.collide(objects[i], objects[j], _REQUEST, fcl.CollisionResult()) > 0:
-                return True
-    return False
+def skipped_pairs(model: RobotModel, srdf: Srdf | None) -> dict[tuple[int, int], str]:
+    """Link pairs (i < j, both with geometry) whose self-collisions are not checked, and why:
+    `adjacent`, `rigid` (`rigid_pairs`) or `srdf` (the SRDF's disable_collisions). Every other
+    pair is checked unless the geometry proves it free within the limits (`free_pairs`)."""
+    reasons = {pair: "adjacent" for pair in adjacent_pairs(model)}
+    for pair in rigid_pairs(model):
+        reasons.setdefault(pair, "rigid")
+    if srdf is not None:
+        index = {name: i for i, name in enumerate(model.link_names)}
+        geometric = {int(link) for link in model.geometric_links()}
+        for link1, link2, _ in srdf.disabled:
+            a, b = index.get(link1), index.get(link2)
+            if a is None or b is None or a == b or a not in geometric or b not in geometric:
+                continue
+            reasons.setdefault((min(a, b), max(a, b)), "srdf")
+    return reasons
+
+
+def named_states(model: RobotModel, srdf: Srdf) -> dict[str, tuple[float, ...]]:
+    """The SRDF group_states that give every planning joint a value: those values, in
+    `joint_names` order (values of other joints are left out; held joints keep theirs)."""
+    out: dict[str, tuple[float, ...]] = {}
+    for state in srdf.states:
+        if all(name in state.values for name in model.joint_names):
+            out.setdefault(state.name, tuple(state.values[n] for n in model.joint_names))
+    return out

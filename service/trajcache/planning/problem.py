@@ -30,8 +30,9 @@ class ModelSource:
     urdf: str
     base: str
     joint_names: tuple[str, ...]
-    allowed_pairs: tuple[tuple[int, int], ...]
     files: dict[str, bytes] = field(default_factory=dict)
+    srdf: str | None = None
+    joint_values: dict[str, float] | str | None = None  # held joints, as registered
 
 
 @dataclass(frozen=True)

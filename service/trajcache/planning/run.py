@@ -91,7 +91,8 @@ def model_from_source(source: ModelSource) -> RobotModel:
             files=source.files,
             base=source.base,
             joint_names=source.joint_names,
-            allowed_pairs=source.allowed_pairs,
+            srdf=source.srdf,
+            joint_values=source.joint_values,
         )
         MODELS.put(source.model_id, model)
     return model

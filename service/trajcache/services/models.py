@@ -6,6 +6,7 @@ import hashlib
 import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import defusedxml.ElementTree as DefusedET
 import sqlalchemy as sa
@@ -110,6 +111,9 @@ def register_model(
     files: Mapping[str, bytes] | None = None,
     base: BaseType | str = BaseType.FIXED,
     joint_names: Sequence[str] | None = None,
+    group: str | None = None,
+    srdf: str | None = None,
+    joint_values: Mapping[str, float] | str | None = None,
     name: str | None = None,
     max_urdf_bytes: int | None = None,
     acceleration_limits: JointLimits | None = None,
@@ -117,6 +121,10 @@ def register_model(
     end_effector_link: str | None = None,
 ) -> tuple[RobotModel, bool]:
     """Register a model (same content → same model id, no new rows); return it and `created`.
+
+    The SRDF, when given, chooses the planning joints (`group`), names states and disables
+    self-collision pairs; `joint_values` holds joints outside the planning joints (by name, or
+    an SRDF group_state's name). Both are part of the model id.
 
     Acceleration and jerk limits (one value for every planning joint, or per joint name) and
     the end-effector link are the model's configuration, fixed at its first registration:
@@ -127,7 +135,21 @@ def register_model(
         raise PayloadTooLargeError(
             f"URDF has {size} bytes, more than max_urdf_bytes={max_urdf_bytes}"
         )
-    model = load_robot_model(urdf, files=files or {}, base=base, joint_names=joint_names, name=name)
+    srdf_size = len(srdf.encode("utf-8")) if srdf is not None else 0
+    if max_urdf_bytes is not None and srdf_size > max_urdf_bytes:
+        raise PayloadTooLargeError(
+            f"SRDF has {srdf_size} bytes, more than max_urdf_bytes={max_urdf_bytes}"
+        )
+    model = load_robot_model(
+        urdf,
+        files=files or {},
+        base=base,
+        joint_names=joint_names,
+        group=group,
+        srdf=srdf,
+        joint_values=joint_values,
+        name=name,
+    )
     model = replace(model, name=model.name[:NAME_MAX])
     config = ModelConfig(
         acceleration_limits=joint_limits(model, acceleration_limits, "acceleration_limits"),
@@ -146,7 +168,7 @@ def register_model(
         joint_names=list(model.joint_names),
         urdf=urdf,
         allowed_pairs=[list(pair) for pair in sorted(model.allowed_pairs)],
-        config={},
+        config=_semantics(srdf, joint_values),
         acceleration_limits=config.acceleration_limits,
         jerk_limits=config.jerk_limits,
         end_effector_link=config.end_effector_link,
@@ -166,6 +188,20 @@ def register_model(
         check_same_config(model.model_id, found[1], config)
         return _cached(registry, model, *found), False
     return registry.put(config.apply(model)), True
+
+
+def _semantics(srdf: str | None, joint_values: Mapping[str, float] | str | None) -> dict[str, Any]:
+    """What the `config` column keeps besides the URDF: the SRDF and the held joint values."""
+    out: dict[str, Any] = {}
+    if srdf is not None:
+        out["srdf"] = srdf
+    if joint_values is not None:
+        out["joint_values"] = (
+            joint_values
+            if isinstance(joint_values, str)
+            else {k: float(v) for k, v in joint_values.items()}
+        )
+    return out
 
 
 def _cached(
@@ -198,13 +234,15 @@ def get_model(*, session: Session, registry: ModelRegistry, model_id: str) -> Ro
     row = session.get(tables.RobotModel, model_id)
     if row is None:
         raise NotFoundError(f"robot model {model_id!r} not found")
+    semantics = row.config or {}
     model = load_robot_model(
         row.urdf,
         files=_stored_files(session, model_id),
         base=row.base,
         joint_names=row.joint_names,
+        srdf=semantics.get("srdf"),
+        joint_values=semantics.get("joint_values"),
         name=row.name,
-        allowed_pairs=[(int(a), int(b)) for a, b in row.allowed_pairs],
     )
     if model.model_id != row.id:  # hashing changed since registration: the stored id rules
         model = replace(model, model_id=row.id)
@@ -227,8 +265,9 @@ def model_source(
         urdf=row.urdf,
         base=row.base,
         joint_names=tuple(row.joint_names),
-        allowed_pairs=tuple((int(a), int(b)) for a, b in row.allowed_pairs),
         files=_stored_files(session, model_id),
+        srdf=(row.config or {}).get("srdf"),
+        joint_values=(row.config or {}).get("joint_values"),
     )
     return registry.put_source(source) if registry is not None else source
 

@@ -50,7 +50,12 @@ from trajcache.cache.memo import MemoScope, MemoUse, validate_with_memo
 from trajcache.cache.ranking import RANKING_COLUMNS, facts_from_row, rank_matches
 from trajcache.db.models import PlanEvent, Trajectory, utcnow
 from trajcache.geometry.errors import CollisionStateError
-from trajcache.geometry.kinematics import check_limits, check_states
+from trajcache.geometry.kinematics import (
+    StateInput,
+    check_limits,
+    check_states,
+    resolve_state,
+)
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene, scene_to_payload
 from trajcache.geometry.validation import ValidationResult, ValidationSettings, validator_for
@@ -84,8 +89,8 @@ class PlanSource(str, Enum):
 class PlanRequest:
     """A validated plan request with its options resolved against the settings."""
 
-    start: np.ndarray
-    goal: np.ndarray
+    start: StateInput  # values in state_names order, a {joint: value} map, or a named state
+    goal: StateInput
     threshold: float
     max_candidates: int
     fallback: bool = True
@@ -207,8 +212,8 @@ def _plan_in_scene(
     and the first `max_candidates` are tried.
     """
     t = time.perf_counter()
-    start = check_states(model, request.start, name="start")[0]
-    goal = check_states(model, request.goal, name="goal")[0]
+    start = check_states(model, resolve_state(model, request.start, name="start"), name="start")[0]
+    goal = check_states(model, resolve_state(model, request.goal, name="goal"), name="goal")[0]
     check_limits(model, start, name="start")
     check_limits(model, goal, name="goal")
     clock.db += time.perf_counter() - t

@@ -26,8 +26,11 @@ from trajcache.api.schemas import (
     RobotModelOut,
     RobotModelPage,
     RobotModelSummary,
+    SkippedPairOut,
 )
 from trajcache.core.config import Settings
+from trajcache.geometry.bodies import robot_geometry
+from trajcache.geometry.robot import RobotModel
 from trajcache.quality import end_effector_link
 from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 from trajcache.services.models import (
@@ -69,6 +72,12 @@ _FORM_SCHEMA = {
     "required": ["urdf"],
     "properties": {
         "urdf": {"type": "string", "description": "URDF text (a field or an uploaded file)."},
+        "srdf": {"type": "string", "description": "SRDF text (a field or an uploaded file)."},
+        "group": {"type": "string", "description": "SRDF planning group."},
+        "joint_values": {
+            "type": "string",
+            "description": "Held joint values: a JSON object by joint name, or a group_state name.",
+        },
         "base": {"type": "string", "enum": ["fixed", "planar"], "default": "fixed"},
         "joint_names": {"type": "string", "description": "Comma-separated planning joints."},
         "name": {"type": "string"},
@@ -145,7 +154,7 @@ async def _read_upload(upload: UploadFile, limit: int, what: str) -> bytes:
 
 async def _from_form(request: Request, settings: Settings) -> Registration:
     try:
-        form = await request.form(max_files=2, max_fields=8, max_part_size=settings.max_urdf_bytes)
+        form = await request.form(max_files=3, max_fields=12, max_part_size=settings.max_urdf_bytes)
     except HTTPException as exc:
         if exc.status_code == 413:  # the whole body is too large (RegistrationRoute)
             raise
@@ -166,14 +175,26 @@ async def _from_form(request: Request, settings: Settings) -> Registration:
                 limit = settings.max_archive_bytes
                 archive = await _read_upload(value, limit, f"archive (max_archive_bytes={limit})")
             elif isinstance(value, UploadFile):
-                if key != "urdf":
+                if key not in ("urdf", "srdf"):
                     raise InvalidInputError(f"form field {key!r} must not be a file")
                 limit = settings.max_urdf_bytes
-                raw = await _read_upload(value, limit, f"URDF (max_urdf_bytes={limit})")
+                what = key.upper()
+                raw = await _read_upload(value, limit, f"{what} (max_urdf_bytes={limit})")
                 try:
                     data[key] = raw.decode("utf-8-sig")
                 except UnicodeDecodeError:
-                    raise InvalidInputError("the uploaded URDF is not UTF-8 text") from None
+                    raise InvalidInputError(f"the uploaded {what} is not UTF-8 text") from None
+            elif key == "joint_values":
+                text = value.strip()
+                if text.startswith("{"):
+                    try:
+                        data[key] = json.loads(text, parse_constant=_reject_constant)
+                    except ValueError:
+                        raise InvalidInputError(
+                            "form field 'joint_values' is neither a JSON object nor a name"
+                        ) from None
+                else:
+                    data[key] = text
             elif key in ("acceleration_limits", "jerk_limits"):
                 try:  # one number, or a JSON object by joint name
                     data[key] = json.loads(value, parse_constant=_reject_constant)
@@ -213,7 +234,10 @@ RegistrationDep = Annotated[Registration, Depends(read_registration)]
     summary="Register a robot model (same content → same model_id)",
     response_description="Registered: a new model",
     description="Registers a URDF with its base type (`fixed`, or `planar` for an x, y, θ mobile "
-    "base) and planning joints (default: every movable joint). Send JSON (mesh archive as "
+    "base) and planning joints (listed, an SRDF `group`, or every movable joint), optionally "
+    "with its SRDF (disabled collision pairs, named states) and the values of joints held "
+    "outside the planning joints. Every self-collision pair is checked except those listed in "
+    "the answer's `skipped_pairs`, with the reason. Send JSON (mesh archive as "
     "`archive_base64`), or multipart/form-data with the URDF as a field or file and the meshes "
     "as an `archive` file (zip or tar(.gz)); `package://` and relative mesh URIs resolve inside "
     "the archive. The id is a hash of the content: registering the same content again answers "
@@ -263,6 +287,9 @@ def register_model_route(
         files=files,
         base=fields.base,
         joint_names=fields.joint_names,
+        group=fields.group,
+        srdf=fields.srdf,
+        joint_values=fields.joint_values,
         name=fields.name,
         acceleration_limits=fields.acceleration_limits,
         jerk_limits=fields.jerk_limits,
@@ -278,6 +305,7 @@ def register_model_route(
         base=model.base.value,
         state_names=list(model.state_names),
         created=created,
+        **_semantics(model),
     )
 
 
@@ -346,4 +374,15 @@ def get_model_route(model_id: str, ctx: CtxDep, session: SessionDep) -> RobotMod
         jerk_limits=limits.jerk.tolist(),
         end_effector_link=model.link_names[end_effector_link(model)],
         files=[ModelFileOut(path=f.path, sha256=f.sha256, size=f.size) for f in files],
+        **_semantics(model),
     )
+
+
+def _semantics(model: RobotModel) -> dict[str, Any]:
+    """The skipped self-collision pairs, held joints and named states of a model's answer."""
+    skipped = robot_geometry(model).skipped_link_pairs()
+    return {
+        "skipped_pairs": [SkippedPairOut(links=(a, b), reason=why) for a, b, why in skipped],
+        "held_joints": dict(model.held_values),
+        "named_states": {name: list(values) for name, values in model.named_states.items()},
+    }

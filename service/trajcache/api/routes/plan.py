@@ -17,6 +17,7 @@ from trajcache.api.quality import JointTrajectory, TimingOptions, TrajectoryQual
 from trajcache.api.responses import COMMON, errors
 from trajcache.core.config import Settings
 from trajcache.geometry.errors import GeometryError
+from trajcache.geometry.kinematics import StateInput
 from trajcache.metrics import record_plan
 from trajcache.planning.problem import PLANNER_NAMES
 from trajcache.services.planning import PlanAnswer, PlanRequest, plan
@@ -108,8 +109,17 @@ _ANSWER_EXAMPLES: list[Any] = [
 ]
 
 
+StateIn = (
+    Annotated[list[FiniteFloat], Field(min_length=1, max_length=64)]
+    | Annotated[dict[Annotated[str, Field(max_length=200)], FiniteFloat], Field(max_length=256)]
+    | Annotated[str, Field(min_length=1, max_length=200)]
+)
+
+
 class PlanBody(BaseModel):
-    """A plan request: states ordered as the model's `state_names`."""
+    """A plan request: each state as values in the model's `state_names` order, as a map
+    {joint name: value} (held joints may be given at their held values), or as the name of one
+    of the model's named states (SRDF group states)."""
 
     model_config = ConfigDict(
         extra="forbid",
@@ -124,8 +134,8 @@ class PlanBody(BaseModel):
         },
     )
 
-    start: list[FiniteFloat] = Field(min_length=1, max_length=64)
-    goal: list[FiniteFloat] = Field(min_length=1, max_length=64)
+    start: StateIn
+    goal: StateIn
     options: PlanOptions = Field(default_factory=PlanOptions)
 
 
@@ -152,6 +162,10 @@ class PlanResponse(BaseModel):
     rejected: list[Rejection] = []
     joint_trajectory: JointTrajectory | None = None
     quality: TrajectoryQuality | None = None
+
+
+def _state(value: list[float] | dict[str, float] | str) -> StateInput:
+    return np.asarray(value, dtype=float) if isinstance(value, list) else value
 
 
 def _bounded(
@@ -192,8 +206,8 @@ def plan_route(
     s = ctx.settings
     o = body.options
     request = PlanRequest(
-        start=np.asarray(body.start, dtype=float),
-        goal=np.asarray(body.goal, dtype=float),
+        start=_state(body.start),
+        goal=_state(body.goal),
         threshold=_bounded(o.threshold, s.lookup_threshold, s, "threshold", "lookup_threshold_max"),
         max_candidates=int(
             _bounded(
