@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import http.client
+import json
+import socket
+import threading
+import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+import uvicorn
 from fastapi.testclient import TestClient
 
 from tests.api.conftest import assert_detail, register
@@ -77,3 +84,42 @@ def test_unexpected_errors_are_logged_500s(
     with TestClient(app, raise_server_exceptions=False) as client:
         assert_detail(client.get("/v1/robots/r1"), 500, "internal server error")
     assert any("boom" in (r.exc_text or "") for r in caplog.records if r.levelname == "ERROR")
+
+
+def test_a_500_leaves_the_keep_alive_connection_usable(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    from trajcache.api.routes import robots
+
+    def broken(**_kwargs: object) -> None:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(robots, "get_robot", broken)
+    app = create_app(Settings(database_url=f"sqlite:///{tmp_path / 'k.db'}", worker_prestart=False))
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    try:
+        deadline = time.monotonic() + 30
+        while not server.started:
+            assert time.monotonic() < deadline, "the server did not start"
+            time.sleep(0.05)
+        connection = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+        connection.request("GET", "/v1/robots/r1")
+        failed = connection.getresponse()
+        body = json.loads(failed.read())
+        assert failed.status == 500
+        assert failed.getheader("connection") != "close"
+        error_id = body["error_id"]
+        assert body["detail"] == f"internal server error (error id {error_id})"
+        connection.request("GET", "/healthz")  # the same connection
+        assert connection.getresponse().status == 200
+        connection.close()
+        logged = [r for r in caplog.records if r.levelname == "ERROR" and error_id in r.message]
+        assert logged and "boom" in (logged[0].exc_text or "")
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)

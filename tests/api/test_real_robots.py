@@ -1,0 +1,179 @@
+"""Real robot descriptions as `example-robot-data` ships them, through the REST API: URDF with
+meshes, SRDF groups, states and collision matrices, mimic and held joints."""
+
+from __future__ import annotations
+
+import base64
+import io
+import zipfile
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from tests.api.conftest import assert_detail, register
+from trajcache.workload.example_robots import ROBOTS, ExampleRobot
+
+PANDA_ARM = [f"panda_joint{k}" for k in range(1, 8)]
+# All joints at 0 within the limits (joint 4 at its upper limit): the Panda's wrist is folded,
+# with the hand and link7 inside link5.
+FOLDED = [0.0, 0.0, 0.0, -0.0698, 0.0, 0.0, 0.0]
+READY = [0.0, -0.785398, 0.0, -2.35619, 0.0, 1.5707, 0.785398]  # the SRDF's "default"
+
+
+def _archive(robot: ExampleRobot) -> str:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for path, data in robot.files().items():
+            archive.writestr(path, data)
+    return base64.b64encode(buffer.getvalue()).decode()
+
+
+def _register(client: TestClient, robot: ExampleRobot, **fields: Any) -> dict[str, Any]:
+    body: dict[str, Any] = {"base": robot.base, "archive_base64": _archive(robot)}
+    if robot.srdf is not None:
+        body["srdf"] = robot.srdf
+    if robot.group is not None:
+        body["group"] = robot.group
+    if robot.joint_names is not None:
+        body["joint_names"] = list(robot.joint_names)
+    return register(client, robot.urdf, **{**body, **fields})
+
+
+def _robot(client: TestClient, model_id: str, robot_id: str = "arm-1") -> str:
+    response = client.put(f"/v1/robots/{robot_id}", json={"model_id": model_id})
+    assert response.status_code in (200, 201), response.text
+    return robot_id
+
+
+def _plan(client: TestClient, robot_id: str, start: Any, goal: Any, **options: Any) -> Any:
+    body = {"start": start, "goal": goal, "options": {"fallback": False, **options}}
+    return client.post(f"/v1/robots/{robot_id}/plan", json=body)
+
+
+@pytest.mark.parametrize("name", sorted(ROBOTS))
+def test_every_shipped_robot_registers_with_its_srdf(app_client: TestClient, name: str) -> None:
+    robot = ROBOTS[name]
+    body = _register(app_client, robot)
+    assert body["created"] is True
+    assert len(body["joint_names"]) >= 6
+    reasons = {pair["reason"] for pair in body["skipped_pairs"]}
+    assert "adjacent" in reasons
+    if robot.srdf is not None and "disable_collisions" in robot.srdf:
+        assert "srdf" in reasons
+    detail = app_client.get(f"/v1/robot-models/{body['model_id']}").json()
+    assert detail["skipped_pairs"] == body["skipped_pairs"]
+    assert detail["held_joints"] == body["held_joints"]
+
+
+def test_the_folded_panda_is_refused_without_an_srdf_and_accepted_with_it(
+    app_client: TestClient,
+) -> None:
+    panda = ROBOTS["panda"]
+    bare = register(app_client, panda.urdf, joint_names=PANDA_ARM, archive_base64=_archive(panda))
+    skipped = {tuple(sorted(p["links"])) for p in bare["skipped_pairs"]}
+    assert ("panda_hand", "panda_link5") not in skipped  # in contact at 0: still checked
+    robot_id = _robot(app_client, bare["model_id"], "bare-panda")
+    detail = assert_detail(_plan(app_client, robot_id, FOLDED, READY), 422, "start state")
+    assert "panda_link5" in detail and ("panda_hand" in detail or "panda_link7" in detail)
+
+    shipped = _register(app_client, panda)  # the SRDF allows link5–hand and link5–link7
+    assert shipped["joint_names"] == PANDA_ARM
+    reasons = {tuple(sorted(p["links"])): p["reason"] for p in shipped["skipped_pairs"]}
+    assert reasons[("panda_hand", "panda_link5")] == "srdf"
+    robot_id = _robot(app_client, shipped["model_id"], "panda")
+    answer = _plan(app_client, robot_id, FOLDED, READY)
+    assert answer.status_code == 200, answer.text
+
+
+def test_states_by_name_and_named_states(app_client: TestClient) -> None:
+    panda = ROBOTS["panda"]
+    body = _register(app_client, panda)
+    assert body["named_states"]["default"] == pytest.approx(READY)
+    assert body["held_joints"] == {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+    robot_id = _robot(app_client, body["model_id"])
+    start = dict(zip(PANDA_ARM, [0.3, -0.5, 0.0, -2.0, 0.0, 1.8, 0.6], strict=True))
+    with_fingers = {**start, "panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+    answer = _plan(app_client, robot_id, with_fingers, "default")
+    assert answer.status_code == 200, answer.text
+    assert answer.json()["status"] == "miss"  # nothing cached, no fallback: but accepted
+    opened = {**start, "panda_finger_joint1": 0.04}
+    assert_detail(_plan(app_client, robot_id, opened, "default"), 422, "panda_finger_joint1")
+    assert_detail(_plan(app_client, robot_id, start, "home"), 422, "no named state 'home'")
+    del start["panda_joint3"]
+    assert_detail(_plan(app_client, robot_id, start, "default"), 422, "lacks panda_joint3")
+
+
+def test_held_joint_values_and_mimic_joints(app_client: TestClient) -> None:
+    panda = ROBOTS["panda"]
+    closed = _register(app_client, panda)
+    opened = _register(app_client, panda, joint_values={"panda_finger_joint1": 0.035})
+    assert opened["model_id"] != closed["model_id"]  # the held values are part of the id
+    assert opened["held_joints"] == {"panda_finger_joint1": 0.035, "panda_finger_joint2": 0.035}
+    by_state = _register(app_client, panda, joint_values="default")  # group_state "default"
+    assert by_state["held_joints"]["panda_finger_joint2"] == pytest.approx(0.001)
+    for values, needle in (
+        ({"panda_finger_joint2": 0.01}, "mimics 'panda_finger_joint1'"),
+        ({"panda_finger_joint1": 0.5}, "not in [0, 0.04]"),
+        ({"panda_joint1": 0.1}, "is a planning joint"),
+        ({"nope": 0.1}, "unknown joint 'nope'"),
+    ):
+        response = app_client.post(
+            "/v1/robot-models",
+            json={"urdf": panda.urdf, "srdf": panda.srdf, "group": "arm",
+                  "archive_base64": _archive(panda), "joint_values": values},
+        )  # fmt: skip
+        assert_detail(response, 422, needle)
+
+
+def test_the_mimic_finger_moves_with_its_leader() -> None:
+    from trajcache.geometry.kinematics import link_transforms
+    from trajcache.geometry.urdf import load_robot_model
+
+    panda = ROBOTS["panda"]
+    gaps = []
+    for opening in (0.0, 0.03):
+        model = load_robot_model(
+            panda.urdf, files=panda.files(), srdf=panda.srdf, group="arm",
+            joint_values={"panda_finger_joint1": opening},
+        )  # fmt: skip
+        links = link_transforms(model, READY)[0]
+        left = links[model.link_names.index("panda_leftfinger"), :3, 3]
+        right = links[model.link_names.index("panda_rightfinger"), :3, 3]
+        gaps.append(float(np.linalg.norm(left - right)))
+    assert gaps[1] - gaps[0] == pytest.approx(2 * 0.03, abs=1e-9)  # both fingers opened
+
+
+def test_srdf_errors_are_named(app_client: TestClient) -> None:
+    panda = ROBOTS["panda"]
+    cases = (
+        ({"srdf": "<robot><group name='a'>", "group": "a"}, "malformed SRDF"),
+        ({"srdf": panda.srdf, "group": "legs"}, "no group 'legs'"),
+        ({"group": "arm"}, "needs an SRDF"),
+        ({"srdf": panda.srdf, "group": "arm", "joint_names": PANDA_ARM}, "not both"),
+        ({"srdf": panda.srdf, "group": "arm", "joint_values": "tucked"}, "no group_state"),
+    )
+    for fields, needle in cases:
+        response = app_client.post(
+            "/v1/robot-models",
+            json={"urdf": panda.urdf, "archive_base64": _archive(panda), **fields},
+        )
+        assert_detail(response, 422, needle)
+
+
+def test_multipart_registration_takes_the_srdf_as_a_file(app_client: TestClient) -> None:
+    panda = ROBOTS["panda"]
+    assert panda.srdf is not None
+    response = app_client.post(
+        "/v1/robot-models",
+        data={"group": "arm", "joint_values": '{"panda_finger_joint1": 0.02}'},
+        files={
+            "urdf": ("panda.urdf", panda.urdf.encode(), "application/xml"),
+            "srdf": ("panda.srdf", panda.srdf.encode(), "application/xml"),
+            "archive": ("meshes.zip", base64.b64decode(_archive(panda)), "application/zip"),
+        },
+    )
+    assert response.status_code == 201, response.text
+    assert response.json()["joint_names"] == PANDA_ARM
+    assert response.json()["held_joints"]["panda_finger_joint2"] == 0.02
