@@ -177,3 +177,150 @@ def test_multipart_registration_takes_the_srdf_as_a_file(app_client: TestClient)
     assert response.status_code == 201, response.text
     assert response.json()["joint_names"] == PANDA_ARM
     assert response.json()["held_joints"]["panda_finger_joint2"] == 0.02
+
+
+# --- the scene's collision matrix, attached objects and held joints --------------------------
+
+SWING_START = [-0.6, *READY[1:]]  # joint 1 swings the hand from one side to the other
+SWING_GOAL = [0.6, *READY[1:]]
+OPEN = {"panda_finger_joint1": 0.04}
+# The hand dips through READY and rises again in the arm's plane: the closed fingers stay clear
+# of the plate beside them, the open left finger passes through it.
+DIP = np.array([0.0, -0.15, 0.0, 0.0, 0.0, -0.3, 0.0])
+DIP_START, DIP_GOAL = (np.array(READY) + DIP).tolist(), (np.array(READY) - DIP).tolist()
+
+
+def _hand(link: str = "panda_hand") -> np.ndarray:
+    from trajcache.geometry.kinematics import link_transforms
+    from trajcache.geometry.urdf import load_robot_model
+
+    panda = ROBOTS["panda"]
+    model = load_robot_model(panda.urdf, files=panda.files(), srdf=panda.srdf, group="arm")
+    return link_transforms(model, READY)[0][model.link_names.index(link)]
+
+
+def _box(oid: str, centre: np.ndarray, size: float | list[float]) -> dict[str, Any]:
+    sizes = [size] * 3 if isinstance(size, float) else size
+    pose = {"position": [float(v) for v in centre], "orientation": [0, 0, 0, 1]}
+    return {"id": oid, "type": "box", "size": sizes, "pose": pose}
+
+
+def _plate() -> dict[str, Any]:
+    """A small box 4 cm beside the left finger at READY: the open finger reaches into it."""
+    hand, finger = _hand(), _hand("panda_leftfinger")
+    centre = finger[:3, 3] + 0.04 * hand[:3, 1] + 0.03 * hand[:3, 2]
+    return _box("plate", centre, [0.02, 0.01, 0.02])  # the hand's axes are the world's, flipped
+
+
+def _store(client: TestClient, model_id: str, states: list[list[float]]) -> int:
+    stored = client.post(
+        "/v1/trajectories", json={"model_id": model_id, "states": states, "source": "sim"}
+    )
+    assert stored.status_code in (200, 201), stored.text
+    return int(stored.json()["trajectory_id"])
+
+
+def test_a_scene_matrix_entry_lets_a_link_touch_an_object(app_client: TestClient) -> None:
+    model_id = _register(app_client, ROBOTS["panda"])["model_id"]
+    robot_id = _robot(app_client, model_id)
+    assert app_client.put(f"/v1/robots/{robot_id}", json={"model_id": model_id,
+                          "joint_values": OPEN}).status_code == 200  # fmt: skip
+    plate = _plate()
+    position = dict(zip("xyz", plate["pose"]["position"], strict=True))
+    world = {"collision_objects": [{
+        "id": "plate", "header": {"frame_id": "world"},
+        "primitives": [{"type": 1, "dimensions": plate["size"]}],
+        "primitive_poses": [{"position": position, "orientation": [0, 0, 0, 1]}],
+    }]}  # fmt: skip
+    matrix = {
+        "entry_names": ["panda_leftfinger", "plate"],
+        "entry_values": [{"enabled": [False, True]}, {"enabled": [True, False]}],
+    }
+    allowed = app_client.put(
+        f"/v1/robots/{robot_id}/scene",
+        json={"world": world, "allowed_collision_matrix": matrix,
+              "robot_state": {"joint_state": {"name": ["panda_joint1"], "position": [0.0]}}},
+    )  # fmt: skip
+    assert allowed.status_code == 200, allowed.text
+    assert any("robot_state.joint_state" in w for w in allowed.json()["warnings"])
+    assert app_client.get(f"/v1/robots/{robot_id}/scene").json()["allowed_collisions"] == [
+        ["panda_leftfinger", "plate"]
+    ]
+    answer = _plan(app_client, robot_id, READY, SWING_GOAL)
+    assert answer.status_code == 200, answer.text
+
+    bare = app_client.put(f"/v1/robots/{robot_id}/scene", json={"world": world})
+    assert bare.status_code == 200 and bare.json()["version"] == allowed.json()["version"] + 1
+    assert_detail(
+        _plan(app_client, robot_id, READY, SWING_GOAL),
+        422,
+        "start state is in collision: link 'panda_leftfinger' hits object 'plate'",
+    )
+
+
+def test_an_attached_object_blocks_a_path_the_bare_arm_could_take(app_client: TestClient) -> None:
+    model_id = _register(app_client, ROBOTS["panda"])["model_id"]
+    robot_id = _robot(app_client, model_id)
+    hand = _hand()
+    post = _box("post", hand[:3, 3] + 0.36 * hand[:3, 2], 0.06)  # below the fingertips
+    trajectory_id = _store(app_client, model_id, [SWING_START, READY, SWING_GOAL])
+    assert app_client.put(f"/v1/robots/{robot_id}/scene", json={"objects": [post]}).status_code in (
+        200,
+        201,
+    )
+    bare = _plan(app_client, robot_id, SWING_START, SWING_GOAL).json()
+    assert (bare["status"], bare["trajectory_id"]) == ("success", trajectory_id)
+
+    rod = {"link": "panda_hand", "touch_links": ["panda_leftfinger", "panda_rightfinger"],
+           "object": {"id": "rod", "type": "cylinder", "size": [0.01, 0.3],
+                      "pose": {"position": [0, 0, 0.25], "orientation": [0, 0, 0, 1]}}}  # fmt: skip
+    held = app_client.put(
+        f"/v1/robots/{robot_id}/scene", json={"objects": [post], "attached_objects": [rod]}
+    )
+    assert held.status_code == 200, held.text
+    assert held.json()["warnings"] == []
+    blocked = _plan(app_client, robot_id, SWING_START, SWING_GOAL).json()
+    assert blocked["status"] == "miss"
+    assert "link 'rod' hits object 'post'" in blocked["rejected"][0]["reason"]
+
+    rod["link"] = "panda_wrist"
+    assert_detail(
+        app_client.put(
+            f"/v1/robots/{robot_id}/scene", json={"objects": [post], "attached_objects": [rod]}
+        ),
+        422,
+        "no link 'panda_wrist'",
+    )
+
+
+def test_a_path_cached_with_the_gripper_closed_is_validated_again_when_it_is_open(
+    app_client: TestClient,
+) -> None:
+    model_id = _register(app_client, ROBOTS["panda"])["model_id"]
+    trajectory_id = _store(app_client, model_id, [DIP_START, READY, DIP_GOAL])
+    closed = _robot(app_client, model_id, "closed")
+    opened = app_client.put("/v1/robots/opened", json={"model_id": model_id, "joint_values": OPEN})
+    assert opened.status_code == 201, opened.text
+    assert opened.json()["joint_values"] == OPEN
+    for robot_id in (closed, "opened"):
+        scene = app_client.put(f"/v1/robots/{robot_id}/scene", json={"objects": [_plate()]})
+        assert scene.status_code in (200, 201), scene.text
+
+    hit = _plan(app_client, closed, DIP_START, DIP_GOAL).json()
+    assert (hit["status"], hit["trajectory_id"]) == ("success", trajectory_id)
+    again = _plan(app_client, "opened", DIP_START, DIP_GOAL).json()  # same path, same scene
+    assert again["status"] == "miss"
+    assert "link 'panda_leftfinger' hits object 'plate'" in again["rejected"][0]["reason"]
+
+    reset = app_client.put("/v1/robots/opened", json={"model_id": model_id, "joint_values": {}})
+    assert reset.json()["joint_values"] == {}
+    assert _plan(app_client, "opened", DIP_START, DIP_GOAL).json()["status"] == "success"
+    for values, needle in (
+        ({"panda_finger_joint1": 0.5}, "not in [0, 0.04]"),
+        ({"panda_joint1": 0.1}, "is a planning joint"),
+        ({"panda_finger_joint2": 0.01}, "mimics"),
+    ):
+        response = app_client.put(
+            "/v1/robots/opened", json={"model_id": model_id, "joint_values": values}
+        )
+        assert_detail(response, 422, needle)

@@ -299,6 +299,16 @@ class RobotIn(BaseModel):
         description="`real` (a physical robot; the default for a new robot) or `sim` (a "
         "simulated one); omitted, an existing robot keeps its kind.",
     )
+    joint_values: dict[Annotated[str, Field(min_length=1, max_length=200)], FiniteNumber] | None = (
+        Field(
+            default=None,
+            max_length=256,
+            description="Values at which this robot holds joints outside the planning joints, "
+            "where they differ from its model's (e.g. the gripper open). Its plans are checked "
+            "with them; trajectories cached by robots that hold them otherwise are validated "
+            "again, never trusted. Omitted: kept; `{}`: the model's values.",
+        )
+    )
 
 
 class RobotOut(BaseModel):
@@ -323,6 +333,9 @@ class RobotOut(BaseModel):
     scene_version: int
     created_at: datetime
     updated_at: datetime
+    joint_values: dict[str, float] = Field(
+        default_factory=dict, description="Joints the robot holds otherwise than its model."
+    )
 
 
 class SceneIn(BaseModel):
@@ -362,6 +375,10 @@ class SceneVersionOut(BaseModel):
 
     version: int
     hash: str
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="What of the uploaded scene was not applied, or names nothing in it.",
+    )
 
 
 class SceneOut(SceneVersionOut):
@@ -375,6 +392,12 @@ class SceneOut(SceneVersionOut):
 
     objects: list[dict[str, Any]]
     env: dict[str, float]
+    allowed_collisions: list[list[str]] = Field(
+        default_factory=list, description="Name pairs whose contact the scene allows."
+    )
+    attached_objects: list[dict[str, Any]] = Field(
+        default_factory=list, description="Objects that travel with a robot link."
+    )
 
 
 # --- trajectories ---------------------------------------------------------------------------

@@ -133,6 +133,9 @@ class Robot(Base):
     scene_version: Mapped[int | None] = mapped_column(Integer)
     # `real`: a physical robot; `sim`: a simulated one (validation statistics tell them apart).
     kind: Mapped[str] = mapped_column(String(8), default="real", server_default="real")
+    # Values of joints outside the planning joints that this robot holds otherwise than its
+    # model does (e.g. the gripper open), as canonical JSON text; None: the model's.
+    joint_values: Mapped[str | None] = mapped_column(Text)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow, onupdate=utcnow)
 

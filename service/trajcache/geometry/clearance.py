@@ -76,6 +76,18 @@ class Clearance:
     def __init__(self, robot: RobotGeometry, scene: SceneGeometry) -> None:
         self.robot = robot
         self.scene = scene
+        # (E, M) True where the scene allows the element's link to touch the object: those
+        # pairs get no bound (+inf), so no level and no narrow phase ever looks at them.
+        self.allowed: BoolArray | None = None
+        if scene.scene.allowed and len(scene.ids):
+            names = robot.model.link_names
+            links = [names[link] for link in robot.element_link]
+            self.allowed = np.array(
+                [[scene.scene.allows(link, oid) for oid in scene.ids] for link in links],
+                dtype=bool,
+            ).reshape(len(links), len(scene.ids))
+            if not self.allowed.any():
+                self.allowed = None
 
     def near_objects(self, posed: Posed, grow: FloatArray) -> IntArray:
         """Objects whose box meets the box around every element ball grown by `grow` (N, E)."""
@@ -97,7 +109,10 @@ class Clearance:
         rot = sg.rotation_cat.reshape(3, -1, 3)[:, near].reshape(3, -1)
         local = (centres.reshape(-1, 3) @ rot).reshape(n, e, len(near), 3) - sg.offset[near]
         outside = np.maximum(np.abs(local) - sg.half[near], 0.0)
-        return norm3(outside) - self.robot.radius[None, :, None]
+        bound = norm3(outside) - self.robot.radius[None, :, None]
+        if self.allowed is not None:
+            bound[:, self.allowed[:, near]] = np.inf
+        return bound
 
     def scene_ball_rows(self, posed: Posed, pad: FloatArray) -> IntArray:
         """Level 1 as rows (K, 3): (state, element, object) whose ball bound is within `pad`
@@ -121,6 +136,8 @@ class Clearance:
         local = (centres[state] - sg.position[obj][:, None]) @ sg.rotation[obj]  # (K, E, 3)
         outside = np.maximum(np.abs(local) - sg.half[obj][:, None], 0.0)
         bound = norm3(outside) - self.robot.radius
+        if self.allowed is not None:
+            bound[self.allowed[:, obj].T] = np.inf
         pick, element = np.nonzero(bound <= pad[state])
         return np.column_stack([state[pick], element, obj[pick]])
 

@@ -1,11 +1,18 @@
-"""MoveIt `moveit_msgs/PlanningScene` world ↔ scene objects.
+"""MoveIt `moveit_msgs/PlanningScene` ↔ scenes.
 
 Accepted: the whole message (`world.collision_objects`), `{"world": {...}}` or
 `{"collision_objects": [...]}`, as decoded from JSON/YAML (rosbridge-style dicts; points and
-quaternions may also be plain lists). Only world-frame objects are supported. An object with
+quaternions may also be plain lists). World objects must be in a world frame. An object with
 several shapes becomes several scene objects `id`, `id#1`, `id#2` … (primitives first, then
 meshes); the object pose composes with each shape pose. As in MoveIt itself, an all-zero
 quaternion in a message means identity (a default-constructed pose).
+
+Also honoured: `allowed_collision_matrix` (`entry_names` and `entry_values[i].enabled[j]`; true
+allows contact between the two names: links, objects or attached objects) and
+`robot_state.attached_collision_objects` (posed in the frame of their `link_name`, with their
+`touch_links`). What is not applied comes back as the scene's warnings: the robot state's joint
+values (each plan gives its own), default ACM entries, link padding and scale, fixed frame
+transforms and `is_diff` (a scene is always taken whole).
 """
 
 from __future__ import annotations
@@ -18,8 +25,10 @@ import numpy as np
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.scene import (
     MAX_OBJECTS,
+    AttachedObject,
     Scene,
     SceneObject,
+    make_scene,
     make_shape,
     matrix_to_quaternion,
     number_list,
@@ -67,11 +76,18 @@ def _enum(value: Any, names: Mapping[str, int], where: str) -> int:
     return value
 
 
-def _frame_id(obj: Mapping[str, Any], oid: str) -> None:
+def _frame_id(obj: Mapping[str, Any], oid: str, link: str | None = None) -> None:
     header = obj.get("header") or {}
     if not isinstance(header, Mapping):
         raise SceneError(f"object {oid!r}: header must be a mapping")
     frame = header.get("frame_id", "")
+    if link is not None:
+        if not isinstance(frame, str) or frame.lstrip("/") not in ("", link):
+            raise SceneError(
+                f"attached object {oid!r}: header.frame_id {frame!r} is not its link "
+                f"{link!r}; give its pose in the frame of the link that carries it"
+            )
+        return
     if not isinstance(frame, str) or frame.lstrip("/") not in WORLD_FRAMES:
         raise SceneError(
             f"object {oid!r}: header.frame_id {frame!r} is not a world frame "
@@ -120,9 +136,12 @@ def _poses(obj: Mapping[str, Any], key: str, count: int, oid: str) -> list[Float
     ]
 
 
-def _object_shapes(obj: Mapping[str, Any], oid: str) -> list[tuple[Any, FloatArray]]:
-    """(Shape, world pose) for every primitive then mesh of one CollisionObject."""
-    _frame_id(obj, oid)
+def _object_shapes(
+    obj: Mapping[str, Any], oid: str, link: str | None = None
+) -> list[tuple[Any, FloatArray]]:
+    """(Shape, pose) for every primitive then mesh of one CollisionObject: world poses, or
+    poses in the frame of `link` for an attached object."""
+    _frame_id(obj, oid, link)
     if _as_list(obj.get("planes"), f"object {oid!r}: planes"):
         raise SceneError(f"object {oid!r}: planes are not supported")
     base = parse_pose(obj.get("pose"), f"object {oid!r}: pose", zero_is_identity=True)
@@ -164,14 +183,117 @@ def parse_moveit_objects(payload: Mapping[str, Any]) -> list[SceneObject]:
         if not shapes:
             raise SceneError(f"object {oid!r}: no primitives or meshes")
         groups.setdefault(oid, []).extend(shapes)
-    objects = [
-        SceneObject(oid if i == 0 else f"{oid}#{i}", shape, pose)
-        for oid, shapes in groups.items()
-        for i, (shape, pose) in enumerate(shapes)
-    ]
+    objects = [part for oid, shapes in groups.items() for part in _parts(oid, shapes)]
     if len(objects) > MAX_OBJECTS:
         raise SceneError(f"a scene may hold at most {MAX_OBJECTS} objects")
     return objects
+
+
+def _parts(oid: str, shapes: Sequence[tuple[Any, FloatArray]]) -> list[SceneObject]:
+    return [
+        SceneObject(oid if i == 0 else f"{oid}#{i}", shape, pose)
+        for i, (shape, pose) in enumerate(shapes)
+    ]
+
+
+def parse_planning_scene(payload: Mapping[str, Any], env: Mapping[str, float]) -> Scene:
+    """A scene from a PlanningScene message: world objects, attached objects and the allowed
+    collision matrix; what is not applied is listed in the scene's warnings."""
+    warnings: list[str] = []
+    objects = parse_moveit_objects(payload) if _has_world(payload) else []
+    attached = _attached_objects(payload.get("robot_state"), warnings)
+    allowed = _allowed_pairs(payload.get("allowed_collision_matrix"), warnings)
+    for key, what in (
+        ("link_padding", "link padding is not applied (checks are exact, without padding)"),
+        ("link_scale", "link scale is not applied"),
+        ("fixed_frame_transforms", "fixed frame transforms are not applied"),
+    ):
+        if payload.get(key):
+            warnings.append(f"{key}: {what}")
+    if payload.get("is_diff"):
+        warnings.append("is_diff: the scene is taken whole, not as a difference")
+    return make_scene(objects, env, allowed=allowed, attached=attached, warnings=warnings)
+
+
+def _has_world(payload: Mapping[str, Any]) -> bool:
+    return "world" in payload or "collision_objects" in payload
+
+
+def _attached_objects(state: Any, warnings: list[str]) -> list[AttachedObject]:
+    if state is None:
+        return []
+    if not isinstance(state, Mapping):
+        raise SceneError("robot_state must be a mapping")
+    for key in ("joint_state", "multi_dof_joint_state"):
+        value = state.get(key)
+        if isinstance(value, Mapping) and any(
+            value.get(k) for k in ("name", "position", "joint_names", "transforms")
+        ):
+            warnings.append(
+                f"robot_state.{key} is not used: each plan request gives its own start state"
+            )
+    out: list[AttachedObject] = []
+    for n, raw in enumerate(
+        _as_list(state.get("attached_collision_objects"), "attached_collision_objects")
+    ):
+        where = f"robot_state.attached_collision_objects[{n}]"
+        if not isinstance(raw, Mapping):
+            raise SceneError(f"{where} must be a mapping")
+        link = raw.get("link_name")
+        if not isinstance(link, str) or not link:
+            raise SceneError(f"{where}: link_name must name a robot link")
+        obj = raw.get("object")
+        if not isinstance(obj, Mapping):
+            raise SceneError(f"{where}: object must be a CollisionObject")
+        oid = obj.get("id")
+        if not isinstance(oid, str) or not oid.strip() or len(oid) > 200:
+            raise SceneError(f"{where}: object.id must be a non-empty string")
+        op = _enum(obj.get("operation", ADD), _OPERATION_NAMES, f"object {oid!r}: operation")
+        if op == REMOVE:
+            continue
+        if op != ADD:
+            raise SceneError(f"attached object {oid!r}: only operation ADD is supported")
+        shapes = _object_shapes(obj, oid, link)
+        if not shapes:
+            raise SceneError(f"attached object {oid!r}: no primitives or meshes")
+        touch = _as_list(raw.get("touch_links"), f"{where}.touch_links")
+        if not all(isinstance(t, str) and t for t in touch):
+            raise SceneError(f"{where}: touch_links must be link names")
+        out += [AttachedObject(link, part, tuple(touch)) for part in _parts(oid, shapes)]
+    return out
+
+
+def _allowed_pairs(matrix: Any, warnings: list[str]) -> list[tuple[str, str]]:
+    if matrix is None:
+        return []
+    if not isinstance(matrix, Mapping):
+        raise SceneError("allowed_collision_matrix must be a mapping")
+    names = _as_list(matrix.get("entry_names"), "allowed_collision_matrix.entry_names")
+    rows = _as_list(matrix.get("entry_values"), "allowed_collision_matrix.entry_values")
+    if not all(isinstance(name, str) and name for name in names):
+        raise SceneError("allowed_collision_matrix.entry_names must be names")
+    if len(rows) != len(names):
+        raise SceneError(
+            f"allowed_collision_matrix has {len(names)} entry_names but {len(rows)} entry_values"
+        )
+    pairs: list[tuple[str, str]] = []
+    for i, row in enumerate(rows):
+        where = f"allowed_collision_matrix.entry_values[{i}]"
+        enabled = row.get("enabled") if isinstance(row, Mapping) else row
+        flags = _as_list(enabled, f"{where}.enabled")
+        if len(flags) != len(names):
+            raise SceneError(f"{where}.enabled has {len(flags)} values for {len(names)} names")
+        for j, flag in enumerate(flags):
+            if not isinstance(flag, bool | int):
+                raise SceneError(f"{where}.enabled[{j}] must be true or false")
+            if flag and i != j:
+                pairs.append((names[i], names[j]))
+    if any(_as_list(matrix.get("default_entry_values"), "default_entry_values")):
+        warnings.append(
+            "allowed_collision_matrix.default_entry_values are not applied: list the pairs "
+            "in entry_values"
+        )
+    return pairs
 
 
 def _pose_msg(pose: FloatArray) -> dict[str, dict[str, float]]:

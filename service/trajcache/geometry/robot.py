@@ -45,6 +45,8 @@ class KinematicJoint:
     axis: FloatArray  # unit 3-vector in the joint frame
     index: int = -1
     default: float = 0.0
+    bounds: tuple[float, float] | None = None  # limits of a movable joint (None: unbounded)
+    mimic: tuple[str, float, float] | None = None  # (leader joint, multiplier, offset)
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,7 +1,16 @@
 """Scenes: collision objects in the world frame plus named environment values.
 
 Native payload: `{"objects": [{"id", "type", "size", "pose": {"position", "orientation"}}],
-"env": {...}}`; a MoveIt `PlanningScene` world is accepted too (see `trajcache.geometry.moveit`).
+"env": {...}}`; a MoveIt `PlanningScene` is accepted too (see `trajcache.geometry.moveit`).
+
+A scene may also carry what the robot team says about contact in it, which is part of its hash:
+- `allowed_collisions`: pairs of names whose contact is allowed, as a MoveIt allowed collision
+  matrix gives them: a link and an object (a part the hand holds, a table the base stands on),
+  or two links (adjusting the model's matrix for this scene). An object id also covers the
+  parts `id#1`, `id#2` … of a multi-shape object.
+- `attached_objects`: objects that travel with a link (`{"link", "object": {native object, posed
+  in the link frame}, "touch_links": [links it may touch]}`); they are checked against the scene
+  and against the robot's other links.
 Quaternions are (x, y, z, w); one whose norm lies in [0.9, 1.1] is normalized, any other is
 rejected, so that a sloppily rounded quaternion works but a wrong one does not pass silently.
 """
@@ -27,6 +36,9 @@ MAX_SCENE_TEXT_BYTES = 16 * 1024 * 1024
 QUATERNION_NORM_TOLERANCE = 0.1
 _SIZE_LENGTHS = {ShapeKind.BOX: 3, ShapeKind.SPHERE: 1, ShapeKind.CYLINDER: 2, ShapeKind.CAPSULE: 2}
 _OBJECT_KEYS = frozenset({"id", "type", "size", "pose", "vertices", "faces"})
+_SCENE_KEYS = frozenset({"objects", "env", "allowed_collisions", "attached_objects"})
+_ATTACHED_KEYS = frozenset({"link", "object", "touch_links"})
+MAX_ALLOWED_PAIRS = 10_000
 _IGNORED_TOP_KEYS = frozenset({"name", "version", "hash"})
 
 
@@ -40,12 +52,33 @@ class SceneObject:
 
 
 @dataclass(frozen=True, eq=False)
+class AttachedObject:
+    """An object that travels with a robot link; its pose is in the link's frame."""
+
+    link: str
+    object: SceneObject
+    touch_links: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
 class Scene:
-    """An immutable scene; `hash` is a canonical content hash (objects order-independent)."""
+    """An immutable scene; `hash` is a canonical content hash (objects order-independent).
+
+    `allowed` holds name pairs (sorted) whose contact is allowed; `warnings` tells what of the
+    uploaded document was not applied (not part of the hash).
+    """
 
     objects: tuple[SceneObject, ...]
     env: dict[str, float] = field(default_factory=dict)
     hash: str = ""
+    allowed: frozenset[tuple[str, str]] = frozenset()
+    attached: tuple[AttachedObject, ...] = ()
+    warnings: tuple[str, ...] = ()
+
+    def allows(self, a: str, b: str) -> bool:
+        """Whether contact between names `a` and `b` is allowed (object parts included)."""
+        a, b = a.partition("#")[0], b.partition("#")[0]
+        return (min(a, b), max(a, b)) in self.allowed
 
 
 # --- validation helpers (shared with the MoveIt parser) ------------------------------------
@@ -205,36 +238,71 @@ def _canonical_quaternion(obj: SceneObject) -> list[float]:
     return [v * -1.0 + 0.0 for v in q] if lead < 0.0 else q
 
 
-def scene_hash(objects: Iterable[SceneObject], env: Mapping[str, float]) -> str:
-    """sha256 of the canonical JSON of the objects (sorted by id) and the env (sorted by key)."""
-    entries = [
-        {
-            "id": obj.id,
-            "shape": obj.shape.canonical(),
-            "position": _rounded(obj.pose[:3, 3]),
-            "orientation": _canonical_quaternion(obj),
-        }
-        for obj in sorted(objects, key=lambda o: o.id)
-    ]
-    doc = {"objects": entries, "env": [[k, _rounded([env[k]])[0]] for k in sorted(env)]}
+def _canonical_object(obj: SceneObject) -> dict[str, Any]:
+    return {
+        "id": obj.id,
+        "shape": obj.shape.canonical(),
+        "position": _rounded(obj.pose[:3, 3]),
+        "orientation": _canonical_quaternion(obj),
+    }
+
+
+def scene_hash(
+    objects: Iterable[SceneObject],
+    env: Mapping[str, float],
+    allowed: Iterable[tuple[str, str]] = (),
+    attached: Iterable[AttachedObject] = (),
+) -> str:
+    """sha256 of the canonical JSON of the objects (sorted by id), the env (sorted by key) and,
+    when there are any, the allowed pairs and the attached objects."""
+    entries = [_canonical_object(obj) for obj in sorted(objects, key=lambda o: o.id)]
+    doc: dict[str, Any] = {
+        "objects": entries,
+        "env": [[k, _rounded([env[k]])[0]] for k in sorted(env)],
+    }
+    if pairs := sorted(allowed):
+        doc["allowed"] = [list(p) for p in pairs]
+    if held := sorted(attached, key=lambda a: a.object.id):
+        doc["attached"] = [
+            {**_canonical_object(a.object), "link": a.link, "touch": sorted(a.touch_links)}
+            for a in held
+        ]
     text = json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def make_scene(objects: Iterable[SceneObject], env: Mapping[str, float] | None = None) -> Scene:
+def make_scene(
+    objects: Iterable[SceneObject],
+    env: Mapping[str, float] | None = None,
+    *,
+    allowed: Iterable[tuple[str, str]] = (),
+    attached: Iterable[AttachedObject] = (),
+    warnings: Iterable[str] = (),
+) -> Scene:
     """A Scene with its hash filled in; duplicate ids and non-finite env values are rejected."""
     objs = tuple(objects)
+    held = tuple(attached)
+    pairs = frozenset((min(a, b), max(a, b)) for a, b in allowed)
+    if len(pairs) > MAX_ALLOWED_PAIRS:
+        raise SceneError(f"a scene may allow at most {MAX_ALLOWED_PAIRS} pairs")
     if len(objs) > MAX_OBJECTS:
         raise SceneError(f"a scene may hold at most {MAX_OBJECTS} objects, got {len(objs)}")
     seen: set[str] = set()
-    for obj in objs:
+    for obj in (*objs, *(a.object for a in held)):
         if obj.id in seen:
             raise SceneError(f"duplicate object id {obj.id!r}")
         seen.add(obj.id)
         if not np.all(np.isfinite(obj.pose)):
             raise SceneError(f"object {obj.id!r}: pose must be finite")
     clean_env = parse_env(dict(env or {}))
-    return Scene(objs, clean_env, scene_hash(objs, clean_env))
+    return Scene(
+        objs,
+        clean_env,
+        scene_hash(objs, clean_env, pairs, held),
+        allowed=pairs,
+        attached=held,
+        warnings=tuple(warnings),
+    )
 
 
 # --- public parsing, serialization and patching ---------------------------------------------
@@ -245,11 +313,13 @@ def parse_scene(payload: Mapping[str, Any]) -> Scene:
     if not isinstance(payload, Mapping):
         raise SceneError("a scene must be a mapping")
     env = parse_env(payload.get("env"))
-    if "objects" not in payload and ("world" in payload or "collision_objects" in payload):
-        from trajcache.geometry.moveit import parse_moveit_objects
+    if "objects" not in payload and any(
+        key in payload for key in ("world", "collision_objects", "robot_state")
+    ):
+        from trajcache.geometry.moveit import parse_planning_scene
 
-        return make_scene(parse_moveit_objects(payload), env)
-    unknown = sorted(str(k) for k in payload if k not in {"objects", "env"} | _IGNORED_TOP_KEYS)
+        return parse_planning_scene(payload, env)
+    unknown = sorted(str(k) for k in payload if k not in _SCENE_KEYS | _IGNORED_TOP_KEYS)
     if unknown:
         raise SceneError(f"unknown scene field(s) {', '.join(unknown)}")
     raw_objects = payload.get("objects", [])
@@ -257,7 +327,61 @@ def parse_scene(payload: Mapping[str, Any]) -> Scene:
         raise SceneError("objects must be a list")
     if len(raw_objects) > MAX_OBJECTS:
         raise SceneError(f"a scene may hold at most {MAX_OBJECTS} objects")
-    return make_scene([parse_object(o, f"objects[{i}]") for i, o in enumerate(raw_objects)], env)
+    return make_scene(
+        [parse_object(o, f"objects[{i}]") for i, o in enumerate(raw_objects)],
+        env,
+        allowed=parse_allowed(payload.get("allowed_collisions")),
+        attached=parse_attached(payload.get("attached_objects")),
+    )
+
+
+def _names(value: Any, where: str) -> list[str]:
+    if value is None:
+        return []
+    if not isinstance(value, Sequence) or isinstance(value, str):
+        raise SceneError(f"{where} must be a list of names")
+    for i, name in enumerate(value):
+        if not isinstance(name, str) or not name or len(name) > 200:
+            raise SceneError(f"{where}[{i}] must be a non-empty name of at most 200 characters")
+    return list(value)
+
+
+def parse_allowed(value: Any) -> list[tuple[str, str]]:
+    """`allowed_collisions`: a list of [name, name] pairs."""
+    if value is None:
+        return []
+    if not isinstance(value, Sequence) or isinstance(value, str):
+        raise SceneError("allowed_collisions must be a list of [name, name] pairs")
+    pairs = []
+    for i, raw in enumerate(value):
+        names = _names(raw, f"allowed_collisions[{i}]")
+        if len(names) != 2 or names[0] == names[1]:
+            raise SceneError(f"allowed_collisions[{i}] must be two different names")
+        pairs.append((names[0], names[1]))
+    return pairs
+
+
+def parse_attached(value: Any) -> list[AttachedObject]:
+    """`attached_objects`: objects posed in the frame of the link that carries them."""
+    if value is None:
+        return []
+    if not isinstance(value, Sequence) or isinstance(value, str):
+        raise SceneError("attached_objects must be a list")
+    out = []
+    for i, raw in enumerate(value):
+        where = f"attached_objects[{i}]"
+        if not isinstance(raw, Mapping):
+            raise SceneError(f"{where} must be a mapping")
+        unknown = sorted(str(k) for k in raw if k not in _ATTACHED_KEYS)
+        if unknown:
+            raise SceneError(f"{where}: unknown field(s) {', '.join(unknown)}")
+        link = raw.get("link")
+        if not isinstance(link, str) or not link:
+            raise SceneError(f"{where}: link must name a robot link")
+        obj = parse_object(raw.get("object"), f"{where}.object")
+        touch = _names(raw.get("touch_links"), f"{where}.touch_links")
+        out.append(AttachedObject(link, obj, tuple(touch)))
+    return out
 
 
 class _NoAliasLoader(yaml.SafeLoader):
@@ -303,7 +427,22 @@ def object_to_payload(obj: SceneObject) -> dict[str, Any]:
 
 def scene_to_payload(scene: Scene) -> dict[str, Any]:
     """The scene in native form (`parse_scene` of it gives the same hash)."""
-    return {"objects": [object_to_payload(o) for o in scene.objects], "env": dict(scene.env)}
+    out: dict[str, Any] = {
+        "objects": [object_to_payload(o) for o in scene.objects],
+        "env": dict(scene.env),
+    }
+    if scene.allowed:
+        out["allowed_collisions"] = [list(pair) for pair in sorted(scene.allowed)]
+    if scene.attached:
+        out["attached_objects"] = [
+            {
+                "link": a.link,
+                "object": object_to_payload(a.object),
+                "touch_links": list(a.touch_links),
+            }
+            for a in scene.attached
+        ]
+    return out
 
 
 def apply_patch(scene: Scene, patch: Mapping[str, Any]) -> Scene:
@@ -345,4 +484,4 @@ def apply_patch(scene: Scene, patch: Mapping[str, Any]) -> Scene:
             env.pop(key, None)
         else:
             env[key] = finite_number(value, f"env[{key!r}]")
-    return make_scene(objects.values(), env)
+    return make_scene(objects.values(), env, allowed=scene.allowed, attached=scene.attached)

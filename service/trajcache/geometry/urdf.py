@@ -408,6 +408,7 @@ def _kinematic_joints(
     planning: list[str],
     offset: int,
     held: Mapping[str, float],
+    limits: Mapping[str, tuple[float, float, float] | None],
 ) -> list[KinematicJoint]:
     """KinematicJoints in topological order; joints outside `planning` are held at `held`."""
     link_index = {name: i for i, name in enumerate(links)}
@@ -427,6 +428,11 @@ def _kinematic_joints(
             raise RobotModelError(f"joint {joint.name!r} has a zero axis")
         kind = joint.type if joint.type in MOVABLE else "fixed"
         index = planning.index(joint.name) + offset if joint.name in planning else -1
+        bounds = limits.get(joint.name)
+        mimic = None
+        if kind != "fixed" and joint.mimic is not None:
+            multiplier = 1.0 if joint.mimic.multiplier is None else float(joint.mimic.multiplier)
+            mimic = (joint.mimic.joint, multiplier, float(joint.mimic.offset or 0.0))
         result.append(
             KinematicJoint(
                 name=joint.name,
@@ -437,6 +443,8 @@ def _kinematic_joints(
                 axis=axis / norm if norm >= 1e-12 else np.array([1.0, 0.0, 0.0]),
                 index=index,
                 default=held.get(joint.name, 0.0),
+                bounds=None if bounds is None else (bounds[0], bounds[1]),
+                mimic=mimic,
             )
         )
     return result
@@ -525,7 +533,7 @@ def load_robot_model(
         )
     held = _held_values(ordered, planning, limits, joint_values, semantic)
     planar = base_type is BaseType.PLANAR
-    joints = _kinematic_joints(ordered, links, planning, 3 if planar else 0, held)
+    joints = _kinematic_joints(ordered, links, planning, 3 if planar else 0, held, limits)
     resolver = _MeshResolver(files or {})
     elements = _elements(robot, links, resolver)
     base_limits = [(-math.inf, math.inf, v) for v in BASE_VELOCITY[:2]]

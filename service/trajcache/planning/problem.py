@@ -55,6 +55,7 @@ class PlanningProblem:
     planner: str = "rrtconnect"
     seed: int = 0
     shortcut_s: float = 0.25
+    joint_values: tuple[tuple[str, float], ...] = ()  # the robot's held joint values, if set
 
 
 @dataclass

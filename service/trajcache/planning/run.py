@@ -16,6 +16,7 @@ from typing import Generic, TypeVar
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene, parse_scene
 from trajcache.geometry.urdf import load_robot_model
+from trajcache.geometry.variant import model_in_scene
 from trajcache.planning.ompl_planner import plan_ompl
 from trajcache.planning.problem import (
     ModelSource,
@@ -112,8 +113,8 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
     """Plan one problem with the planner it names ("rris" or an OMPL planner); never raises."""
     began = time.perf_counter()
     try:
-        model = model_from_source(problem.model)
         scene = scene_from_source(problem.scene)
+        model = model_in_scene(model_from_source(problem.model), scene, dict(problem.joint_values))
         setup_ms = (time.perf_counter() - began) * 1e3
         name = problem.planner.strip().lower()
         if name == RRIS:

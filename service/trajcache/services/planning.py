@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -59,6 +60,7 @@ from trajcache.geometry.kinematics import (
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene, scene_to_payload
 from trajcache.geometry.validation import ValidationResult, ValidationSettings, validator_for
+from trajcache.geometry.variant import model_in_scene
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, SceneSource
 from trajcache.services.context import ServiceContext
@@ -107,6 +109,7 @@ class _Origin:
     store_source: str  # source of a trajectory the planner finds for this request
     store_robot_id: str | None
     real: bool  # a real robot: a hit counts as a validation of the trajectory in the real world
+    held: Mapping[str, float] | None = None  # the robot's own held joint values, if it set any
 
 
 @dataclass
@@ -164,7 +167,7 @@ def plan(*, ctx: ServiceContext, robot_id: str, request: PlanRequest) -> PlanAns
         model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
         scene = robot.scene
         clock.db += time.perf_counter() - t
-        origin = _Origin("planner", robot_id, real=robot.kind == "real")
+        origin = _Origin("planner", robot_id, real=robot.kind == "real", held=robot.joint_values)
         answer = _plan_in_scene(session, ctx, robot_id, model, scene, request, origin, clock)
     answer.model, answer.scene = model, scene
     return answer
@@ -243,8 +246,10 @@ def _plan_in_scene(
     clock.lookup += time.perf_counter() - t
 
     t = time.perf_counter()
-    validator = validator_for(model, scene, ctx.settings)
-    scope = memo_scope(model, scene, ctx.settings)
+    # Checked as the robot holds its joints in this scene; cached under the registered model.
+    checked = model_in_scene(model, scene, origin.held)
+    validator = validator_for(checked, scene, ctx.settings)
+    scope = memo_scope(checked, scene, ctx.settings)
     failed: list[int] = []
     rejected: list[dict[str, object]] = []
     seen: list[tuple[np.ndarray, ValidationResult]] = []  # adapted paths rejected so far
@@ -522,6 +527,7 @@ def _plan_fallback(
         goal=tuple(float(v) for v in goal),
         budget_s=request.budget_s,
         planner=request.planner,
+        joint_values=tuple(sorted((origin.held or {}).items())),
     )
     session.rollback()  # nothing is written yet; release the connection while planning
     outcome = planner.submit(problem)
@@ -536,7 +542,8 @@ def _plan_fallback(
             raise UnavailableError(f"planning is unavailable, retry later ({outcome.message})")
         return answer
     t = time.perf_counter()
-    result = validator_for(model, scene, ctx.settings).validate(outcome.path)
+    checked = model_in_scene(model, scene, origin.held)
+    result = validator_for(checked, scene, ctx.settings).validate(outcome.path)
     clock.validate += time.perf_counter() - t
     if not result.valid:
         return _answer_without_path(

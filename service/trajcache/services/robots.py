@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 import threading
 from collections import OrderedDict
@@ -14,13 +15,16 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from trajcache.db import models as tables
+from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene, apply_patch, make_scene, parse_scene, scene_to_payload
+from trajcache.geometry.variant import model_in_scene
 from trajcache.services.errors import (
     ConflictError,
     InvalidInputError,
     NotFoundError,
     PayloadTooLargeError,
 )
+from trajcache.services.models import ModelRegistry, get_model
 
 if TYPE_CHECKING:
     from trajcache.services.index_store import AnySelect
@@ -69,6 +73,8 @@ class SceneInfo:
     hash: str
     objects: list[dict[str, Any]]
     env: dict[str, float]
+    allowed_collisions: list[list[str]]
+    attached_objects: list[dict[str, Any]]
 
 
 def check_robot_id(robot_id: str) -> str:
@@ -85,11 +91,20 @@ ROBOT_KINDS = ("real", "sim")
 
 
 def put_robot(
-    *, session: Session, robot_id: str, model_id: str, kind: str | None = None
+    *,
+    session: Session,
+    robot_id: str,
+    model_id: str,
+    kind: str | None = None,
+    joint_values: Mapping[str, float] | None = None,
+    models: ModelRegistry | None = None,
 ) -> tuple[tables.Robot, bool]:
     """Create robot `robot_id` of model `model_id`, or re-point it; return it and `created`.
 
-    `kind` (`real` or `sim`) is set when given; a new robot without it is `real`.
+    `kind` (`real` or `sim`) is set when given; a new robot without it is `real`. `joint_values`
+    (given: set, `{}` clears them) hold joints outside the planning joints otherwise than the
+    model does; they are checked against the model (StateError names a value it cannot hold),
+    as are values kept from before when the robot moves to another model.
     """
     check_robot_id(robot_id)
     if kind is not None and kind not in ROBOT_KINDS:
@@ -100,9 +115,19 @@ def put_robot(
     ):
         raise NotFoundError(f"robot model {model_id!r} not found")
     robot = session.get(tables.Robot, robot_id)
+    held_text = robot.joint_values if robot is not None else None
+    if joint_values is not None:
+        held_text = json.dumps(dict(sorted(joint_values.items()))) if joint_values else None
+    if held_text is not None:
+        model = get_model(session=session, registry=models or ModelRegistry(), model_id=model_id)
+        model_in_scene(model, EMPTY_SCENE, held_values(held_text))  # raises if it cannot hold
     if robot is None:
         robot = tables.Robot(
-            id=robot_id, model_id=model_id, scene_version=None, kind=kind or "real"
+            id=robot_id,
+            model_id=model_id,
+            scene_version=None,
+            kind=kind or "real",
+            joint_values=held_text,
         )
         session.add(robot)
         try:
@@ -113,9 +138,14 @@ def put_robot(
             robot = session.get(tables.Robot, robot_id)
             if robot is None:
                 raise
-    if robot.model_id != model_id or (kind is not None and robot.kind != kind):
+    if (
+        robot.model_id != model_id
+        or (kind is not None and robot.kind != kind)
+        or robot.joint_values != held_text
+    ):
         robot.model_id = model_id
         robot.kind = kind or robot.kind
+        robot.joint_values = held_text
         robot.updated_at = tables.utcnow()
         session.commit()
     return robot, False
@@ -138,6 +168,7 @@ class RobotScene:
     scene: Scene
     version: int  # 0: no scene uploaded yet (the empty scene)
     kind: str = "real"  # "real" or "sim"
+    joint_values: Mapping[str, float] | None = None  # the robot's own held joint values
 
 
 def robot_scene(
@@ -160,9 +191,9 @@ def robot_scene(
         row = read_fn(ROBOT_SCENE, params)
     if row is None:
         raise NotFoundError(f"robot {robot_id!r} not found")
-    model_id, version, scene_hash, kind = row
+    model_id, version, scene_hash, kind, held = row
     scene, version = _resolve_scene(session, scenes, robot_id, version or 0, scene_hash)
-    return RobotScene(robot_id, model_id, scene, version, kind)
+    return RobotScene(robot_id, model_id, scene, version, kind, held_values(held))
 
 
 def current_scene(
@@ -194,10 +225,19 @@ ROBOT_SCENE: AnySelect = (  # built once: the plan flow runs it on every request
         tables.Robot.scene_version,
         tables.SceneVersion.hash,
         tables.Robot.kind,
+        tables.Robot.joint_values,
     )
     .outerjoin(tables.SceneVersion, _current_version())
     .where(tables.Robot.id == sa.bindparam("robot_id", type_=sa.String))
 )
+
+
+def held_values(text: str | None) -> dict[str, float] | None:
+    """A robot's held joint values from their stored JSON text (None: the model's)."""
+    if not text:
+        return None
+    values = json.loads(text)
+    return {str(k): float(v) for k, v in values.items()}
 
 
 def _resolve_scene(
@@ -224,7 +264,30 @@ def get_scene(*, session: Session, scenes: SceneCache, robot_id: str) -> SceneIn
     """The robot's current scene in native form, with its version and hash."""
     _, scene, version = current_scene(session=session, scenes=scenes, robot_id=robot_id)
     payload = scene_to_payload(scene)
-    return SceneInfo(version, scene.hash, payload["objects"], payload["env"])
+    return SceneInfo(
+        version,
+        scene.hash,
+        payload["objects"],
+        payload["env"],
+        payload.get("allowed_collisions", []),
+        payload.get("attached_objects", []),
+    )
+
+
+def scene_warnings(model: RobotModel, scene: Scene) -> list[str]:
+    """The scene's own warnings, and its names that are neither a link of `model` nor one of
+    its objects; SceneError when an attached object cannot be attached to the model."""
+    model_in_scene(model, scene)  # an unknown link to attach to, or a name clash, is an error
+    known = set(model.link_names) | {o.id.partition("#")[0] for o in scene.objects}
+    known |= {a.object.id.partition("#")[0] for a in scene.attached}
+    out = list(scene.warnings)
+    unknown = sorted({n for pair in scene.allowed for n in pair if n not in known})
+    if unknown:
+        out.append(f"allowed collisions name unknown links or objects {unknown}; not applied")
+    touch = sorted({t for a in scene.attached for t in a.touch_links if t not in known})
+    if touch:
+        out.append(f"touch_links name unknown links {touch}; not applied")
+    return out
 
 
 def put_scene(

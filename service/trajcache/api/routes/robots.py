@@ -23,7 +23,16 @@ from trajcache.api.schemas import (
 from trajcache.db import models as tables
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.scene import Scene, parse_scene, parse_scene_text
-from trajcache.services.robots import get_robot, get_scene, patch_scene, put_robot, put_scene
+from trajcache.services.models import get_model
+from trajcache.services.robots import (
+    get_robot,
+    get_scene,
+    held_values,
+    patch_scene,
+    put_robot,
+    put_scene,
+    scene_warnings,
+)
 
 router = APIRouter(
     prefix="/robots", tags=["robots"], responses=COMMON, route_class=BoundedBodyRoute
@@ -68,6 +77,7 @@ def _robot_out(robot: tables.Robot) -> RobotOut:
         scene_version=robot.scene_version or 0,
         created_at=robot.created_at,
         updated_at=robot.updated_at,
+        joint_values=held_values(robot.joint_values) or {},
     )
 
 
@@ -80,7 +90,9 @@ def _robot_out(robot: tables.Robot) -> RobotOut:
     description="Creates the robot `robot_id` (1-128 letters, digits, `.`, `_`, `:` or `-`) as an "
     "instance of a registered model, or re-points an existing robot (201 when new, 200 when it "
     "existed). Robots of one model share one cache. `kind` marks a robot `real` (the default) or "
-    "`sim`, so validation statistics can tell real-robot use of a trajectory apart.",
+    "`sim`, so validation statistics can tell real-robot use of a trajectory apart. "
+    "`joint_values` holds joints outside the planning joints otherwise than the model does "
+    "(e.g. the gripper open): the robot's plans are checked with those values.",
     responses={
         200: {"description": "Robot updated", "model": RobotOut},
         **errors(
@@ -96,11 +108,16 @@ def _robot_out(robot: tables.Robot) -> RobotOut:
     },
 )
 def put_robot_route(
-    robot_id: str, body: RobotIn, session: SessionDep, response: Response
+    robot_id: str, body: RobotIn, ctx: CtxDep, session: SessionDep, response: Response
 ) -> RobotOut:
     """201 when the robot is new, 200 when it existed."""
     robot, created = put_robot(
-        session=session, robot_id=robot_id, model_id=body.model_id, kind=body.kind
+        session=session,
+        robot_id=robot_id,
+        model_id=body.model_id,
+        kind=body.kind,
+        joint_values=body.joint_values,
+        models=ctx.models,
     )
     if not created:
         response.status_code = 200
@@ -188,6 +205,9 @@ def put_scene_route(
 ) -> SceneVersionOut:
     """A new scene version (or the current one when the content is unchanged)."""
     scene = parse_scene_body(body)
+    robot = get_robot(session=session, robot_id=robot_id)
+    model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
+    warnings = scene_warnings(model, scene)
     version, scene_hash = put_scene(
         session=session,
         scenes=ctx.scenes,
@@ -195,7 +215,7 @@ def put_scene_route(
         scene=scene,
         max_objects=ctx.settings.max_scene_objects,
     )
-    return SceneVersionOut(version=version, hash=scene_hash)
+    return SceneVersionOut(version=version, hash=scene_hash, warnings=warnings)
 
 
 @router.patch(
@@ -245,4 +265,11 @@ def patch_scene_route(
 def get_scene_route(robot_id: str, ctx: CtxDep, session: SessionDep) -> SceneOut:
     """The current scene in native form with its version and hash."""
     info = get_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
-    return SceneOut(version=info.version, hash=info.hash, objects=info.objects, env=info.env)
+    return SceneOut(
+        version=info.version,
+        hash=info.hash,
+        objects=info.objects,
+        env=info.env,
+        allowed_collisions=info.allowed_collisions,
+        attached_objects=info.attached_objects,
+    )

@@ -1,0 +1,173 @@
+"""The model a robot is checked with: its registered model, as the robot holds it in its scene.
+
+Three things a robot or its scene may change, each giving a variant with its own model id (so
+geometry, validators and validation verdicts are never shared with another variant):
+- held joint values set for the robot (a gripper held open instead of closed); mimic joints
+  follow their leader again;
+- the scene's attached objects, each a link of its own, fixed to the link that carries it. As in
+  MoveIt, an attached object is checked against every link but that one and its `touch_links`;
+- the scene's allowed pairs of two robot links (or a link and an attached object), added to the
+  model's skipped pairs with the reason `scene`.
+
+Pairs the scene allows between a link and a world object are not part of the model: the
+distance bounds leave them out (`Clearance`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import threading
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import replace
+
+import numpy as np
+
+from trajcache.geometry.errors import SceneError, StateError
+from trajcache.geometry.robot import CollisionElement, KinematicJoint, RobotModel
+from trajcache.geometry.scene import Scene
+
+_CACHE_SIZE = 256
+_variants: OrderedDict[tuple[str, str], RobotModel] = OrderedDict()
+_lock = threading.Lock()
+
+
+def model_in_scene(
+    model: RobotModel, scene: Scene, held: Mapping[str, float] | None = None
+) -> RobotModel:
+    """`model` with the robot's `held` joint values, the scene's attached objects and its
+    allowed link pairs (the model itself when none of them applies)."""
+    links = set(model.link_names)
+    robot_pairs = sorted((a, b) for a, b in scene.allowed if a in links and b in links and a != b)
+    if not held and not scene.attached and not robot_pairs:
+        return model
+    key = (model.model_id, _variant_key(scene, robot_pairs, held or {}))
+    with _lock:
+        found = _variants.get(key)
+        if found is not None:
+            _variants.move_to_end(key)
+            return found
+    built = _build(model, scene, robot_pairs, held or {}, key[1])
+    with _lock:
+        _variants[key] = built
+        while len(_variants) > _CACHE_SIZE:
+            _variants.popitem(last=False)
+    return built
+
+
+def _variant_key(
+    scene: Scene, robot_pairs: list[tuple[str, str]], held: Mapping[str, float]
+) -> str:
+    attached = [
+        {
+            "id": a.object.id,
+            "link": a.link,
+            "touch": sorted(a.touch_links),
+            "shape": a.object.shape.canonical(),
+            "pose": [round(float(v), 9) for v in a.object.pose[:3].ravel()],
+        }
+        for a in sorted(scene.attached, key=lambda a: a.object.id)
+    ]
+    doc = {
+        "held": {k: repr(float(v)) for k, v in sorted(held.items())},
+        "attached": attached,
+        "allowed": robot_pairs,
+    }
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _build(
+    model: RobotModel,
+    scene: Scene,
+    robot_pairs: list[tuple[str, str]],
+    held: Mapping[str, float],
+    key: str,
+) -> RobotModel:
+    joints = _held_joints(model, held) if held else model.joints
+    names = list(model.link_names)
+    index = {name: i for i, name in enumerate(names)}
+    elements = list(model.elements)
+    extra_joints: list[KinematicJoint] = []
+    reasons = dict(model.pair_reasons)
+    for attached in scene.attached:
+        parent = index.get(attached.link)
+        if parent is None:
+            raise SceneError(
+                f"attached object {attached.object.id!r}: the robot has no link {attached.link!r}"
+            )
+        if attached.object.id in index:
+            raise SceneError(f"attached object {attached.object.id!r} has the name of a robot link")
+        child = len(names)
+        names.append(attached.object.id)
+        index[attached.object.id] = child
+        extra_joints.append(
+            KinematicJoint(
+                name=f"attach:{attached.object.id}",
+                kind="fixed",
+                parent=parent,
+                child=child,
+                origin=np.asarray(attached.object.pose, dtype=float),
+                axis=np.array([1.0, 0.0, 0.0]),
+            )
+        )
+        elements.append(CollisionElement(link=child, shape=attached.object.shape, origin=np.eye(4)))
+        for other in (attached.link, *attached.touch_links):
+            if other in index and index[other] != child:
+                reasons[_pair(index[other], child)] = "scene"
+    for a, b in robot_pairs:
+        reasons.setdefault(_pair(index[a], index[b]), "scene")
+    for a, b in scene.allowed:  # an attached object and a link (or another attached object)
+        if a in index and b in index and a != b and (a, b) not in robot_pairs:
+            reasons.setdefault(_pair(index[a], index[b]), "scene")
+    return replace(
+        model,
+        model_id=hashlib.sha256(f"{model.model_id}:{key}".encode()).hexdigest(),
+        link_names=tuple(names),
+        joints=(*joints, *extra_joints),
+        elements=tuple(elements),
+        allowed_pairs=frozenset(reasons),
+        pair_reasons=reasons,
+        held_values=_held_values(joints),
+    )
+
+
+def _pair(a: int, b: int) -> tuple[int, int]:
+    return min(a, b), max(a, b)
+
+
+def _held_joints(model: RobotModel, held: Mapping[str, float]) -> tuple[KinematicJoint, ...]:
+    """The joints with `held` values set; StateError names a value that cannot be held."""
+    by_name = {j.name: j for j in model.joints}
+    for name, value in held.items():
+        joint = by_name.get(name)
+        if joint is None or joint.kind == "fixed":
+            raise StateError(f"joint_values: {name!r} is not a movable joint of the model")
+        if joint.index >= 0:
+            raise StateError(
+                f"joint_values: {name!r} is a planning joint; its value comes with each state"
+            )
+        if joint.mimic is not None:
+            raise StateError(f"joint_values: {name!r} mimics {joint.mimic[0]!r}; give that joint")
+        if not math.isfinite(value):
+            raise StateError(f"joint_values: {name!r} is not finite")
+        if joint.bounds is not None and joint.kind != "continuous":
+            lo, hi = joint.bounds
+            if not lo - 1e-9 <= value <= hi + 1e-9:
+                raise StateError(f"joint_values: {name} = {value:.6g} not in [{lo:.6g}, {hi:.6g}]")
+    values = {j.name: j.default for j in model.joints if j.index < 0 and j.kind != "fixed"}
+    values.update({k: float(v) for k, v in held.items()})
+    for _ in range(len(values)):  # followers of followers settle within as many rounds
+        for joint in model.joints:
+            if joint.mimic is not None and joint.index < 0:
+                leader, multiplier, offset = joint.mimic
+                values[joint.name] = multiplier * values.get(leader, 0.0) + offset
+    return tuple(
+        replace(j, default=values[j.name]) if j.name in values else j for j in model.joints
+    )
+
+
+def _held_values(joints: tuple[KinematicJoint, ...]) -> dict[str, float]:
+    return {j.name: j.default for j in joints if j.index < 0 and j.kind != "fixed"}
