@@ -299,3 +299,28 @@ def test_export_filters(source_ctx: ServiceContext) -> None:
             list(export_records(session=session, filt=ExportFilter(model_ids=("nope",))))
         with pytest.raises(InvalidInputError, match="source"):
             list(export_records(session=session, filt=ExportFilter(sources=("dream",))))
+
+
+SRDF = """<robot name="two_joint">
+  <group name="arm"><joint name="shoulder"/></group>
+  <disable_collisions link1="base" link2="fore" reason="Never"/>
+</robot>"""
+
+
+def test_a_model_with_an_srdf_and_held_joints_keeps_its_id(
+    source_ctx: ServiceContext, target_ctx: ServiceContext
+) -> None:
+    with source_ctx.session() as session:
+        model, _ = register_model(
+            session=session, registry=ModelRegistry(), urdf=TWO_JOINT_URDF, srdf=SRDF,
+            group="arm", joint_values={"elbow": 0.5},
+        )  # fmt: skip
+        store_trajectory(session=session, model=model, states=[[0.0], [0.4]], source="sim")
+    lines = export_lines(source_ctx)
+    (record,) = [json.loads(line) for line in lines if json.loads(line)["type"] == "model"]
+    assert (record["srdf"], record["joint_values"]) == (SRDF, {"elbow": 0.5})
+    run_import(target_ctx, lines)
+    with target_ctx.session() as session:
+        imported = get_model(session=session, registry=ModelRegistry(), model_id=model.model_id)
+    assert imported.held_values == {"elbow": 0.5}
+    assert "srdf" in imported.pair_reasons.values()

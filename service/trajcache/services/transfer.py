@@ -6,8 +6,9 @@ One JSON object per line, in this order:
    "filters": {...}}` — optional on import; a file of another format or a newer version is
    refused as a whole.
 2. Per model, before its trajectories: `{"type": "model", "model_id", "name", "base",
-   "joint_names", "urdf", "files": [{"path", "sha256", "data": base64}],
-   "acceleration_limits", "jerk_limits", "end_effector_link"}`. Import registers the model
+   "joint_names", "urdf", "srdf", "joint_values", "files": [{"path", "sha256", "data": base64}],
+   "acceleration_limits", "jerk_limits", "end_effector_link"}` (`srdf` and `joint_values`
+   only when the model was registered with them). Import registers the model
    (same content → same id) unless it exists. Without model lines, every model must already be
    in the target database; a trajectory of an unknown model is rejected.
 3. `{"type": "trajectory", "model_id", "states": [[...], ...], "source", "robot_id",
@@ -126,6 +127,7 @@ def model_record(session: Session, model_id: str) -> dict[str, Any]:
         "base": row.base,
         "joint_names": list(row.joint_names),
         "urdf": row.urdf,
+        **{k: v for k, v in (row.config or {}).items() if k in ("srdf", "joint_values")},
         "files": [
             {"path": p, "sha256": sha, "data": base64.b64encode(data).decode("ascii")}
             for p, sha, data in files
@@ -339,6 +341,8 @@ class Importer:
             files=files,
             base=str(record.get("base", "fixed")),
             joint_names=record.get("joint_names"),
+            srdf=_optional_text(record.get("srdf"), "srdf"),
+            joint_values=_joint_values(record.get("joint_values")),
             name=record.get("name"),
             max_urdf_bytes=self.settings.max_urdf_bytes,
             acceleration_limits=record.get("acceleration_limits"),
@@ -451,3 +455,20 @@ def import_lines(
         session.rollback()
         raise
     return importer.finish()
+
+
+def _optional_text(value: Any, what: str) -> str | None:
+    if value is not None and not isinstance(value, str):
+        raise _LineError(f"{what} must be a string")
+    return value
+
+
+def _joint_values(value: Any) -> dict[str, float] | str | None:
+    if value is None or isinstance(value, str):
+        return value
+    if not isinstance(value, Mapping) or not all(
+        isinstance(k, str) and isinstance(v, int | float) and not isinstance(v, bool)
+        for k, v in value.items()
+    ):
+        raise _LineError("joint_values must map joint names to numbers, or name a group_state")
+    return {k: float(v) for k, v in value.items()}
