@@ -199,6 +199,9 @@ class RobotModelOut(BaseModel):
         default_factory=dict,
         description="SRDF group states usable as a plan's start or goal: planning joint values.",
     )
+    warnings: list[str] = Field(
+        default_factory=list, description="What of the SRDF was not applied, and why."
+    )
 
 
 class ModelFileOut(BaseModel):
@@ -267,6 +270,9 @@ class RobotModelDetail(RobotModelSummary):
     named_states: dict[str, list[float]] = Field(
         default_factory=dict,
         description="SRDF group states usable as a plan's start or goal: planning joint values.",
+    )
+    warnings: list[str] = Field(
+        default_factory=list, description="What of the SRDF was not applied, and why."
     )
 
 

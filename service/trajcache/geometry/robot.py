@@ -74,6 +74,7 @@ class RobotModel:
     held_values: Mapping[str, float] = field(default_factory=dict)
     # SRDF group states that give every planning joint a value, in joint_names order.
     named_states: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()  # what of the SRDF was not applied
     # Configuration given at registration: acceleration and jerk limits per planning joint
     # (joint_names order; NaN or None: the service default) and the end-effector link (None: the
     # tip of the longest kinematic chain).

@@ -298,6 +298,7 @@ def _planning_joints(
     joint_names: Sequence[str] | None,
     group: str | None,
     srdf: Srdf | None,
+    warnings: list[str],
 ) -> list[str]:
     """The planning joints: listed, an SRDF group's movable joints, or every movable joint that
     does not mimic another (both in the URDF's order, `ordered` being the file's joints)."""
@@ -308,9 +309,10 @@ def _planning_joints(
         if srdf is None:
             raise RobotModelError(f"group {group!r} needs an SRDF that defines it")
         parent_of = {j.child: (j.name, j.parent) for j in ordered}
-        members, _ = group_joints(
+        members, skipped = group_joints(
             srdf, group, parent_of=parent_of, joints=[j.name for j in ordered]
         )
+        warnings += skipped
         names = [n for n in movable if n in members]
         if not names:
             raise RobotModelError(f"SRDF group {group!r} has no movable joints")
@@ -525,7 +527,8 @@ def load_robot_model(
     robot = _parse(urdf)
     links, ordered = _topology(robot)
     semantic = parse_srdf(srdf) if srdf is not None else None
-    planning = _planning_joints(list(robot.joints), joint_names, group, semantic)
+    warnings: list[str] = []
+    planning = _planning_joints(list(robot.joints), joint_names, group, semantic, warnings)
     limits = {j.name: _joint_limits(j) for j in ordered if j.type in MOVABLE}
     if unbounded := [n for n in planning if limits[n] is None]:
         raise RobotModelError(
@@ -557,8 +560,17 @@ def load_robot_model(
     )
     reasons = skipped_pairs(model, semantic)
     named = named_states(model, semantic) if semantic is not None else {}
+    if semantic is not None:
+        known = set(links)
+        unknown = sorted({n for a, b, _ in semantic.disabled for n in (a, b) if n not in known})
+        if unknown:
+            warnings.append(f"SRDF disable_collisions name unknown links {unknown}; not applied")
     return replace(
-        model, allowed_pairs=frozenset(reasons), pair_reasons=reasons, named_states=named
+        model,
+        allowed_pairs=frozenset(reasons),
+        pair_reasons=reasons,
+        named_states=named,
+        warnings=tuple(warnings),
     )
 
 

@@ -385,4 +385,5 @@ def _semantics(model: RobotModel) -> dict[str, Any]:
         "skipped_pairs": [SkippedPairOut(links=(a, b), reason=why) for a, b, why in skipped],
         "held_joints": dict(model.held_values),
         "named_states": {name: list(values) for name, values in model.named_states.items()},
+        "warnings": list(model.warnings),
     }
