@@ -387,7 +387,7 @@ class SceneVersionOut(BaseModel):
     )
 
 
-class SceneOut(SceneVersionOut):
+class SceneOut(BaseModel):
     """A robot's current scene in native form."""
 
     model_config = ConfigDict(
@@ -396,6 +396,8 @@ class SceneOut(SceneVersionOut):
         )
     )
 
+    version: int
+    hash: str
     objects: list[dict[str, Any]]
     env: dict[str, float]
     allowed_collisions: list[list[str]] = Field(
