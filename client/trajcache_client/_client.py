@@ -18,6 +18,7 @@ from trajcache_client._models import (
     PlanOptions,
     PlanResult,
     Robot,
+    RobotKind,
     RobotModel,
     RobotModelDetail,
     RobotModelSummary,
@@ -27,7 +28,7 @@ from trajcache_client._models import (
     TrajectoryCreated,
     TrajectorySummary,
 )
-from trajcache_client._operations import Operation, StateLike
+from trajcache_client._operations import JointLimits, Operation, StateLike, StateValues
 from trajcache_client._retry import Retry
 
 T = TypeVar("T")
@@ -90,21 +91,35 @@ class Client(BaseClient):
         self,
         urdf: str,
         *,
+        srdf: str | None = None,
+        group: str | None = None,
+        joint_values: Mapping[str, float] | str | None = None,
         base: str = "fixed",
         joint_names: Sequence[str] | None = None,
         name: str | None = None,
         archive: bytes | Path | None = None,
         archive_name: str = "meshes.zip",
+        acceleration_limits: JointLimits | None = None,
+        jerk_limits: JointLimits | None = None,
+        end_effector_link: str | None = None,
     ) -> RobotModel:
-        """Register a URDF (with a zip or tar(.gz) mesh archive); same content → same model_id."""
+        """Register a URDF (with its SRDF and a zip or tar(.gz) mesh archive); same content →
+        same model_id. `joint_values` holds joints outside the planning joints (by name, or an
+        SRDF group_state's name)."""
         return self.call(
             ops.register_model(
                 urdf,
+                srdf=srdf,
+                group=group,
+                joint_values=joint_values,
                 base=base,
                 joint_names=joint_names,
                 name=name,
                 archive=archive,
                 archive_name=archive_name,
+                acceleration_limits=acceleration_limits,
+                jerk_limits=jerk_limits,
+                end_effector_link=end_effector_link,
             )
         )
 
@@ -118,9 +133,18 @@ class Client(BaseClient):
 
     # --- robots and scenes ------------------------------------------------------------------
 
-    def put_robot(self, robot_id: str, model_id: str) -> Robot:
-        """Create a robot, or re-point it to another model."""
-        return self.call(ops.put_robot(robot_id, model_id))
+    def put_robot(
+        self,
+        robot_id: str,
+        model_id: str,
+        *,
+        kind: RobotKind | None = None,
+        joint_values: Mapping[str, float] | None = None,
+    ) -> Robot:
+        """Create a robot, or re-point it to another model; `joint_values` holds joints
+        otherwise than the model. None keeps what the robot has; `joint_values={}` returns to
+        the model's values."""
+        return self.call(ops.put_robot(robot_id, model_id, kind=kind, joint_values=joint_values))
 
     def get_robot(self, robot_id: str) -> Robot:
         """A robot."""
@@ -160,15 +184,21 @@ class Client(BaseClient):
         goal: StateLike,
         options: PlanOptions | Mapping[str, Any] | None = None,
     ) -> PlanResult:
-        """A validated trajectory from start to goal, from the cache or the planner."""
+        """A validated trajectory from start to goal, from the cache or the planner; each state
+        is values in `state_names` order, a {joint: value} map, or a named state's name."""
         return self.call(ops.plan(robot_id, start, goal, options))
+
+    def motion_plan(self, robot_id: str, request: Mapping[str, Any] | str) -> dict[str, Any]:
+        """Plan with MoveIt's messages: a MotionPlanRequest (a mapping as JSON, text as YAML) →
+        its MotionPlanResponse, whose `error_code` says whether it succeeded."""
+        return self.call(ops.motion_plan(robot_id, request))
 
     # --- trajectories -----------------------------------------------------------------------
 
     def store_trajectory(
         self,
         model_id: str,
-        states: Iterable[StateLike],
+        states: Iterable[StateValues],
         *,
         source: str = "real",
         robot_id: str | None = None,

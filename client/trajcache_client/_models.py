@@ -11,6 +11,8 @@ T = TypeVar("T")
 
 BaseType = Literal["fixed", "planar"]
 Source = Literal["real", "sim", "import", "planner"]
+RobotKind = Literal["real", "sim"]
+SkipReason = Literal["adjacent", "rigid", "proven", "srdf"]
 
 
 class _Answer(BaseModel):
@@ -28,7 +30,27 @@ class Page(_Answer, Generic[T]):
     offset: int
 
 
-class RobotModel(_Answer):
+class SkippedPair(_Answer):
+    """Two links whose self-collisions are not checked, and why.
+
+    `reason` is one of `SkipReason`: "adjacent" (one rigid body, or joined by a joint), "rigid"
+    (no planning joint moves one relative to the other), "proven" (apart within the joint
+    limits) or "srdf" (disabled by the SRDF); a reason a newer service adds is kept as text.
+    """
+
+    links: tuple[str, str]
+    reason: SkipReason | str
+
+
+class _ModelSemantics(_Answer):
+    """What a model's answer says about self-collision, held joints and named states."""
+
+    skipped_pairs: list[SkippedPair] = Field(default_factory=list)
+    held_joints: dict[str, float] = Field(default_factory=dict)  # joint -> its held value
+    named_states: dict[str, list[float]] = Field(default_factory=dict)  # planning joint values
+
+
+class RobotModel(_ModelSemantics):
     """A registered model; `created` is false when the same content was registered before."""
 
     model_id: str
@@ -58,38 +80,50 @@ class ModelFile(_Answer):
     size: int
 
 
-class RobotModelDetail(RobotModelSummary):
-    """A model with its links, planning limits (None = unbounded) and files."""
+class RobotModelDetail(RobotModelSummary, _ModelSemantics):
+    """A model with its links, planning and timing limits (None = unbounded) and files."""
 
     link_names: list[str]
     lower: list[float | None]
     upper: list[float | None]
     velocity_limits: list[float]
+    acceleration_limits: list[float] | None = None
+    jerk_limits: list[float] | None = None
+    end_effector_link: str | None = None
     files: list[ModelFile]
 
 
 class Robot(_Answer):
-    """A robot; `scene_version` 0 means it has no scene yet."""
+    """A robot; `scene_version` 0 means it has no scene yet.
+
+    `kind` is one of `RobotKind` ("real" or "sim"); `joint_values` are the joints it holds
+    otherwise than its model.
+    """
 
     robot_id: str
     model_id: str
+    kind: RobotKind | str
     scene_version: int
     created_at: datetime
     updated_at: datetime
+    joint_values: dict[str, float] = Field(default_factory=dict)
 
 
 class SceneVersion(_Answer):
-    """The version number and content hash of a scene."""
+    """The version number and content hash of a scene, and what of it was not applied."""
 
     version: int
     hash: str
+    warnings: list[str] = Field(default_factory=list)
 
 
 class Scene(SceneVersion):
-    """A robot's current scene in native form."""
+    """A robot's current scene in native form, with the contact it allows and attached objects."""
 
     objects: list[dict[str, Any]]
     env: dict[str, float]
+    allowed_collisions: list[list[str]] = Field(default_factory=list)
+    attached_objects: list[dict[str, Any]] = Field(default_factory=list)
 
 
 class TimingOptions(BaseModel):

@@ -23,6 +23,7 @@ from trajcache_client._models import (
     PlanOptions,
     PlanResult,
     Robot,
+    RobotKind,
     RobotModel,
     RobotModelDetail,
     RobotModelSummary,
@@ -36,8 +37,15 @@ from trajcache_client._models import (
 T = TypeVar("T")
 M = TypeVar("M", bound=pydantic.BaseModel)
 
-StateLike = Iterable[float]
+StateValues = Iterable[float]
 """A state as numbers ordered as the model's `state_names` (a list, tuple or numpy array)."""
+
+StateLike = StateValues | Mapping[str, float] | str
+"""A plan's start or goal: values in `state_names` order, a {joint name: value} map, or the
+name of one of the model's named states (an SRDF group_state)."""
+
+JointLimits = float | Mapping[str, float]
+"""One limit for every planning joint, or limits by joint name."""
 
 
 @dataclass(frozen=True)
@@ -72,6 +80,20 @@ def _reader(model: type[M]) -> Callable[[httpx.Response], M]:
     return read
 
 
+def _json_object(response: httpx.Response) -> dict[str, Any]:
+    try:
+        body = response.json()
+    except ValueError:
+        body = None
+    if not isinstance(body, dict):
+        raise UnexpectedResponseError(
+            f"{response.request.method} {response.request.url.path} answered a body that is "
+            "not a JSON object",
+            response=response,
+        )
+    return body
+
+
 def _no_content(response: httpx.Response) -> None:
     return None
 
@@ -80,8 +102,42 @@ def _segment(value: str | int) -> str:
     return quote(str(value), safe="")
 
 
-def _state(values: StateLike) -> list[float]:
+def _values(values: StateValues) -> list[float]:
     return [float(v) for v in values]
+
+
+def _by_name(values: Mapping[str, float]) -> dict[str, float]:
+    return {str(name): float(value) for name, value in values.items()}
+
+
+def _state(state: StateLike) -> list[float] | dict[str, float] | str:
+    # A str and a Mapping are iterable too: test them first.
+    if isinstance(state, str):
+        return state
+    if isinstance(state, Mapping):
+        return _by_name(state)
+    return _values(state)
+
+
+def _held(values: Mapping[str, float] | str | None) -> dict[str, float] | str | None:
+    if values is None or isinstance(values, str):
+        return values  # a str names an SRDF group_state
+    return _by_name(values)
+
+
+def _limits(limits: JointLimits | None) -> float | dict[str, float] | None:
+    if limits is None:
+        return None
+    return _by_name(limits) if isinstance(limits, Mapping) else float(limits)
+
+
+def _form_text(value: Any) -> str:
+    """A registration field as multipart text: names comma-separated, numbers and maps as JSON."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, list):
+        return ",".join(value)
+    return json.dumps(value, allow_nan=False)
 
 
 def _query(**params: Any) -> dict[str, Any]:
@@ -94,31 +150,42 @@ def _query(**params: Any) -> dict[str, Any]:
 def register_model(
     urdf: str,
     *,
+    srdf: str | None = None,
+    group: str | None = None,
+    joint_values: Mapping[str, float] | str | None = None,
     base: str = "fixed",
     joint_names: Sequence[str] | None = None,
     name: str | None = None,
     archive: bytes | Path | None = None,
     archive_name: str = "meshes.zip",
+    acceleration_limits: JointLimits | None = None,
+    jerk_limits: JointLimits | None = None,
+    end_effector_link: str | None = None,
 ) -> Operation[RobotModel]:
     """POST /v1/robot-models: JSON, or multipart/form-data when a mesh archive is attached."""
     read = _reader(RobotModel)
+    fields = _query(
+        urdf=urdf,
+        srdf=srdf,
+        base=base,
+        joint_names=None if joint_names is None else list(joint_names),
+        group=group,
+        joint_values=_held(joint_values),
+        name=name,
+        acceleration_limits=_limits(acceleration_limits),
+        jerk_limits=_limits(jerk_limits),
+        end_effector_link=end_effector_link,
+    )
+    # Registration is content-addressed: sending it twice registers one model.
     if archive is None:
-        body: dict[str, Any] = {"urdf": urdf, "base": base}
-        if joint_names is not None:
-            body["joint_names"] = list(joint_names)
-        if name is not None:
-            body["name"] = name
-        return Operation("POST", "/v1/robot-models", read, idempotent=True, json=body)
+        return Operation("POST", "/v1/robot-models", read, idempotent=True, json=fields)
     if isinstance(archive, Path):
         archive_name, archive = archive.name, archive.read_bytes()
-    fields = {"urdf": urdf, "base": base}
-    if joint_names is not None:
-        fields["joint_names"] = ",".join(joint_names)
-    if name is not None:
-        fields["name"] = name
     files = {"archive": (archive_name, archive, "application/octet-stream")}
-    # Registration is content-addressed: sending it twice registers one model.
-    return Operation("POST", "/v1/robot-models", read, idempotent=True, data=fields, files=files)
+    if srdf is not None:
+        files["srdf"] = ("robot.srdf", fields.pop("srdf").encode(), "application/xml")
+    data = {key: _form_text(value) for key, value in fields.items()}
+    return Operation("POST", "/v1/robot-models", read, idempotent=True, data=data, files=files)
 
 
 def list_models(*, limit: int | None = None, offset: int = 0) -> Operation[Page[RobotModelSummary]]:
@@ -138,10 +205,21 @@ def get_model(model_id: str) -> Operation[RobotModelDetail]:
 # --- robots and scenes ----------------------------------------------------------------------
 
 
-def put_robot(robot_id: str, model_id: str) -> Operation[Robot]:
-    """PUT /v1/robots/{robot_id}."""
+def put_robot(
+    robot_id: str,
+    model_id: str,
+    *,
+    kind: RobotKind | None = None,
+    joint_values: Mapping[str, float] | None = None,
+) -> Operation[Robot]:
+    """PUT /v1/robots/{robot_id}; None keeps the robot's kind or held values, {} resets them."""
+    body = _query(
+        model_id=model_id,
+        kind=kind,
+        joint_values=None if joint_values is None else _by_name(joint_values),
+    )
     path = f"/v1/robots/{_segment(robot_id)}"
-    return Operation("PUT", path, _reader(Robot), idempotent=True, json={"model_id": model_id})
+    return Operation("PUT", path, _reader(Robot), idempotent=True, json=body)
 
 
 def get_robot(robot_id: str) -> Operation[Robot]:
@@ -216,12 +294,43 @@ def plan(
     )
 
 
+def motion_plan(robot_id: str, request: Mapping[str, Any] | str) -> Operation[dict[str, Any]]:
+    """POST /v1/robots/{robot_id}/motion-plan: a MoveIt MotionPlanRequest (a mapping as JSON,
+    text as YAML) → its MotionPlanResponse; retried like `plan`, waiting for its planning time."""
+    if isinstance(request, Mapping):
+        content = json.dumps(request, allow_nan=False).encode()
+        media_type = "application/json"
+    else:
+        content, media_type = request.encode(), "application/yaml"
+    budget = _allowed_planning_time(request)
+    return Operation(
+        "POST",
+        f"/v1/robots/{_segment(robot_id)}/motion-plan",
+        _json_object,
+        idempotent=False,
+        content=content,
+        headers={"content-type": media_type},
+        read_timeout_s=None if budget is None else budget + 10.0,
+    )
+
+
+def _allowed_planning_time(request: Mapping[str, Any] | str) -> float | None:
+    """The request's planning budget, bare or wrapped as GetMotionPlan or MoveGroup wrap it."""
+    if isinstance(request, str):
+        return None  # YAML is left to the service to read
+    message = request.get("motion_plan_request", request.get("request", request))
+    budget = message.get("allowed_planning_time") if isinstance(message, Mapping) else None
+    if isinstance(budget, bool) or not isinstance(budget, int | float) or budget <= 0:
+        return None  # 0 or none: the service's default budget
+    return float(budget)
+
+
 # --- trajectories ---------------------------------------------------------------------------
 
 
 def store_trajectory(
     model_id: str,
-    states: Iterable[StateLike],
+    states: Iterable[StateValues],
     *,
     source: str = "real",
     robot_id: str | None = None,
@@ -232,7 +341,7 @@ def store_trajectory(
     """POST /v1/trajectories (an identical trajectory is stored once, so it may be retried)."""
     body = _query(
         model_id=model_id,
-        states=[_state(s) for s in states],
+        states=[_values(s) for s in states],
         source=source,
         robot_id=robot_id,
         scene_hash=scene_hash,

@@ -8,6 +8,7 @@ import zipfile
 
 import pytest
 import trimesh
+import yaml
 
 import trajcache_client as tc
 from tests.api.conftest import TWO_JOINT_URDF
@@ -22,6 +23,50 @@ world:
     - id: shelf
       primitives: [{type: 1, dimensions: [0.3, 0.3, 0.3]}]
       primitive_poses: [{position: {x: -2.0, y: 0.0, z: 0.2}}]
+"""
+
+
+PINCER_URDF = """<?xml version="1.0"?>
+<robot name="pincer">
+  <link name="base">
+    <collision><origin xyz="0 0 0.05"/><geometry><box size="0.2 0.2 0.1"/></geometry></collision>
+  </link>
+  <link name="upper">
+    <collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.03" length="0.3"/>
+    </geometry></collision>
+  </link>
+  <link name="fore">
+    <collision><origin xyz="0 0 0.1"/><geometry><cylinder radius="0.02" length="0.2"/>
+    </geometry></collision>
+  </link>
+  <link name="finger">
+    <collision><origin xyz="0 0 0.02"/><geometry><box size="0.01 0.01 0.04"/></geometry>
+    </collision>
+  </link>
+  <joint name="shoulder" type="revolute">
+    <parent link="base"/><child link="upper"/><origin xyz="0 0 0.1"/><axis xyz="0 1 0"/>
+    <limit lower="-2.0" upper="2.0" effort="1" velocity="1"/>
+  </joint>
+  <joint name="elbow" type="revolute">
+    <parent link="upper"/><child link="fore"/><origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
+    <limit lower="-1.5" upper="1.5" effort="1" velocity="1"/>
+  </joint>
+  <joint name="finger" type="prismatic">
+    <parent link="fore"/><child link="finger"/><origin xyz="0 0 0.2"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.04" effort="1" velocity="0.1"/>
+  </joint>
+</robot>
+"""
+PINCER_SRDF = """<?xml version="1.0"?>
+<robot name="pincer">
+  <group name="arm"><joint name="shoulder"/><joint name="elbow"/></group>
+  <group name="hand"><joint name="finger"/></group>
+  <group_state name="ready" group="arm">
+    <joint name="shoulder" value="0.5"/><joint name="elbow" value="-0.4"/>
+  </group_state>
+  <group_state name="open" group="hand"><joint name="finger" value="0.03"/></group_state>
+  <disable_collisions link1="base" link2="fore" reason="Never"/>
+</robot>
 """
 
 
@@ -51,6 +96,99 @@ def test_models_are_registered_once_and_read_back(client: Client) -> None:
     assert [(f.path, f.sha256) for f in detail.files] == [
         ("meshes/part.stl", hashlib.sha256(stl).hexdigest())
     ]
+
+
+def test_a_model_registered_with_its_srdf_plans_to_a_named_state(client: Client) -> None:
+    model = client.register_model(PINCER_URDF, srdf=PINCER_SRDF, group="arm", joint_values="open")
+    assert model.state_names == ["shoulder", "elbow"] and model.held_joints == {"finger": 0.03}
+    assert model.named_states == {"ready": [0.5, -0.4]}
+    reasons = {pair.links: pair.reason for pair in model.skipped_pairs}
+    assert reasons[("base", "fore")] == "srdf" and reasons[("base", "upper")] == "adjacent"
+
+    # Multipart (with an archive): the SRDF goes as a file, joint_values as JSON text.
+    archive, _ = _mesh_archive()
+    again = client.register_model(
+        PINCER_URDF, srdf=PINCER_SRDF, group="arm", joint_values={"finger": 0.03}, archive=archive
+    )
+    assert (again.model_id, again.created) == (model.model_id, False)  # the same held values
+    ajar = client.register_model(
+        PINCER_URDF,
+        srdf=PINCER_SRDF,
+        group="arm",
+        joint_values={"finger": 0.02},
+        archive=archive,
+        acceleration_limits={"shoulder": 2.0},
+        end_effector_link="fore",
+    )
+    assert ajar.created and ajar.model_id != model.model_id
+    detail = client.get_model(ajar.model_id)
+    assert detail.held_joints == {"finger": 0.02} and detail.named_states == model.named_states
+    assert detail.skipped_pairs == model.skipped_pairs and detail.end_effector_link == "fore"
+    assert detail.acceleration_limits is not None and detail.acceleration_limits[0] == 2.0
+
+    robot = client.put_robot("pincer-1", model.model_id, kind="sim", joint_values={"finger": 0.01})
+    assert robot.kind == "sim" and robot.joint_values == {"finger": 0.01}
+    assert client.get_robot("pincer-1") == robot
+    path = [[0.0, 0.0], [0.25, -0.2], [0.5, -0.4]]
+    stored = client.store_trajectory(model.model_id, path, source="sim")
+    answer = client.plan("pincer-1", {"shoulder": 0.0, "elbow": 0.0}, "ready", {"fallback": False})
+    assert answer.ok and answer.trajectory_id == stored.trajectory_id
+    assert answer.states is not None and answer.states[-1] == [0.5, -0.4]
+    back = client.plan("pincer-1", "ready", [0.0, 0.0], {"fallback": False})
+    assert back.ok and back.trajectory_id == stored.trajectory_id
+
+
+def test_moveit_motion_plans_are_answered_from_the_cache(client: Client) -> None:
+    model = client.register_model(PINCER_URDF, srdf=PINCER_SRDF, group="arm")
+    client.put_robot("pincer-1", model.model_id)
+    stored = client.store_trajectory(model.model_id, [[0.0, 0.0], [0.5, -0.4]])
+    goal = [{"joint_name": "shoulder", "position": 0.5}, {"joint_name": "elbow", "position": -0.4}]
+    request = {
+        "group_name": "arm",
+        "start_state": {"joint_state": {"name": ["shoulder", "elbow"], "position": [0.0, 0.0]}},
+        "goal_constraints": [{"joint_constraints": goal}],
+        "allowed_planning_time": 1.0,
+    }
+    for body in (request, yaml.safe_dump({"motion_plan_request": request})):
+        answer = client.motion_plan("pincer-1", body)
+        assert answer["error_code"]["val"] == 1, answer["error_code"]
+        assert answer["trajcache"]["trajectory_id"] == stored.trajectory_id
+        points = answer["trajectory"]["joint_trajectory"]["points"]
+        assert points[-1]["positions"] == pytest.approx([0.5, -0.4])
+    with pytest.raises(tc.ValidationError, match="path constraints"):
+        client.motion_plan("pincer-1", {**request, "path_constraints": {"joint_constraints": goal}})
+
+
+def test_a_scene_keeps_allowed_collisions_attached_objects_and_warns(client: Client) -> None:
+    model = client.register_model(PINCER_URDF, srdf=PINCER_SRDF, group="arm")
+    client.put_robot("pincer-1", model.model_id)
+    bead = {
+        "link": "fore",
+        "object": {
+            "id": "bead",
+            "type": "sphere",
+            "size": [0.015],
+            "pose": {"position": [0, 0, 0.25]},
+        },
+        "touch_links": ["finger"],
+    }
+    native = {
+        "objects": [TABLE],
+        "allowed_collisions": [["finger", "table"]],
+        "attached_objects": [bead],
+    }
+    assert client.put_scene("pincer-1", native).warnings == []
+    scene = client.get_scene("pincer-1")
+    assert scene.allowed_collisions == [["finger", "table"]]
+    assert [a["object"]["id"] for a in scene.attached_objects] == ["bead"]
+
+    moveit = {
+        "world": {"collision_objects": []},
+        "robot_state": {"joint_state": {"name": ["shoulder"], "position": [0.3]}},
+    }
+    warned = client.put_scene("pincer-1", moveit)
+    assert any("robot_state.joint_state" in w for w in warned.warnings)
+    assert client.get_scene("pincer-1").attached_objects == []
 
 
 def test_robots_and_scenes_follow_the_world(client: Client) -> None:

@@ -6,6 +6,9 @@ import importlib.metadata
 import io
 import json
 import zipfile
+from email import policy
+from email.message import EmailMessage
+from email.parser import BytesParser
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +17,7 @@ import numpy as np
 import pytest
 
 import trajcache_client as tc
+from tests.client.conftest import FAST_RETRY
 from tests.client.test_retries import PLAN, ROBOT, Script
 from trajcache_client import NO_RETRY, Client, PlanOptions
 
@@ -27,8 +31,20 @@ MODEL = {
 }
 
 
-def _client(script: Script, **kwargs: Any) -> Client:
-    return Client("http://svc/", retry=NO_RETRY, transport=httpx.MockTransport(script), **kwargs)
+def _client(script: Script, retry: tc.Retry = NO_RETRY, **kwargs: Any) -> Client:
+    return Client("http://svc/", retry=retry, transport=httpx.MockTransport(script), **kwargs)
+
+
+def _form(request: httpx.Request) -> dict[str, tuple[str | None, bytes]]:
+    """The parts of a multipart/form-data request: name -> (file name or None, content)."""
+    head = f"content-type: {request.headers['content-type']}\r\n\r\n".encode()
+    message = BytesParser(policy=policy.HTTP).parsebytes(head + request.content)
+    assert isinstance(message, EmailMessage) and message.get_content_type() == "multipart/form-data"
+    parts: dict[str, tuple[str | None, bytes]] = {}
+    for part in message.iter_parts():
+        name = str(part.get_param("name", header="content-disposition"))
+        parts[name] = (part.get_filename(), part.get_payload(decode=True))
+    return parts
 
 
 def _timeout(request: httpx.Request) -> dict[str, float | None]:
@@ -51,6 +67,16 @@ def test_path_segments_are_escaped() -> None:
     with _client(script) as client:
         client.get_robot("a/b c")
     assert script.requests[0].url.raw_path == b"/v1/robots/a%2Fb%20c"
+
+
+def test_plan_sends_states_as_maps_by_joint_name_or_as_named_states() -> None:
+    script = Script(ok=PLAN)
+    with _client(script) as client:
+        client.plan("r1", {"a": 0, "b": np.float64(0.5)}, "ready")
+        client.plan("r1", "ready", np.array([1, 2]))
+    bodies = [json.loads(r.content) for r in script.requests]
+    assert bodies[0] == {"start": {"a": 0.0, "b": 0.5}, "goal": "ready", "options": {}}
+    assert bodies[1] == {"start": "ready", "goal": [1.0, 2.0], "options": {}}
 
 
 def test_plan_sends_numbers_and_only_the_options_given() -> None:
@@ -131,6 +157,143 @@ def test_register_model_uploads_an_archive_as_multipart(tmp_path: Path) -> None:
     assert b"\r\n\r\na,b\r\n" in named[b"joint_names"]
     assert b'filename="arm_meshes.zip"' in named[b"archive"]
     assert buffer.getvalue() in named[b"archive"]
+
+
+SRDF = '<robot name="arm"><group name="arm"><joint name="a"/><joint name="b"/></group></robot>'
+
+
+def test_register_model_sends_the_srdf_group_held_values_and_limits_as_json() -> None:
+    script = Script(ok=MODEL)
+    with _client(script) as client:
+        client.register_model(
+            "<robot/>",
+            srdf=SRDF,
+            group="arm",
+            joint_values={"finger": 1},
+            acceleration_limits=2,
+            jerk_limits={"a": 50, "b": 60.5},
+            end_effector_link="tool",
+        )
+        client.register_model("<robot/>", srdf=SRDF, joint_values="open")
+    first, second = (json.loads(r.content) for r in script.requests)
+    assert first == {
+        "urdf": "<robot/>",
+        "srdf": SRDF,
+        "base": "fixed",
+        "group": "arm",
+        "joint_values": {"finger": 1.0},
+        "acceleration_limits": 2.0,
+        "jerk_limits": {"a": 50.0, "b": 60.5},
+        "end_effector_link": "tool",
+    }
+    assert second == {"urdf": "<robot/>", "srdf": SRDF, "base": "fixed", "joint_values": "open"}
+
+
+def test_multipart_registration_sends_the_srdf_as_a_file_and_values_as_json_text() -> None:
+    script = Script(ok=MODEL)
+    with _client(script) as client:
+        client.register_model(
+            "<robot/>",
+            srdf=SRDF,
+            group="arm",
+            joint_values={"finger": 0.02},
+            joint_names=["a", "b"],
+            archive=b"PK",
+            acceleration_limits={"a": 3},
+            jerk_limits=40,
+        )
+        client.register_model("<robot/>", joint_values="open", archive=b"PK")
+    full, named = (_form(r) for r in script.requests)
+    assert full == {
+        "urdf": (None, b"<robot/>"),
+        "base": (None, b"fixed"),
+        "joint_names": (None, b"a,b"),
+        "group": (None, b"arm"),
+        "joint_values": (None, b'{"finger": 0.02}'),
+        "acceleration_limits": (None, b'{"a": 3.0}'),
+        "jerk_limits": (None, b"40.0"),
+        "archive": ("meshes.zip", b"PK"),
+        "srdf": ("robot.srdf", SRDF.encode()),
+    }
+    assert named["joint_values"] == (None, b"open") and "srdf" not in named
+
+
+def test_put_robot_sends_its_kind_and_held_values_only_when_given() -> None:
+    script = Script(ok={**ROBOT, "kind": "sim", "joint_values": {"finger": 0.02}})
+    with _client(script) as client:
+        robot = client.put_robot("r1", "m1", kind="sim", joint_values={"finger": 0.02})
+        client.put_robot("r1", "m1")
+        client.put_robot("r1", "m1", joint_values={})
+    bodies = [json.loads(r.content) for r in script.requests]
+    assert bodies == [
+        {"model_id": "m1", "kind": "sim", "joint_values": {"finger": 0.02}},
+        {"model_id": "m1"},
+        {"model_id": "m1", "joint_values": {}},  # {} returns to the model's values
+    ]
+    assert robot.kind == "sim" and robot.joint_values == {"finger": 0.02}
+
+
+@pytest.mark.anyio
+async def test_the_async_client_sends_the_same_new_fields() -> None:
+    answers = [MODEL, ROBOT, PLAN]
+    sent: list[httpx.Request] = []
+
+    def handler(request: httpx.Request) -> httpx.Response:
+        sent.append(request)
+        return httpx.Response(200, json=answers[len(sent) - 1])
+
+    transport = httpx.MockTransport(handler)
+    async with tc.AsyncClient("http://svc", retry=NO_RETRY, transport=transport) as client:
+        await client.register_model("<robot/>", srdf=SRDF, group="arm", joint_values="open")
+        await client.put_robot("r1", "m1", kind="real", joint_values={"finger": 0})
+        await client.plan("r1", {"a": 0, "b": 0}, "ready")
+    registration, robot, plan = (json.loads(r.content) for r in sent)
+    assert (registration["srdf"], registration["group"], registration["joint_values"]) == (
+        SRDF,
+        "arm",
+        "open",
+    )
+    assert robot == {"model_id": "m1", "kind": "real", "joint_values": {"finger": 0.0}}
+    assert plan["start"] == {"a": 0.0, "b": 0.0} and plan["goal"] == "ready"
+
+
+MOTION_PLAN = {"error_code": {"val": 1, "message": "", "source": "trajcache"}, "trajectory": {}}
+MOVEIT_YAML = "group_name: arm\nallowed_planning_time: 2.0\n"
+
+
+def test_motion_plan_sends_mappings_as_json_and_text_as_yaml() -> None:
+    script = Script(ok=MOTION_PLAN)
+    request = {"group_name": "arm", "allowed_planning_time": 25}
+    with _client(script, timeout=5.0) as client:
+        answer = client.motion_plan("r/1", request)
+        client.motion_plan("r/1", MOVEIT_YAML)
+        client.motion_plan("r/1", {"motion_plan_request": request})
+        client.motion_plan("r/1", {"request": {"allowed_planning_time": 0.0}})
+    sent = [(r.method, r.url.raw_path, r.headers["content-type"]) for r in script.requests]
+    assert sent[:2] == [
+        ("POST", b"/v1/robots/r%2F1/motion-plan", "application/json"),
+        ("POST", b"/v1/robots/r%2F1/motion-plan", "application/yaml"),
+    ]
+    assert json.loads(script.requests[0].content) == request
+    assert script.requests[1].content == MOVEIT_YAML.encode()
+    # It waits for the planning time it asks for, bare or wrapped; 0 is the service default.
+    assert [_timeout(r)["read"] for r in script.requests] == [35.0, 5.0, 35.0, 5.0]
+    assert answer == MOTION_PLAN
+
+
+def test_motion_plan_is_retried_like_plan_only_on_503() -> None:
+    bad_gateway, unavailable = Script(502, ok=MOTION_PLAN), Script(503, ok=MOTION_PLAN)
+    with _client(bad_gateway, retry=FAST_RETRY) as client, pytest.raises(tc.ServerError):
+        client.motion_plan("r1", {"group_name": "arm"})
+    with _client(unavailable, retry=FAST_RETRY) as client:
+        assert client.motion_plan("r1", {"group_name": "arm"}) == MOTION_PLAN
+    assert (len(bad_gateway.requests), len(unavailable.requests)) == (1, 2)
+
+
+def test_a_motion_plan_answer_that_is_not_an_object_is_unexpected() -> None:
+    script = Script(ok=[1, 2])
+    with _client(script) as client, pytest.raises(tc.UnexpectedResponseError, match="motion-plan"):
+        client.motion_plan("r1", {"group_name": "arm"})
 
 
 def test_put_scene_sends_mappings_as_json_and_text_as_yaml() -> None:

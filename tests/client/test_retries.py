@@ -16,6 +16,7 @@ from trajcache_client import AsyncClient, Client, Retry
 ROBOT = {
     "robot_id": "r1",
     "model_id": "m1",
+    "kind": "real",
     "scene_version": 0,
     "created_at": "2025-06-02T09:25:01Z",
     "updated_at": "2025-06-02T09:25:01Z",
