@@ -8,7 +8,16 @@ from __future__ import annotations
 from fastapi import APIRouter, Depends
 
 from trajcache.api.auth import authorize
-from trajcache.api.routes import admin, models, plan, robots, seed_jobs, stats, trajectories
+from trajcache.api.routes import (
+    admin,
+    models,
+    motion_plan,
+    plan,
+    robots,
+    seed_jobs,
+    stats,
+    trajectories,
+)
 
 api_router = APIRouter(dependencies=[Depends(authorize)])
 api_router.include_router(plan.router)  # first: routes are matched in order, plan is the hot one
@@ -18,3 +27,4 @@ api_router.include_router(trajectories.router)
 api_router.include_router(stats.router)
 api_router.include_router(seed_jobs.router)
 api_router.include_router(admin.router)
+api_router.include_router(motion_plan.router)

@@ -1,0 +1,37 @@
+"""MoveIt's planning messages over HTTP: a MotionPlanRequest in, a MotionPlanResponse out.
+
+The request becomes the native plan request (`services.planning.PlanRequest`) and the native
+answer a MotionPlanResponse; the plan flow itself is the native endpoint's. A well-formed request
+is always answered, with MoveIt's error code saying whether it succeeded (`_codes`); malformed or
+unsupported requests are 422s (`_body`, `_messages`).
+"""
+
+from __future__ import annotations
+
+from trajcache.api.moveit._body import is_supported, parse_motion_plan_request
+from trajcache.api.moveit._codes import (
+    MotionPlanError,
+    MoveItErrorCode,
+    answer_code,
+    state_error_code,
+)
+from trajcache.api.moveit._messages import MotionPlanRequestIn, native_planner
+from trajcache.api.moveit._request import MotionPlanQuery, motion_plan_query
+from trajcache.api.moveit._response import answered_body, refused_body
+from trajcache.api.moveit._schemas import MotionPlanResponseOut
+
+__all__ = [
+    "MotionPlanError",
+    "MotionPlanQuery",
+    "MotionPlanRequestIn",
+    "MotionPlanResponseOut",
+    "MoveItErrorCode",
+    "answer_code",
+    "answered_body",
+    "is_supported",
+    "motion_plan_query",
+    "native_planner",
+    "parse_motion_plan_request",
+    "refused_body",
+    "state_error_code",
+]

@@ -1,0 +1,178 @@
+"""POST /v1/robots/{robot_id}/motion-plan: MoveIt's MotionPlanRequest in, MotionPlanResponse out.
+
+The request is translated to the native plan request and answered by the native plan flow
+(`services.planning.plan`), so it shares the cache, the validation and the bookkeeping of
+POST /v1/robots/{robot_id}/plan; see `api.moveit` for the translation.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Annotated, Any
+
+import pydantic_core
+from fastapi import APIRouter, Depends, Path, Request, Response
+from starlette.background import BackgroundTask
+from starlette.exceptions import HTTPException
+
+from trajcache.api.bounded import BoundedBodyRoute
+from trajcache.api.deps import CtxDep
+from trajcache.api.moveit import (
+    MotionPlanError,
+    MotionPlanRequestIn,
+    MotionPlanResponseOut,
+    answered_body,
+    is_supported,
+    motion_plan_query,
+    parse_motion_plan_request,
+    refused_body,
+    state_error_code,
+)
+from trajcache.api.quality import answer_extras
+from trajcache.api.responses import COMMON, errors
+from trajcache.geometry.errors import StateError
+from trajcache.metrics import record_plan
+from trajcache.services.planning import plan
+from trajcache.services.robot_model import robot_model
+
+router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
+
+_YAML_EXAMPLE = """\
+group_name: arm
+start_state:
+  joint_state:
+    name: [shoulder, elbow]
+    position: [0.0, 0.0]
+goal_constraints:
+  - joint_constraints:
+      - {joint_name: shoulder, position: 1.0, tolerance_above: 0.01, tolerance_below: 0.01}
+      - {joint_name: elbow, position: 0.5, tolerance_above: 0.01, tolerance_below: 0.01}
+planner_id: RRTConnectkConfigDefault
+allowed_planning_time: 1.0
+max_velocity_scaling_factor: 0.5
+max_acceleration_scaling_factor: 0.5
+"""
+
+
+def _inlined(node: Any, defs: dict[str, Any]) -> Any:
+    """A JSON schema with each `#/$defs/...` reference replaced by its definition: the nested
+    messages are not in the OpenAPI document's components (this body is parsed by hand)."""
+    if isinstance(node, list):
+        return [_inlined(item, defs) for item in node]
+    if not isinstance(node, dict):
+        return node
+    ref = node.get("$ref")
+    if isinstance(ref, str) and ref.startswith("#/$defs/"):
+        rest = {k: v for k, v in node.items() if k != "$ref"}
+        return _inlined({**defs[ref.removeprefix("#/$defs/")], **rest}, defs)
+    return {k: _inlined(v, defs) for k, v in node.items() if k != "$defs"}
+
+
+_SCHEMA = MotionPlanRequestIn.model_json_schema()
+_BODY: dict[str, Any] = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/json": {"schema": _inlined(_SCHEMA, _SCHEMA.get("$defs", {}))},
+            "application/yaml": {"schema": {"type": "string"}, "example": _YAML_EXAMPLE},
+        },
+    }
+}
+
+
+@dataclass(frozen=True)
+class RawBody:
+    """A request body and its media type (lower case, without parameters)."""
+
+    media_type: str
+    data: bytes
+
+
+async def read_raw_body(request: Request) -> RawBody:
+    """The body (bounded by max_body_bytes while read); it is parsed in the worker thread."""
+    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if not is_supported(media):
+        raise HTTPException(
+            415, f"unsupported content type {media!r}; send application/json or application/yaml"
+        )
+    return RawBody(media, await request.body())
+
+
+RawBodyDep = Annotated[RawBody, Depends(read_raw_body)]
+
+
+@router.post(
+    "/robots/{robot_id}/motion-plan",
+    response_model=MotionPlanResponseOut,
+    summary="Plan with MoveIt's messages: a MotionPlanRequest in, a MotionPlanResponse out",
+    description="Takes a `moveit_msgs/MotionPlanRequest` as rosbridge-style JSON or YAML (bare, "
+    "or wrapped as `motion_plan_request` or `request`) and answers it like `POST "
+    "/v1/robots/{robot_id}/plan`, from the same cache: the start is `start_state` by joint name "
+    "(a planar base: the first multi-DOF joint), the goal the first of `goal_constraints` whose "
+    "joint constraints cover every planning joint, the budget `allowed_planning_time`, the "
+    "planner `planner_id` (native or OMPL names). The answer is a `moveit_msgs/"
+    "MotionPlanResponse` timed under the velocity and acceleration scaling factors, plus "
+    "`trajcache` (cache or planner, timings). A well-formed request is answered 200 with MoveIt's "
+    "error code: 1 success, -1 no path, -6 planner timeout, -10/-12 start/goal in collision, "
+    "-16 unusable goal constraints (position/orientation goals included), -17 unusable start "
+    "state. Path and trajectory constraints, reference trajectories, Cartesian speed limits and "
+    "attached objects are refused (422), never ignored.",
+    openapi_extra=_BODY,
+    responses=errors(
+        {
+            404: ("Unknown robot", "robot 'robot-7' not found"),
+            413: (
+                "Body above max_body_bytes",
+                "request body has 17000000 bytes, more than max_body_bytes=16777216",
+            ),
+            415: (
+                "Neither JSON nor YAML",
+                "unsupported content type 'text/csv'; send application/json or application/yaml",
+            ),
+            422: (
+                "Malformed body, an unsupported field, an unknown planner or a budget above "
+                "plan_budget_max_s",
+                "body.path_constraints: Value error, path constraints are not supported: "
+                "trajcache cannot honour them, so it refuses them",
+            ),
+        }
+    ),
+)
+def motion_plan_route(
+    ctx: CtxDep, body: RawBodyDep, robot_id: Annotated[str, Path(max_length=128)]
+) -> Response:
+    """Answer a MoveIt motion plan request from the cache or the planner."""
+    began = time.perf_counter()
+    message = parse_motion_plan_request(body.media_type, body.data)
+    model = robot_model(ctx=ctx, robot_id=robot_id)
+    try:
+        query = motion_plan_query(message, model=model, settings=ctx.settings)
+        answer = plan(ctx=ctx, robot_id=robot_id, request=query.request)
+    except MotionPlanError as exc:
+        return _json(refused_body(message=message, code=exc.code, text=str(exc), began=began))
+    except StateError as exc:  # a start or goal in collision (the native endpoint's 422)
+        code = state_error_code(exc)
+        return _json(refused_body(message=message, code=code, text=str(exc), began=began))
+    record_plan(answer)
+    extras, extra_ms = answer_extras(
+        ctx=ctx,
+        model=answer.model,
+        scene=answer.scene,
+        states=answer.states,
+        timing=query.timing,
+        quality="basic",
+    )
+    answer.timings_ms.update(extra_ms)
+    content = answered_body(message=message, query=query, answer=answer, extras=extras, began=began)
+    # The request's cycle ends (after the response is sent) once its bookkeeping is written.
+    background = None
+    if answer.record is not None:
+        background = BackgroundTask(ctx.records.written, answer.record)
+    return _json(content, background)
+
+
+def _json(content: dict[str, Any], background: BackgroundTask | None = None) -> Response:
+    return Response(
+        pydantic_core.to_json(content), media_type="application/json", background=background
+    )
