@@ -315,6 +315,11 @@ def test_a_path_cached_with_the_gripper_closed_is_validated_again_when_it_is_ope
     again = _plan(app_client, "opened", DIP_START, DIP_GOAL).json()  # same path, same scene
     assert again["status"] == "miss"
     assert "link 'panda_leftfinger' hits object 'plate'" in again["rejected"][0]["reason"]
+    by_name = dict(zip(PANDA_ARM, DIP_START, strict=True))
+    fingers = {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}  # the robot's own
+    assert _plan(app_client, "opened", {**by_name, **fingers}, DIP_GOAL).status_code == 200
+    closed_fingers = {**by_name, "panda_finger_joint1": 0.0}
+    assert_detail(_plan(app_client, "opened", closed_fingers, DIP_GOAL), 422, "holds it at 0.04")
 
     reset = app_client.put("/v1/robots/opened", json={"model_id": model_id, "joint_values": {}})
     assert reset.json()["joint_values"] == {}

@@ -215,8 +215,12 @@ def _plan_in_scene(
     and the first `max_candidates` are tried.
     """
     t = time.perf_counter()
-    start = check_states(model, resolve_state(model, request.start, name="start"), name="start")[0]
-    goal = check_states(model, resolve_state(model, request.goal, name="goal"), name="goal")[0]
+    # Checked as the robot holds its joints in this scene; cached under the registered model.
+    checked = model_in_scene(model, scene, origin.held)
+    start_values = resolve_state(checked, request.start, name="start")
+    goal_values = resolve_state(checked, request.goal, name="goal")
+    start = check_states(model, start_values, name="start")[0]
+    goal = check_states(model, goal_values, name="goal")[0]
     check_limits(model, start, name="start")
     check_limits(model, goal, name="goal")
     clock.db += time.perf_counter() - t
@@ -246,8 +250,6 @@ def _plan_in_scene(
     clock.lookup += time.perf_counter() - t
 
     t = time.perf_counter()
-    # Checked as the robot holds its joints in this scene; cached under the registered model.
-    checked = model_in_scene(model, scene, origin.held)
     validator = validator_for(checked, scene, ctx.settings)
     scope = memo_scope(checked, scene, ctx.settings)
     failed: list[int] = []
