@@ -69,9 +69,8 @@ class RobotGeometry:
         self.pair_i = np.array([p[0] for p in pairs], dtype=np.int64)
         self.pair_j = np.array([p[1] for p in pairs], dtype=np.int64)
         # Dofs that move both elements of a pair alike do not change their distance.
-        anc = self.motion.ancestors
         li, lj = self.element_link[self.pair_i], self.element_link[self.pair_j]
-        self.pair_mask = ~(anc[li] & anc[lj])  # (P, D)
+        self.pair_mask = ~self.motion.alike(li, lj)  # (P, D)
         self.proven_free: list[tuple[int, int]] = []  # element pairs dropped by `drop_pairs`
         self._local = threading.local()
 

@@ -55,7 +55,7 @@ def proven_free_pairs(robot: RobotGeometry) -> BoolArray:
     anc = robot.motion.ancestors
     for pair in range(len(free)):
         li, lj = robot.element_link[robot.pair_i[pair]], robot.element_link[robot.pair_j[pair]]
-        dofs = np.flatnonzero(anc[li] ^ anc[lj])
+        dofs = np.flatnonzero((anc[li] | anc[lj]) & ~robot.motion.alike(li, lj))
         box = _box(robot, dofs)
         if box is not None and 0 < len(dofs) <= MAX_DOFS:
             free[pair] = _covered(robot, clearance, narrow, pair, dofs, box, whole[dofs, pair])

@@ -30,6 +30,8 @@ class _Tables:
     element_link: IntArray  # (E,)
     element_origin: FloatArray  # (E, 4, 4)
     value_index: IntArray  # (J,) state column of each joint, or -1 when held at its default
+    value_scale: FloatArray  # (J,) a mimic joint's multiplier of that column (else 1)
+    value_offset: FloatArray  # (J,) and its offset (else 0)
     default: FloatArray  # (J,) value of held joints
     fixed: FloatArray  # (J, 4, 4)
     sine: FloatArray  # (J, 4, 4)
@@ -61,6 +63,8 @@ def _tables(model: RobotModel) -> _Tables:
                 -1, 4, 4
             ),
             value_index=np.array([j.index for j in model.joints], dtype=np.int64),
+            value_scale=np.array([j.scale for j in model.joints], dtype=float),
+            value_offset=np.array([j.offset for j in model.joints], dtype=float),
             default=np.array([j.default for j in model.joints], dtype=float),
             fixed=fixed,
             sine=sine,
@@ -191,7 +195,8 @@ def forward_kinematics(model: RobotModel, q: FloatArray) -> FloatArray:
     if not model.joints:
         return tf
     held = tables.value_index < 0
-    values = np.where(held, tables.default, q[:, np.maximum(tables.value_index, 0)])  # (N, J)
+    driven = q[:, np.maximum(tables.value_index, 0)] * tables.value_scale + tables.value_offset
+    values = np.where(held, tables.default, driven)  # (N, J)
     local = (
         tables.fixed
         + np.sin(values)[..., None, None] * tables.sine
@@ -245,18 +250,20 @@ def link_motion_bounds(model: RobotModel) -> FloatArray:
         while current in parent_joint:
             joint = parent_joint[current]
             if joint.index >= 0:
-                bounds[link, joint.index] += 1.0 if joint.kind == "prismatic" else reach
-            reach += float(np.linalg.norm(joint.origin[:3, 3])) + _prismatic_extent(model, joint)
+                lever = abs(joint.scale) if joint.kind == "prismatic" else reach
+                bounds[link, joint.index] += lever
+            reach += float(np.linalg.norm(joint.origin[:3, 3])) + prismatic_extent(model, joint)
             current = joint.parent
         if model.base is BaseType.PLANAR:
             bounds[link, :3] = (1.0, 1.0, reach)
     return bounds
 
 
-def _prismatic_extent(model: RobotModel, joint: KinematicJoint) -> float:
-    """Largest |q| a prismatic joint can take (0 for other joints)."""
+def prismatic_extent(model: RobotModel, joint: KinematicJoint) -> float:
+    """Largest |value| a prismatic joint can take within the limits (0 for other joints)."""
     if joint.kind != "prismatic":
         return 0.0
     if joint.index < 0:
         return abs(joint.default)
-    return float(max(abs(model.lower[joint.index]), abs(model.upper[joint.index])))
+    ends = (model.lower[joint.index], model.upper[joint.index])
+    return float(max(abs(joint.scale * end + joint.offset) for end in ends))

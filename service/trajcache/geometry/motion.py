@@ -32,7 +32,8 @@ import weakref
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.robot import BaseType, KinematicJoint, RobotModel
+from trajcache.geometry.kinematics import prismatic_extent
+from trajcache.geometry.robot import BaseType, RobotModel
 from trajcache.geometry.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
@@ -63,11 +64,18 @@ class MotionBounds:
         self.axis_local = np.array([axes[d][1] for d in order]).reshape(-1, 3)
         # ancestors[l, d]: dof d moves link l; reach[l, d]: bound on |o_l − o_d| (d revolute).
         self.ancestors = np.zeros((links, dof), dtype=bool)
+        # drivers[l, d]: an id of the set of joints through which dof d moves link l (one joint,
+        # or a leader and the joints that mimic it): two links move alike under d only when
+        # they have the same drivers.
+        self.drivers = np.zeros((links, dof), dtype=np.int64)
+        joint_sets: dict[frozenset[int], int] = {}
         self.reach = np.zeros((links, dof))
         self.after = np.zeros((dof, dof), dtype=bool)  # after[d, d']: d' strictly below d
         parent_joint = {joint.child: joint for joint in model.joints}
+        id_of = {joint.name: k for k, joint in enumerate(model.joints)}
         for link in range(links):
             chain: list[int] = []  # dofs from l up to the root
+            through: dict[int, set[int]] = {}
             acc = 0.0
             current = link
             while current in parent_joint:
@@ -76,15 +84,26 @@ class MotionBounds:
                     self.ancestors[link, joint.index] = True
                     self.reach[link, joint.index] = acc
                     chain.append(joint.index)
-                acc += float(np.linalg.norm(joint.origin[:3, 3])) + _prismatic_extent(model, joint)
+                    through.setdefault(joint.index, set()).add(id_of[joint.name])
+                acc += float(np.linalg.norm(joint.origin[:3, 3])) + prismatic_extent(model, joint)
                 current = joint.parent
+            for d, joints in through.items():
+                key = frozenset(joints)
+                self.drivers[link, d] = joint_sets.setdefault(key, len(joint_sets) + 1)
             if self.planar:
                 self.ancestors[link, :3] = True
+                self.drivers[link, :3] = -1  # the base moves every link alike
                 self.reach[link, 2] = acc
                 chain += [2]
             for lower, d in enumerate(chain):
                 self.after[d, chain[:lower]] = True
         self._after_t = self.after.T.astype(float)
+
+    def alike(self, link_a: IntArray, link_b: IntArray) -> BoolArray:
+        """(..., D) True where dof d moves links `link_a` and `link_b` as one rigid body: it is
+        above both, through the same joints."""
+        same = self.drivers[link_a] == self.drivers[link_b]
+        return np.asarray(same & self.ancestors[link_a] & self.ancestors[link_b])
 
     def axes(self, link_tf: FloatArray) -> _Axes:
         """World origins and directions (N, R, 3) of the revolute axes at N poses (N, L, 4, 4)."""
@@ -141,15 +160,6 @@ class MotionBounds:
     def turn(self, link: IntArray, step: FloatArray) -> FloatArray:
         """Σ |Δq_d| over the revolute dofs that move each link (..., D) → (..., D) per dof."""
         return np.where(self.rotation & self.ancestors[link], step, 0.0)
-
-
-def _prismatic_extent(model: RobotModel, joint: KinematicJoint) -> float:
-    """Largest |q| a prismatic joint can take (0 for other joints)."""
-    if joint.kind != "prismatic":
-        return 0.0
-    if joint.index < 0:
-        return abs(joint.default)
-    return float(max(abs(model.lower[joint.index]), abs(model.upper[joint.index])))
 
 
 _BOUNDS: weakref.WeakKeyDictionary[RobotModel, MotionBounds] = weakref.WeakKeyDictionary()

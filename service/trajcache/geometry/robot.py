@@ -34,7 +34,8 @@ class KinematicJoint:
     """One URDF joint in topological order (parent before child).
 
     `index` is the joint's position in the state vector, or -1 when it is not a planning joint
-    (fixed joints, and movable joints held at `default`).
+    (fixed joints, and movable joints held at `default`). A joint that mimics a planning joint
+    has its leader's index, and takes `scale` · value + `offset`.
     """
 
     name: str
@@ -47,6 +48,16 @@ class KinematicJoint:
     default: float = 0.0
     bounds: tuple[float, float] | None = None  # limits of a movable joint (None: unbounded)
     mimic: tuple[str, float, float] | None = None  # (leader joint, multiplier, offset)
+
+    @property
+    def scale(self) -> float:
+        """Multiplier of the state value `index` in this joint's value (a mimic joint's)."""
+        return self.mimic[1] if self.mimic is not None and self.index >= 0 else 1.0
+
+    @property
+    def offset(self) -> float:
+        """Offset added to the scaled state value (a mimic joint's)."""
+        return self.mimic[2] if self.mimic is not None and self.index >= 0 else 0.0
 
 
 @dataclass(frozen=True, eq=False)

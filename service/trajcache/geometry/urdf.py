@@ -342,8 +342,8 @@ def _held_values(
     """Values of the movable joints outside the planning group.
 
     Each is 0 clipped into its limits unless `joint_values` gives it (by name, or an SRDF
-    group_state's name); a mimic joint follows its leader (multiplier · leader + offset). A
-    planning joint that another joint mimics is not supported.
+    group_state's name); a mimic joint follows its leader (multiplier · leader + offset). One
+    that follows a planning joint moves with it in every state (`_check_planned_mimic`).
     """
     by_name = {j.name: j for j in ordered}
     followers = {j.name: j.mimic for j in ordered if j.type in MOVABLE and j.mimic is not None}
@@ -351,11 +351,12 @@ def _held_values(
         leader = by_name.get(mimic.joint)
         if leader is None or leader.type not in MOVABLE:
             raise RobotModelError(f"joint {name!r} mimics {mimic.joint!r}, not a movable joint")
-        if mimic.joint in planning or name in planning:
+        if name in planning:
             raise RobotModelError(
-                f"joint {name!r} mimics {mimic.joint!r}: mimic joints are supported outside the "
-                "planning joints only (leave both out, and give the leader in joint_values)"
+                f"joint {name!r} mimics {mimic.joint!r}: plan with {mimic.joint!r}, not with it"
             )
+        if mimic.joint in planning:
+            _check_planned_mimic(by_name, name, mimic)
     values: dict[str, float] = {}
     for joint in ordered:
         if joint.type in MOVABLE and joint.name not in planning and joint.name not in followers:
@@ -391,7 +392,7 @@ def _held_values(
                 f"joint_values: {name} = {value:.6g} not in [{bounds[0]:.6g}, {bounds[1]:.6g}]"
             )
         values[name] = value
-    pending = dict(followers)
+    pending = {n: m for n, m in followers.items() if m.joint not in planning}
     while pending:
         ready = {n: m for n, m in pending.items() if m.joint in values}
         if not ready:
@@ -402,6 +403,37 @@ def _held_values(
             values[name] = multiplier * values[mimic.joint] + offset
             del pending[name]
     return values
+
+
+MAX_MIMIC_MULTIPLIER = 1.0  # a planned mimic joint moves at most as far as its leader
+
+
+def _check_planned_mimic(by_name: Mapping[str, Any], name: str, mimic: Any) -> None:
+    """A joint that mimics a planning joint is followed when both are prismatic (a parallel
+    gripper's fingers), |multiplier| ≤ 1 and neither is below the other; else RobotModelError
+    names what is not supported."""
+    follower, leader = by_name[name], by_name[mimic.joint]
+    multiplier = 1.0 if mimic.multiplier is None else float(mimic.multiplier)
+    if follower.type != "prismatic" or leader.type != "prismatic":
+        raise RobotModelError(
+            f"joint {name!r} mimics planning joint {mimic.joint!r}: only prismatic joints that "
+            "mimic a prismatic planning joint are supported; hold both (leave them out of the "
+            "planning joints)"
+        )
+    if not abs(multiplier) <= MAX_MIMIC_MULTIPLIER:
+        raise RobotModelError(
+            f"joint {name!r} mimics {mimic.joint!r} with multiplier {multiplier}: at most "
+            f"{MAX_MIMIC_MULTIPLIER} in magnitude is supported for a planning joint"
+        )
+    parent = {j.child: j for j in by_name.values()}
+    for low, high in ((follower, leader), (leader, follower)):
+        link = low.parent
+        while link in parent:
+            if parent[link].name == high.name:
+                raise RobotModelError(
+                    f"joint {name!r} mimics {mimic.joint!r} on the same chain: not supported"
+                )
+            link = parent[link].parent
 
 
 def _kinematic_joints(
@@ -429,7 +461,10 @@ def _kinematic_joints(
         if norm < 1e-12 and joint.type in MOVABLE:
             raise RobotModelError(f"joint {joint.name!r} has a zero axis")
         kind = joint.type if joint.type in MOVABLE else "fixed"
-        index = planning.index(joint.name) + offset if joint.name in planning else -1
+        driver = joint.name
+        if kind != "fixed" and joint.mimic is not None and joint.mimic.joint in planning:
+            driver = joint.mimic.joint  # follows a planning joint: scaled in kinematics
+        index = planning.index(driver) + offset if driver in planning else -1
         bounds = limits.get(joint.name)
         mimic = None
         if kind != "fixed" and joint.mimic is not None:
@@ -630,16 +665,16 @@ def rigid_pairs(model: RobotModel) -> set[tuple[int, int]]:
     other: the planning joints above one are exactly those above the other (the base moves
     every link alike). Their contact is the same in every state, so no motion can change it."""
     parent_joint = {joint.child: joint for joint in model.joints}
-    above: list[frozenset[int]] = []
+    above: list[frozenset[str]] = []  # the planning-driven joints above each link
     for link in range(len(model.link_names)):
-        dofs: set[int] = set()
+        driven: set[str] = set()
         current = link
         while current in parent_joint:
             joint = parent_joint[current]
             if joint.index >= 0:
-                dofs.add(joint.index)
+                driven.add(joint.name)
             current = joint.parent
-        above.append(frozenset(dofs))
+        above.append(frozenset(driven))
     links = [int(link) for link in model.geometric_links()]
     return {(a, b) for k, a in enumerate(links) for b in links[k + 1 :] if above[a] == above[b]}
 
