@@ -80,3 +80,25 @@ def test_a_mixed_table_indexes_each_shape() -> None:
     np.testing.assert_allclose(value[1], [0.04, 0.15])
     np.testing.assert_allclose(value[2], [0.3, 0.0])
     np.testing.assert_allclose(value[3], [0.07, 0.07])
+
+
+def test_the_compiled_mesh_support_is_the_largest_projection_of_its_hull() -> None:
+    rng = np.random.default_rng(3)
+    meshes = []
+    for count in (30, 200, 7):
+        vertices = rng.normal(size=(count, 3)) * [0.1, 0.05, 0.2] + rng.normal(size=3)
+        meshes.append(Shape(ShapeKind.MESH, (), vertices=vertices, faces=np.zeros((1, 3), int)))
+    shapes = [meshes[0], Shape(ShapeKind.BOX, (0.1, 0.2, 0.3)), meshes[1], meshes[2]]
+    table = SupportTable.build(shapes)
+    index = rng.integers(0, len(shapes), size=(500, 4))
+    local = rng.normal(size=(500, 4, 3))
+    local /= np.linalg.norm(local, axis=-1, keepdims=True)
+    got = table.support(index, local)
+    for k, shape in enumerate(shapes):
+        rows = index == k
+        if shape.kind is ShapeKind.MESH:
+            assert shape.vertices is not None
+            want = (local[rows] @ shape.vertices.T).max(axis=-1)  # hull vertices hold the max
+        else:
+            want = SupportTable.build([shape]).support(np.zeros(rows.sum(), int), local[rows])
+        np.testing.assert_allclose(got[rows], want, rtol=0, atol=1e-12)

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import ConvexHull, QhullError
 
+from trajcache.geometry.kernels import hull_support
 from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
 
 IntArray = NDArray[np.int64]
@@ -53,6 +54,13 @@ class SupportTable:
     packed: FloatArray  # (K, 5): half, disk, ball, gathered in one go
     has_centres: bool
     has_hulls: bool
+    # Every hull's vertices packed for the compiled kernel: shape k's hull is
+    # hull_vertices[hull_start[k] : hull_start[k] + hull_count[k]]; hull_slot[k] is k for a mesh
+    # and -1 for a primitive.
+    hull_vertices: FloatArray
+    hull_start: IntArray
+    hull_count: IntArray
+    hull_slot: IntArray
 
     @classmethod
     def build(cls, shapes: Sequence[Shape]) -> SupportTable:
@@ -63,6 +71,9 @@ class SupportTable:
         half = np.array([p[1] for p in params], dtype=float).reshape(count, 3)
         disk = np.array([p[2] for p in params], dtype=float).reshape(count)
         ball = np.array([p[3] for p in params], dtype=float).reshape(count)
+        hulls = [p[4] for p in params]
+        sizes = np.array([0 if h is None else len(h) for h in hulls], dtype=np.int64)
+        packed_hulls = [h for h in hulls if h is not None]
         return cls(
             centre=centre,
             half=half,
@@ -72,6 +83,14 @@ class SupportTable:
             packed=np.column_stack([half, disk, ball]),
             has_centres=bool(np.any(centre)),
             has_hulls=any(p[4] is not None for p in params),
+            hull_vertices=np.ascontiguousarray(
+                np.concatenate(packed_hulls) if packed_hulls else np.zeros((0, 3))
+            ),
+            hull_start=np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64),
+            hull_count=sizes,
+            hull_slot=np.array(
+                [k if h is not None else -1 for k, h in enumerate(hulls)], dtype=np.int64
+            ),
         )
 
     def support(self, index: IntArray, local: FloatArray) -> FloatArray:
@@ -88,12 +107,15 @@ class SupportTable:
         if self.has_centres:
             c = self.centre[index]
             value += x * c[..., 0] + y * c[..., 1] + z * c[..., 2]
-        if self.has_hulls:
-            index = np.broadcast_to(index, local.shape[:-1])
-            for k, hull in enumerate(self.hulls):
-                rows = index == k
-                if hull is not None and np.any(rows):
-                    value[rows] = np.max(local[rows] @ hull.T, axis=-1)
+        if self.has_hulls:  # a mesh: the largest projection of its hull's vertices (compiled)
+            shape = value.shape
+            slot = self.hull_slot[np.broadcast_to(index, local.shape[:-1]).ravel()]
+            flat = np.ascontiguousarray(value, dtype=float).reshape(-1)
+            directions = np.ascontiguousarray(local, dtype=float).reshape(-1, 3)
+            hull_support(
+                self.hull_vertices, self.hull_start, self.hull_count, slot, directions, flat
+            )
+            value = flat.reshape(shape)
         return np.asarray(value)
 
 

@@ -1,0 +1,45 @@
+"""Compiled kernels (numba, `cache=True`) for the hot loops of the distance bounds.
+
+Each kernel has a plain numpy twin of the same arithmetic in the callers' history; they are
+compiled once per machine (numba's on-disk cache) and warmed by `warm()` when the service starts,
+so that no request pays for compilation.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from trajcache.geometry.shapes import FloatArray
+
+
+@numba.njit(cache=True, nogil=True)
+def hull_support(
+    vertices: FloatArray,
+    start: np.ndarray,
+    count: np.ndarray,
+    slot: np.ndarray,
+    local: FloatArray,
+    out: FloatArray,
+) -> None:  # pragma: no cover - compiled
+    """out[q] = max over the vertices of hull slot[q] of local[q]·v, for every q with a slot ≥ 0
+    (the hulls' vertices packed in `vertices`, hull s at start[s] : start[s] + count[s])."""
+    for q in range(slot.shape[0]):
+        s = slot[q]
+        if s < 0:
+            continue
+        x, y, z = local[q, 0], local[q, 1], local[q, 2]
+        first = start[s]
+        best = -np.inf
+        for v in range(first, first + count[s]):
+            value = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
+            if value > best:
+                best = value
+        out[q] = best
+
+
+def warm() -> None:
+    """Compile (or load from numba's cache) every kernel now."""
+    vertices = np.zeros((1, 3))
+    index = np.zeros(1, dtype=np.int64)
+    hull_support(vertices, index, index + 1, index, np.zeros((1, 3)), np.zeros(1))
