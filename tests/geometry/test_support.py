@@ -102,3 +102,23 @@ def test_the_compiled_mesh_support_is_the_largest_projection_of_its_hull() -> No
         else:
             want = SupportTable.build([shape]).support(np.zeros(rows.sum(), int), local[rows])
         np.testing.assert_allclose(got[rows], want, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("robot", ["kinova", "panda", "tiago"])
+def test_hill_climbing_finds_the_largest_projection_on_real_meshes(robot: str) -> None:
+    from trajcache.geometry.urdf import load_robot_model
+    from trajcache.workload.example_robots import ROBOTS
+
+    example = ROBOTS[robot]
+    model = load_robot_model(example.urdf, files=example.files(), joint_names=example.joint_names,
+                             srdf=example.srdf, group=example.group)  # fmt: skip
+    meshes = [e.shape for e in model.elements if e.shape.kind is ShapeKind.MESH]
+    table = SupportTable.build(meshes)
+    rng = np.random.default_rng(5)
+    local = rng.normal(size=(len(meshes), 2000, 3))
+    local /= np.linalg.norm(local, axis=-1, keepdims=True)
+    got = table.support(np.arange(len(meshes))[:, None], local)
+    for k, shape in enumerate(meshes):
+        assert shape.vertices is not None
+        want = (local[k] @ shape.vertices.T).max(axis=-1)
+        np.testing.assert_allclose(got[k], want, rtol=0, atol=1e-12)

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import ConvexHull, QhullError
 
-from trajcache.geometry.kernels import hull_support
+from trajcache.geometry.kernels import hull_support_climb
 from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
 
 IntArray = NDArray[np.int64]
@@ -61,6 +61,13 @@ class SupportTable:
     hull_start: IntArray
     hull_count: IntArray
     hull_slot: IntArray
+    # For hill climbing (`kernels.hull_support_climb`): each hull's anchor vertices, and the
+    # vertices that share a hull edge with each packed vertex (CSR), all as packed indices.
+    anchors: IntArray
+    anchor_start: IntArray
+    anchor_count: IntArray
+    neighbours: IntArray
+    neighbour_start: IntArray
 
     @classmethod
     def build(cls, shapes: Sequence[Shape]) -> SupportTable:
@@ -74,6 +81,15 @@ class SupportTable:
         hulls = [p[4] for p in params]
         sizes = np.array([0 if h is None else len(h) for h in hulls], dtype=np.int64)
         packed_hulls = [h for h in hulls if h is not None]
+        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        graphs = [_hull_graph(h) if h is not None else None for h in hulls]
+        anchors = [starts[k] + g[0] for k, g in enumerate(graphs) if g is not None]
+        lists = [
+            [starts[k] + n for n in around]
+            for k, g in enumerate(graphs)
+            if g is not None
+            for around in g[1]
+        ]
         return cls(
             centre=centre,
             half=half,
@@ -86,11 +102,18 @@ class SupportTable:
             hull_vertices=np.ascontiguousarray(
                 np.concatenate(packed_hulls) if packed_hulls else np.zeros((0, 3))
             ),
-            hull_start=np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64),
+            hull_start=starts,
             hull_count=sizes,
             hull_slot=np.array(
                 [k if h is not None else -1 for k, h in enumerate(hulls)], dtype=np.int64
             ),
+            anchors=np.concatenate(anchors or [np.zeros(0)]).astype(np.int64),
+            anchor_start=np.array(
+                _offsets([0 if g is None else len(g[0]) for g in graphs]), dtype=np.int64
+            ),
+            anchor_count=np.array([0 if g is None else len(g[0]) for g in graphs], np.int64),
+            neighbours=np.array([n for around in lists for n in around], dtype=np.int64),
+            neighbour_start=np.array(_offsets([len(a) for a in lists], total=True), np.int64),
         )
 
     def support(self, index: IntArray, local: FloatArray) -> FloatArray:
@@ -112,8 +135,18 @@ class SupportTable:
             slot = self.hull_slot[np.broadcast_to(index, local.shape[:-1]).ravel()]
             flat = np.ascontiguousarray(value, dtype=float).reshape(-1)
             directions = np.ascontiguousarray(local, dtype=float).reshape(-1, 3)
-            hull_support(
-                self.hull_vertices, self.hull_start, self.hull_count, slot, directions, flat
+            hull_support_climb(
+                self.hull_vertices,
+                self.hull_start,
+                self.hull_count,
+                self.anchors,
+                self.anchor_start,
+                self.anchor_count,
+                self.neighbours,
+                self.neighbour_start,
+                slot,
+                directions,
+                flat,
             )
             value = flat.reshape(shape)
         return np.asarray(value)
@@ -149,6 +182,44 @@ def _hull(vertices: FloatArray) -> FloatArray:
         return verts[ConvexHull(verts).vertices]
     except QhullError:  # flat or tiny point sets: every vertex still gives the same support
         return verts
+
+
+_ANCHOR_DIRECTIONS = np.array(
+    [
+        [x, y, z]
+        for x in (-1, 0, 1)
+        for y in (-1, 0, 1)
+        for z in (-1, 0, 1)
+        if (x, y, z) != (0, 0, 0)
+    ],
+    dtype=float,
+)
+
+
+def _hull_graph(vertices: FloatArray) -> tuple[IntArray, list[list[int]]]:
+    """Anchor vertices (the extreme ones along 26 directions) and, per vertex, the vertices that
+    share an edge of the hull's triangulated faces. A flat point set (no 3-D hull) gets every
+    vertex as an anchor and no edges, so the climb is the plain maximum."""
+    count = len(vertices)
+    try:
+        simplices = ConvexHull(vertices).simplices
+    except QhullError:
+        return np.arange(count, dtype=np.int64), [[] for _ in range(count)]
+    around: list[set[int]] = [set() for _ in range(count)]
+    for a, b, c in simplices:
+        around[a].update((b, c))
+        around[b].update((a, c))
+        around[c].update((a, b))
+    anchors = np.unique(np.argmax(_ANCHOR_DIRECTIONS @ vertices.T, axis=1))
+    return anchors.astype(np.int64), [sorted(n) for n in around]
+
+
+def _offsets(sizes: Sequence[int], *, total: bool = False) -> list[int]:
+    """Start of each block of `sizes` packed one after another (and the end, with `total`)."""
+    starts = [0]
+    for size in sizes:
+        starts.append(starts[-1] + size)
+    return starts if total else starts[:-1]
 
 
 def sphere_cover(shape: Shape) -> tuple[FloatArray, FloatArray]:
