@@ -1,8 +1,7 @@
 """Compiled kernels (numba, `cache=True`) for the hot loops of the distance bounds.
 
-Each kernel has a plain numpy twin of the same arithmetic in the callers' history; they are
-compiled once per machine (numba's on-disk cache) and warmed by `warm()` when the service starts,
-so that no request pays for compilation.
+They are compiled once per machine (numba's on-disk cache) and warmed by `warm()` when the
+service starts, so that no request pays for compilation.
 """
 
 from __future__ import annotations
@@ -11,31 +10,6 @@ import numba
 import numpy as np
 
 from trajcache.geometry.shapes import FloatArray
-
-
-@numba.njit(cache=True, nogil=True)
-def hull_support(
-    vertices: FloatArray,
-    start: np.ndarray,
-    count: np.ndarray,
-    slot: np.ndarray,
-    local: FloatArray,
-    out: FloatArray,
-) -> None:  # pragma: no cover - compiled
-    """out[q] = max over the vertices of hull slot[q] of local[q]·v, for every q with a slot ≥ 0
-    (the hulls' vertices packed in `vertices`, hull s at start[s] : start[s] + count[s])."""
-    for q in range(slot.shape[0]):
-        s = slot[q]
-        if s < 0:
-            continue
-        x, y, z = local[q, 0], local[q, 1], local[q, 2]
-        first = start[s]
-        best = -np.inf
-        for v in range(first, first + count[s]):
-            value = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
-            if value > best:
-                best = value
-        out[q] = best
 
 
 @numba.njit(cache=True, nogil=True)
@@ -52,8 +26,10 @@ def hull_support_climb(
     local: FloatArray,
     out: FloatArray,
 ) -> None:  # pragma: no cover - compiled
-    """`hull_support` by hill climbing: from the best of a hull's anchor vertices, move to a
-    neighbour (along a hull edge) while that raises local[q]·v.
+    """out[q] = max over the vertices v of hull slot[q] of local[q]·v, for every q with a slot
+    ≥ 0 (hull s's vertices packed at vertices[start[s] : start[s] + count[s]]), by hill
+    climbing: from the best of the hull's anchor vertices, move to a neighbour (along a hull
+    edge) while that raises local[q]·v.
 
     Exact for a convex polytope: a vertex that no edge improves maximizes a linear function
     over the polytope (the simplex method's optimality argument). `neighbours[neighbour_start[v]
@@ -90,7 +66,6 @@ def warm() -> None:
     """Compile (or load from numba's cache) every kernel now."""
     vertices = np.zeros((1, 3))
     index = np.zeros(1, dtype=np.int64)
-    hull_support(vertices, index, index + 1, index, np.zeros((1, 3)), np.zeros(1))
     hull_support_climb(
         vertices, index, index + 1, index, index, index + 1, index, np.zeros(2, dtype=np.int64),
         index, np.zeros((1, 3)), np.zeros(1),
