@@ -21,7 +21,7 @@ from trajcache.geometry.motion import MotionBounds, motion_bounds
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.support import SupportTable, sphere_cover
+from trajcache.geometry.support import SupportTable, hull_fcl, sphere_cover
 
 IntArray = NDArray[np.int64]
 _CACHE_SIZE = 64
@@ -35,6 +35,8 @@ class RobotGeometry:
         self.motion: MotionBounds = motion_bounds(model)
         elements = model.elements
         self.geometries = [e.shape.to_fcl() for e in elements]
+        # Convex hulls of meshes, for nearest-point directions only (never for a verdict).
+        self.hull_geometries = [hull_fcl(e.shape) for e in elements]
         self.element_link = np.array([e.link for e in elements], dtype=np.int64)
         self.element_origin = np.array([e.origin for e in elements], dtype=float).reshape(-1, 4, 4)
         self.support = SupportTable.build([e.shape for e in elements])
@@ -113,12 +115,15 @@ class RobotGeometry:
         proven = {links(i, j) for i, j in self.proven_free} - checked
         return out + [(names[a], names[b], "proven") for a, b in sorted(proven)]
 
-    def objects(self) -> list[fcl.CollisionObject]:
-        """This thread's FCL objects (transforms are mutated during a check)."""
-        objs: list[fcl.CollisionObject] | None = getattr(self._local, "objects", None)
+    def objects(self, *, hulls: bool = False) -> list[fcl.CollisionObject]:
+        """This thread's FCL objects (transforms are mutated during a check); with `hulls`, a
+        mesh's is its convex hull."""
+        name = "hull_objects" if hulls else "objects"
+        objs: list[fcl.CollisionObject] | None = getattr(self._local, name, None)
         if objs is None:
-            objs = [fcl.CollisionObject(g, fcl.Transform()) for g in self.geometries]
-            self._local.objects = objs
+            geometries = self.hull_geometries if hulls else self.geometries
+            objs = [fcl.CollisionObject(g, fcl.Transform()) for g in geometries]
+            setattr(self._local, name, objs)
         return objs
 
 

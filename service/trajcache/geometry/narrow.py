@@ -51,10 +51,12 @@ class Narrow:
         return self._nearest(posed, rows, scene=False)
 
     def _nearest(self, posed: Posed, rows: IntArray, *, scene: bool) -> FloatArray:
+        # A mesh is queried as its convex hull: only the direction is used, and any direction
+        # gives a valid slab.
         if len(rows) == 0:
             return np.zeros(0)
         dirs = np.zeros((len(rows), 1, 3))
-        poser = _Poser(self, posed, rows, scene=scene, at={})
+        poser = _Poser(self, posed, rows, scene=scene, at={}, hulls=True)
         for k in range(len(rows)):
             first, second = poser.pair(k)
             result = fcl.DistanceResult()
@@ -134,9 +136,10 @@ class _Poser:
         *,
         scene: bool,
         at: dict[int, int],
+        hulls: bool = False,
     ) -> None:
         robot = narrow.robot
-        self.objects = robot.objects()
+        self.objects = robot.objects(hulls=hulls)
         self.scene_objects = narrow.scene.objects
         self.rows = rows
         self.scene = scene
