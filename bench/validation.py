@@ -5,76 +5,41 @@ collision-free trajectories (every sample checked) and of trajectories that coll
 stop at the first collision); a third row takes the motions of a reference cleaning run (start
 to goal of each call whose straight motion is free, in that call's scene: what the cache mostly
 holds). "certified ms" is the validator's time per trajectory, what a cache hit pays. Verdicts
-are compared state by state, without padding, over random states. The last line printed is
-one JSON object.
+are compared state by state, without padding, over random states.
 
-    python bench/validation.py            # full size
-    python bench/validation.py --smoke    # seconds, for CI
+The Panda rows (`validation_panda`) take the Panda of example-robot-data with its meshes through
+seeded table, shelf, box and cage problems: straight, detour and grazing paths, the same
+checkers, a naive loop that asks FCL only about the pairs it must check (on meshes the naive
+loop above spends most of its time listing contacts of adjacent links), and an independent
+dense check (Pinocchio and coal) of every path. `mismatches` counts the reference
+robot's state mismatches plus the Panda's safety failures (`panda_mismatches`: a path the
+validator accepts that collides); a rejected path the dense check finds free is counted in
+`panda_conservative`, by reason. The last line printed is one JSON object; the exit status is 1
+when a Panda path is a safety failure.
+
+    python bench/validation.py                         # full size (10 problems per family)
+    python bench/validation.py --smoke                 # seconds, for CI (1 per family)
+    python bench/validation.py --panda-problems 3      # Panda problems per family
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import statistics
+import sys
 import time
-from collections.abc import Callable
 
-import fcl
 import numpy as np
 
+import validation_panda
+from naive_fcl import NaiveChecker, timed
 from trajcache.geometry.collision import COLLIDING, CollisionChecker
-from trajcache.geometry.kinematics import element_transforms, link_transforms
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import reference_model
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.validation import Resolution, TrajectoryValidator, interpolate
 from trajcache.workload.cleaning import cleaning_run
-
-
-class NaiveChecker:
-    """The obvious implementation: for each state, move every FCL object and ask the managers."""
-
-    def __init__(self, model: RobotModel, scene: Scene) -> None:
-        self.model = model
-        self.geoms = [e.shape.to_fcl() for e in model.elements]
-        self.objs = [fcl.CollisionObject(g, fcl.Transform()) for g in self.geoms]
-        self.link_of = {id(g): e.link for g, e in zip(self.geoms, model.elements, strict=True)}
-        self.robot = fcl.DynamicAABBTreeCollisionManager()
-        self.robot.registerObjects(self.objs)
-        self.robot.setup()
-        self.scene = fcl.DynamicAABBTreeCollisionManager()
-        self.scene.registerObjects(
-            [
-                fcl.CollisionObject(o.shape.to_fcl(), fcl.Transform(o.pose[:3, :3], o.pose[:3, 3]))
-                for o in scene.objects
-            ]
-        )
-        self.scene.setup()
-
-    def state_collides(self, state: np.ndarray) -> bool:
-        """Per-state check: FK of one state, update the manager, scene then self collisions."""
-        poses = element_transforms(self.model, link_transforms(self.model, state[None, :]))[0]
-        for obj, pose in zip(self.objs, poses, strict=True):
-            obj.setTransform(fcl.Transform(pose[:3, :3], pose[:3, 3]))
-        self.robot.update()
-        data = fcl.CollisionData(request=fcl.CollisionRequest())
-        self.robot.collide(self.scene, data, fcl.defaultCollisionCallback)
-        if data.result.is_collision:
-            return True
-        request = fcl.CollisionRequest(num_max_contacts=100_000, enable_contact=True)
-        data = fcl.CollisionData(request=request)
-        self.robot.collide(data, fcl.defaultCollisionCallback)
-        for contact in data.result.contacts:
-            a, b = self.link_of[id(contact.o1)], self.link_of[id(contact.o2)]
-            if a != b and (min(a, b), max(a, b)) not in self.model.allowed_pairs:
-                return True
-        return False
-
-    def validate(self, samples: np.ndarray) -> bool:
-        """True when every sample is free; stops at the first collision."""
-        return not any(self.state_collides(s) for s in samples)
 
 
 def random_states(model: RobotModel, rng: np.random.Generator, count: int) -> np.ndarray:
@@ -143,37 +108,24 @@ def workload_motions(
     return motions
 
 
-def timed(fns: list[Callable[[], object]], repeats: int) -> list[float]:
-    """Median wall time of each of `fns` in seconds, taking turns so that a change in the
-    machine's load hits them alike."""
-    times: list[list[float]] = [[] for _ in fns]
-    for _ in range(repeats):
-        for fn, spent in zip(fns, times, strict=True):
-            began = time.perf_counter()
-            fn()
-            spent.append(time.perf_counter() - began)
-    return [statistics.median(t) for t in times]
+Row = tuple[str, int, int, float, float, float]  # label, count, states, naive, plain, certified s
 
 
-def main() -> None:
-    """Run the benchmark and print the table and the JSON line."""
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--smoke", action="store_true", help="tiny run for CI")
-    parser.add_argument("--seed", type=int, default=1)
-    args = parser.parse_args()
-    n_traj, n_states, repeats = (4, 1000, 1) if args.smoke else (30, 10_000, 3)
-
-    rng = np.random.default_rng(args.seed)
-    model = reference_model()
-    scene = restroom_scene(doors=[30.0, 60.0, 90.0])
-    checker = CollisionChecker(model, scene)
-    naive = NaiveChecker(model, scene)
+def reference_rows(
+    model: RobotModel,
+    scene: Scene,
+    checker: CollisionChecker,
+    naive: NaiveChecker,
+    rng: np.random.Generator,
+    seed: int,
+    n_traj: int,
+    repeats: int,
+) -> list[Row]:
+    """The reference robot's rows: collision-free, late-colliding and workload trajectories."""
     free, late = make_trajectories(model, checker, rng, n_traj)
     certified = TrajectoryValidator(model, scene, certified=True)
     plain = TrajectoryValidator(model, scene, certified=False)
-
     rows = []
-    figures: dict[str, float] = {}
     for label, trajs in (("collision-free", free), ("collides late", late)):
         samples = [interpolate(k, model, Resolution()) for k in trajs]
         total = sum(len(s) for s in samples)
@@ -186,7 +138,7 @@ def main() -> None:
             repeats,
         )
         rows.append((label, len(trajs), total, t_naive, t_plain, t_cert))
-    motions = workload_motions(model, args.seed, n_traj * 3)
+    motions = workload_motions(model, seed, n_traj * 3)
     samples = [interpolate(k, model, Resolution()) for k, *_ in motions]
     t_naive, t_plain, t_cert = timed(
         [
@@ -197,11 +149,44 @@ def main() -> None:
         repeats,
     )
     rows.append(("workload", len(motions), sum(len(x) for x in samples), t_naive, t_plain, t_cert))
+    return rows
+
+
+def print_table(rows: list[Row]) -> dict[str, float]:
+    """Print a line per row; states/s per checker and certified ms per trajectory, by label."""
+    figures: dict[str, float] = {}
+    print(
+        f"{'trajectories':<16}{'count':>6}{'states':>8}{'naive st/s':>12}{'plain st/s':>12}"
+        f"{'certified st/s':>16}{'ratio':>8}{'certified ms':>14}"
+    )
     for label, count, total, t_naive, t_plain, t_cert in rows:
-        figures[label] = total / t_naive
+        figures[label] = a = total / t_naive
         figures[label + "/plain"] = total / t_plain
-        figures[label + "/certified"] = total / t_cert
+        figures[label + "/certified"] = c = total / t_cert
         figures[label + "/ms"] = t_cert / count * 1e3
+        print(
+            f"{label:<16}{count:>6}{total:>8}{a:>12.0f}{figures[label + '/plain']:>12.0f}"
+            f"{c:>16.0f}{c / a:>8.2f}{figures[label + '/ms']:>14.2f}"
+        )
+    return figures
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark and print the table and the JSON line; 1 on a Panda safety mismatch."""
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--smoke", action="store_true", help="tiny run for CI")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--panda-problems", type=int, help="per family (default 10; smoke 1)")
+    args = parser.parse_args(argv)
+    n_traj, n_states, repeats = (4, 1000, 1) if args.smoke else (30, 10_000, 3)
+    per_family = args.panda_problems or (1 if args.smoke else 10)
+
+    rng = np.random.default_rng(args.seed)
+    model = reference_model()
+    scene = restroom_scene(doors=[30.0, 60.0, 90.0])
+    checker = CollisionChecker(model, scene)
+    naive = NaiveChecker(model, scene)
+    rows = reference_rows(model, scene, checker, naive, rng, args.seed, n_traj, repeats)
 
     states = random_states(model, rng, n_states)
     began = time.perf_counter()
@@ -212,21 +197,15 @@ def main() -> None:
     t_ours_states = time.perf_counter() - began
     mismatches = int(np.sum(naive_verdict != ours))
 
-    print(
-        f"{'trajectories':<16}{'count':>6}{'states':>8}{'naive st/s':>12}{'plain st/s':>12}"
-        f"{'certified st/s':>16}{'ratio':>8}{'certified ms':>14}"
-    )
-    for label, count, total, *_ in rows:
-        a, c = figures[label], figures[label + "/certified"]
-        print(
-            f"{label:<16}{count:>6}{total:>8}{a:>12.0f}{figures[label + '/plain']:>12.0f}"
-            f"{c:>16.0f}{c / a:>8.2f}{figures[label + '/ms']:>14.2f}"
-        )
+    tally = validation_panda.run_panda(per_family, args.seed, repeats)
+    panda = validation_panda.figures(tally)
+    figures = print_table(rows + validation_panda.rows(tally))
     print(
         f"random states: {n_states}, colliding {int(ours.sum())}, mismatches {mismatches}; "
         f"per-state batch check {n_states / t_ours_states:.0f} st/s vs naive "
         f"{n_states / t_naive_states:.0f} st/s"
     )
+    validation_panda.print_summary(panda)
     result = {
         "naive_states_per_s": round(figures["collision-free"], 1),
         "validator_states_per_s": round(figures["collision-free/certified"], 1),
@@ -237,12 +216,14 @@ def main() -> None:
         "ratio_workload": round(figures["workload/certified"] / figures["workload"], 2),
         "validator_ms_per_trajectory": round(figures["collision-free/ms"], 3),
         "workload_ms_per_trajectory": round(figures["workload/ms"], 3),
-        "mismatches": mismatches,
+        "mismatches": mismatches + panda["panda_mismatches"],
         "verdict_states": n_states,
+        **panda,
         "smoke": args.smoke,
     }
     print(json.dumps(result))
+    return 1 if panda["panda_mismatches"] else 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
