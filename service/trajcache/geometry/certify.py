@@ -138,12 +138,16 @@ class SegmentCertifier:
         if len(left.rows) == 0:
             return left
         cl = self.clearance
-        k = len(left.rows)
         slabs = cl.scene_slabs if left.scene else cl.self_slabs
-        bound = slabs(posed, np.concatenate([left.rows, left.ends]))
-        left.lower_a = np.maximum(left.lower_a, bound[:k])
-        left.lower_b = np.maximum(left.lower_b, bound[k:])
-        left = left.open()
+        # Meshes as their boxes first (no hull query), then as their hulls for what is left.
+        for exact in (False, True) if self.robot.support.has_hulls else (True,):
+            k = len(left.rows)
+            if k == 0:
+                return left
+            bound = slabs(posed, np.concatenate([left.rows, left.ends]), exact=exact)
+            left.lower_a = np.maximum(left.lower_a, bound[:k])
+            left.lower_b = np.maximum(left.lower_b, bound[k:])
+            left = left.open()
         if len(left.rows):
             left.motion = np.minimum(left.motion, self._element_motion(posed, step, left))
             left = left.open()

@@ -147,9 +147,10 @@ class Clearance:
         gap = posed.centres[:, rg.pair_i] - posed.centres[:, rg.pair_j]
         return norm3(gap) - rg.radius[rg.pair_i] - rg.radius[rg.pair_j]
 
-    def scene_slabs(self, posed: Posed, rows: IntArray) -> FloatArray:
+    def scene_slabs(self, posed: Posed, rows: IntArray, *, exact: bool = True) -> FloatArray:
         """Level 2 for scene rows: slabs along the box's and the element's face normals and
-        from the element towards the box's nearest point."""
+        from the element towards the box's nearest point (meshes as their boxes unless
+        `exact`)."""
         if len(rows) == 0:
             return np.zeros(0)
         sample, element, obj = rows.T
@@ -163,11 +164,12 @@ class Clearance:
         faces = _FACES @ rot.transpose(0, 2, 1)  # (K, 6, 3)
         own = _FACES @ pose[:, :3, :3].transpose(0, 2, 1)
         dirs = np.concatenate([faces, own, toward[:, None]], axis=1)
-        return self.scene_slab(posed, rows, dirs, pose)
+        return self.scene_slab(posed, rows, dirs, pose, exact=exact)
 
-    def self_slabs(self, posed: Posed, rows: IntArray) -> FloatArray:
+    def self_slabs(self, posed: Posed, rows: IntArray, *, exact: bool = True) -> FloatArray:
         """Level 2 for robot pairs: slabs along the line between the elements, across both
-        their axes and along each element's face normals."""
+        their axes and along each element's face normals (meshes as their boxes unless
+        `exact`)."""
         if len(rows) == 0:
             return np.zeros(0)
         sample, pair = rows.T
@@ -183,7 +185,7 @@ class Clearance:
             ],
             axis=1,
         )
-        return self.self_slab(posed, rows, dirs, poses)
+        return self.self_slab(posed, rows, dirs, poses, exact=exact)
 
     def scene_spheres(self, posed: Posed, rows: IntArray) -> SceneSpheres:
         """Level 3 for scene rows (K, 3): the element's cover balls against the object's box."""
@@ -227,16 +229,24 @@ class Clearance:
         return self.self_slab(posed, rows, spheres.second[rk, b] - spheres.first[rk, a])
 
     def scene_slab(
-        self, posed: Posed, rows: IntArray, dirs: FloatArray, pose: FloatArray | None = None
+        self,
+        posed: Posed,
+        rows: IntArray,
+        dirs: FloatArray,
+        pose: FloatArray | None = None,
+        *,
+        exact: bool = True,
     ) -> FloatArray:
         """max over directions (K, Q, 3) of the slab bound between element and object."""
         sample, element, obj = rows.T
         pose = posed.pose(sample, element) if pose is None else pose
         sg = self.scene
+        robot = self.robot.support.support if exact else self.robot.support.coarse
+        scene = sg.support.support if exact else sg.support.coarse
         return _slab(
             _unit(dirs),
-            (pose[:, :3, :3], pose[:, :3, 3], self.robot.support.support, element),
-            (sg.rotation[obj], sg.position[obj], sg.support.support, obj),
+            (pose[:, :3, :3], pose[:, :3, 3], robot, element),
+            (sg.rotation[obj], sg.position[obj], scene, obj),
         )
 
     def self_slab(
@@ -245,12 +255,15 @@ class Clearance:
         rows: IntArray,
         dirs: FloatArray,
         poses: tuple[FloatArray, FloatArray] | None = None,
+        *,
+        exact: bool = True,
     ) -> FloatArray:
         """max over directions (K, Q, 3) of the slab bound between the elements of a pair."""
         sample, pair = rows.T
         ei, ej = self.robot.pair_i[pair], self.robot.pair_j[pair]
         pi, pj = poses if poses is not None else (posed.pose(sample, ei), posed.pose(sample, ej))
-        support = self.robot.support.support
+        table = self.robot.support
+        support = table.support if exact else table.coarse
         return _slab(
             _unit(dirs),
             (pi[:, :3, :3], pi[:, :3, 3], support, ei),

@@ -117,8 +117,11 @@ class SupportTable:
             neighbour_start=np.array(_offsets([len(a) for a in lists], total=True), np.int64),
         )
 
-    def support(self, index: IntArray, local: FloatArray) -> FloatArray:
-        """h(n) for unit local directions `local` (..., 3) of the shapes `index` (...)."""
+    def support(self, index: IntArray, local: FloatArray, *, exact: bool = True) -> FloatArray:
+        """h(n) for unit local directions `local` (..., 3) of the shapes `index` (...).
+
+        Not `exact`: a mesh's is its bounding box's, an upper bound that costs no hull query.
+        """
         p = self.packed[index]
         x, y, z = local[..., 0], local[..., 1], local[..., 2]
         value = (
@@ -131,7 +134,7 @@ class SupportTable:
         if self.has_centres:
             c = self.centre[index]
             value += x * c[..., 0] + y * c[..., 1] + z * c[..., 2]
-        if self.has_hulls:  # a mesh: the largest projection of its hull's vertices (compiled)
+        if exact and self.has_hulls:  # a mesh: the largest projection of its hull (compiled)
             shape = value.shape
             slot = self.hull_slot[np.broadcast_to(index, local.shape[:-1]).ravel()]
             flat = np.ascontiguousarray(value, dtype=float).reshape(-1)
@@ -151,6 +154,10 @@ class SupportTable:
             )
             value = flat.reshape(shape)
         return np.asarray(value)
+
+    def coarse(self, index: IntArray, local: FloatArray) -> FloatArray:
+        """`support` with meshes bounded by their boxes (cheap, looser, still an upper bound)."""
+        return self.support(index, local, exact=False)
 
 
 def _params(shape: Shape) -> tuple[FloatArray, FloatArray, float, float, FloatArray | None]:
