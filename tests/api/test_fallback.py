@@ -19,6 +19,8 @@ from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
 from tests.conftest import REDIS_URL, require_service
 from trajcache.db.models import PlanEvent
 from trajcache.geometry.validation import validator_for
+from trajcache.jobs.pool import PlannerPool
+from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 from trajcache.services.models import get_model
 from trajcache.services.robots import current_scene
 
@@ -63,6 +65,31 @@ def _assert_safe(client: TestClient, states: list[list[float]]) -> None:
 def _events(client: TestClient) -> list[PlanEvent]:
     with ctx_of(client).session() as session:
         return list(session.execute(sa.select(PlanEvent).order_by(PlanEvent.id)).scalars())
+
+
+class _RecordingBackend:
+    """A planner backend in process: answers the straight path, keeps the problems it got."""
+
+    def __init__(self) -> None:
+        self.problems: list[PlanningProblem] = []
+
+    def run(self, problem: PlanningProblem, timeout_s: float) -> PlanResult:
+        self.problems.append(problem)
+        path = np.array([problem.start, problem.goal])
+        return PlanResult(PlannerStatus.SOLVED, path, seed=problem.seed)
+
+    def close(self) -> None:
+        pass
+
+    def counters(self) -> dict[str, int]:
+        return {}
+
+
+def _recording(client: TestClient) -> _RecordingBackend:
+    """Plan `client`'s misses with a _RecordingBackend."""
+    backend = _RecordingBackend()
+    ctx_of(client).planner = PlannerPool(backend, negative_cache_ttl_s=0.0)
+    return backend
 
 
 def test_miss_is_planned_stored_and_then_served_from_cache(client_factory: ClientFactory) -> None:
@@ -148,6 +175,23 @@ def test_fallback_off_or_planning_off_is_a_miss(client_factory: ClientFactory) -
     assert ctx_of(off).planner_pool() is None
     off_body = off.post("/v1/robots/r1/plan", json={"start": START, "goal": GOAL}).json()
     assert off_body["status"] == "miss" and "planning is off" in off_body["message"]
+
+
+def test_each_plan_gets_a_fresh_seed_recorded_in_its_event(
+    client_factory: ClientFactory,
+) -> None:
+    client = client_factory()
+    _setup(client, {"objects": []})
+    backend = _recording(client)
+    fresh = [_plan(client, options={"lookup": False}) for _ in range(3)]
+    assert [b["source"] for b in fresh] == ["planner"] * 3
+    hit = _plan(client)
+    assert hit["source"] == "cache"
+    seeds = [p.seed for p in backend.problems]
+    assert len(set(seeds)) == 3 and all(1 <= s < 2**31 - 1 for s in seeds)
+    assert [e.seed for e in _events(client)] == [*seeds, None]  # a cache answer planned nothing
+    items = client.get("/v1/plan-events").json()["items"]  # newest first
+    assert [item["seed"] for item in items] == [None, *reversed(seeds)]
 
 
 def test_unknown_planner_is_422(client_factory: ClientFactory) -> None:

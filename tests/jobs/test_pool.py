@@ -7,6 +7,7 @@ import signal
 import threading
 import time
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +42,11 @@ def scripted_task(problem: PlanningProblem) -> PlanResult:
     status = PlannerStatus(script.get("status", "solved"))
     path = np.array([problem.start, problem.goal]) if status is PlannerStatus.SOLVED else None
     return PlanResult(
-        status, path, message=f"scripted {status.value}", stats={"pid": float(os.getpid())}
+        status,
+        path,
+        message=f"scripted {status.value}",
+        stats={"pid": float(os.getpid())},
+        seed=problem.seed,
     )
 
 
@@ -298,12 +303,13 @@ def test_coalescing_key() -> None:
 @pytest.mark.parametrize("status", ["timeout", "invalid_start", "invalid_goal"])
 def test_failed_query_fails_fast_until_the_ttl(tmp_path: Path, status: str) -> None:
     with make_local_pool(ttl=1.0) as pool:
-        first = pool.submit(make_problem(tmp_path, status=status, sleep=0.3))
+        first = pool.submit(replace(make_problem(tmp_path, status=status, sleep=0.3), seed=7))
         assert first.status.value == status and runs(tmp_path) == 1
         began = time.monotonic()
-        second = pool.submit(make_problem(tmp_path, status=status, sleep=0.3))
+        second = pool.submit(replace(make_problem(tmp_path, status=status, sleep=0.3), seed=8))
         assert time.monotonic() - began < 0.1
         assert second.status.value == status and "negative cache" in second.message
+        assert second.seed == 7  # the seed of the run that failed, to reproduce it
         assert runs(tmp_path) == 1 and pool.stats().negative_hits == 1
         assert pool.submit(make_problem(tmp_path, scene="other", status=status)).status.value == (
             status

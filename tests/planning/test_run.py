@@ -71,6 +71,18 @@ def test_run_planning_in_a_worker_process(problem: PlanningProblem) -> None:
     assert pickle.loads(pickle.dumps(first)).status is PlannerStatus.SOLVED
 
 
+@pytest.mark.parametrize("planner", ["rrtconnect", "rris"])
+def test_the_seed_is_reported_and_repeats_the_search(
+    problem: PlanningProblem, planner: str
+) -> None:
+    first = run_planning(replace(problem, planner=planner, seed=11))
+    again = run_planning(replace(problem, planner=planner, seed=11))
+    other = run_planning(replace(problem, planner=planner, seed=12))
+    assert (first.seed, again.seed, other.seed) == (11, 11, 12)
+    raw = [r.stats["length_before"] for r in (first, again, other)]  # before time-bound passes
+    assert raw[0] == raw[1] and raw[0] != raw[2]
+
+
 def test_rris_is_dispatched_by_name(problem: PlanningProblem) -> None:
     result = run_planning(replace(problem, planner="RRIS"))
     assert result.status is PlannerStatus.SOLVED, result.message

@@ -41,6 +41,7 @@ _EVENT: dict[str, Any] = {
     "plan_ms": 0.0,
     "total_ms": 9.2,
     "error": None,
+    "seed": None,
 }
 EventStatus = Literal["success", "miss", "failure", "error"]
 EventSource = Literal["cache", "planner", "none"]
@@ -166,6 +167,11 @@ class PlanEventOut(BaseModel):
     plan_ms: float
     total_ms: float
     error: str | None
+    seed: int | None = Field(
+        default=None,
+        description="The planner's random seed when the request planned (null for a cache "
+        "answer): planning the same problem with it repeats the same search.",
+    )
 
 
 class PlanEventPageOut(BaseModel):

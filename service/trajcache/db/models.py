@@ -265,6 +265,8 @@ class PlanEvent(Base):
     plan_ms: Mapped[float] = mapped_column(Float, default=0.0)
     total_ms: Mapped[float] = mapped_column(Float, default=0.0)
     error: Mapped[str | None] = mapped_column(String(500))
+    # The planner's random seed when the request planned (run it again with it to reproduce).
+    seed: Mapped[int | None] = mapped_column(Integer)
     # Set by the background bookkeeping writer: a write retried after its COMMIT reached the
     # database (only the answer was lost) is recognised by it instead of being counted twice.
     record_key: Mapped[str | None] = mapped_column(String(32))

@@ -224,7 +224,12 @@ class PlannerPool:
             f"{age:.1f} s ago in this scene; not replanned for "
             f"{self.negative_cache_ttl_s:g} s)"
         )
-        return PlanResult(failure.result.status, message=message, stats={"negative_cache": 1.0})
+        return PlanResult(
+            failure.result.status,
+            message=message,
+            stats={"negative_cache": 1.0},
+            seed=failure.result.seed,  # the run whose failure is remembered
+        )
 
     def stats(self) -> PoolStats:
         """A snapshot of the pool's counters."""

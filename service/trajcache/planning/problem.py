@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import secrets
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any
@@ -10,6 +11,12 @@ import numpy as np
 
 # Planner names a request may ask for: the paper's RRIS and the OMPL planners of ompl_planner.
 PLANNER_NAMES = ("rrtconnect", "rrt", "bitstar", "bit*", "prm", "kpiece", "rris")
+SEED_LIMIT = 2**31 - 2  # seeds are 1 … SEED_LIMIT: valid for OMPL and a 32-bit SQL integer
+
+
+def fresh_seed() -> int:
+    """A random seed for one planning run, so that a retried request searches anew."""
+    return secrets.randbelow(SEED_LIMIT) + 1
 
 
 class PlannerStatus(str, Enum):
@@ -53,7 +60,7 @@ class PlanningProblem:
     goal: tuple[float, ...]
     budget_s: float = 2.0
     planner: str = "rrtconnect"
-    seed: int = 0
+    seed: int = 0  # the planners' random seed: the same seed repeats the same search
     shortcut_s: float = 0.25
     joint_values: tuple[tuple[str, float], ...] = ()  # the robot's held joint values, if set
 
@@ -66,6 +73,7 @@ class PlanResult:
     path: np.ndarray | None = None
     message: str = ""
     stats: dict[str, float] = field(default_factory=dict)
+    seed: int | None = None  # the seed the planner ran with (None: no planner ran)
 
     @property
     def solved(self) -> bool:

@@ -142,6 +142,7 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
         detail = traceback.format_exception_only(type(exc), exc)[-1].strip()
         result = PlanResult(PlannerStatus.ERROR, message=f"planning failed: {detail}")
         setup_ms = 0.0
+    result.seed = problem.seed
     result.stats.setdefault("plan_ms", 0.0)
     result.stats.setdefault("shortcut_ms", 0.0)
     result.stats["setup_ms"] = setup_ms

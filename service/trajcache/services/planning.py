@@ -62,7 +62,7 @@ from trajcache.geometry.scene import Scene, scene_to_payload
 from trajcache.geometry.validation import ValidationResult, ValidationSettings, validator_for
 from trajcache.geometry.variant import model_in_scene
 from trajcache.jobs.pool import PlannerPool
-from trajcache.planning.problem import PlannerStatus, PlanningProblem, SceneSource
+from trajcache.planning.problem import PlannerStatus, PlanningProblem, SceneSource, fresh_seed
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import UnavailableError
 from trajcache.services.models import get_model, model_source
@@ -407,10 +407,11 @@ def _event(
     tried: int,
     timings: dict[str, float],
     error: str | None = None,
+    seed: int | None = None,
 ) -> PlanEvent:
     return PlanEvent(
         **_event_values(
-            robot_id, model, scene, status, source, trajectory_id, tried, timings, error
+            robot_id, model, scene, status, source, trajectory_id, tried, timings, error, seed
         )
     )
 
@@ -425,6 +426,7 @@ def _event_values(
     tried: int,
     timings: dict[str, float],
     error: str | None = None,
+    seed: int | None = None,  # the planner's seed, when the request planned
 ) -> dict[str, object]:
     return {
         "robot_id": robot_id,
@@ -439,6 +441,7 @@ def _event_values(
         "plan_ms": timings["plan"],
         "total_ms": timings["total"],
         "error": (error or None) and error[:500],
+        "seed": seed,
     }
 
 
@@ -491,10 +494,12 @@ def _answer_without_path(
     rejected: list[dict[str, object]],
     clock: _Clock,
     message: str,
+    seed: int | None = None,
 ) -> PlanAnswer:
     t = time.perf_counter()
     _record_usage(session, None, failed)
-    session.add(_event(robot_id, model, scene, status, None, None, tried, clock.timings(), message))
+    timings = clock.timings()
+    session.add(_event(robot_id, model, scene, status, None, None, tried, timings, message, seed))
     session.commit()
     clock.db += time.perf_counter() - t
     return PlanAnswer(status, None, None, None, tried, clock.timings(), message, rejected)
@@ -519,7 +524,8 @@ def _plan_fallback(
     """Plan in the worker pool, validate like a cached trajectory, store and answer.
 
     The session's transaction ends before planning, so a request waiting on a worker holds no
-    database connection; storing the result and the usage opens a new one.
+    database connection; storing the result and the usage opens a new one. Each request plans
+    with a fresh seed (a retry searches anew), recorded in its plan event.
     """
     t = time.perf_counter()
     problem = PlanningProblem(
@@ -529,16 +535,19 @@ def _plan_fallback(
         goal=tuple(float(v) for v in goal),
         budget_s=request.budget_s,
         planner=request.planner,
+        seed=fresh_seed(),
         joint_values=tuple(sorted((origin.held or {}).items())),
     )
     session.rollback()  # nothing is written yet; release the connection while planning
     outcome = planner.submit(problem)
     clock.plan += time.perf_counter() - t
+    # A coalesced or remembered answer ran with its leader's seed; an unrun one with none.
+    seed = outcome.seed if outcome.seed is not None else problem.seed
     if not outcome.solved or outcome.path is None:
         status = PlanStatus.ERROR if outcome.status is PlannerStatus.ERROR else PlanStatus.FAILURE
         message = f"{outcome.status.value}: {outcome.message}".rstrip(": ")
         answer = _answer_without_path(
-            session, robot_id, model, scene, status, tried, failed, rejected, clock, message
+            session, robot_id, model, scene, status, tried, failed, rejected, clock, message, seed
         )
         if status is PlanStatus.ERROR:  # the planner could not run: a 503 the caller may retry
             raise UnavailableError(f"planning is unavailable, retry later ({outcome.message})")
@@ -559,6 +568,7 @@ def _plan_fallback(
             rejected,
             clock,
             f"planned path failed validation: {result.message}",
+            seed,
         )
     t = time.perf_counter()
     _record_usage(session, None, failed)
@@ -586,6 +596,7 @@ def _plan_fallback(
             trajectory_id,
             tried,
             clock.timings(),
+            seed=seed,
         )
     )
     session.commit()
