@@ -17,7 +17,13 @@ import redis
 from typer.testing import CliRunner
 
 from tests.conftest import REDIS_URL, require_service
-from tests.jobs.test_pool import make_problem, runs, submit_all, two_link_problem
+from tests.jobs.test_pool import (
+    assert_one_numeric_thread,
+    make_problem,
+    runs,
+    submit_all,
+    two_link_problem,
+)
 from tests.proxy import TcpProxy
 from trajcache.core.config import Settings
 from trajcache.jobs.celery_app import TASK_FN_ENV, CeleryBackend
@@ -151,6 +157,13 @@ def test_plans_in_the_worker_process(
     assert pid != os.getpid()
     assert parent_pid(pid) == worker.process.pid  # a prefork child of the worker we started
     assert runs(tmp_path) == 1
+
+
+def test_worker_processes_run_one_numeric_thread(
+    celery_worker: tuple[Worker, PlannerPool], redis_url: str, tmp_path: Path
+) -> None:
+    _, pool = celery_worker
+    assert_one_numeric_thread(pool.submit(make_problem(tmp_path, scene="threads", threads=True)))
 
 
 def test_concurrent_requests_and_coalescing(

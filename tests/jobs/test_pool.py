@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import signal
 import threading
@@ -16,6 +17,7 @@ import pytest
 
 from trajcache.core.config import Settings
 from trajcache.jobs.pool import LocalBackend, PlannerPool, coalescing_key, make_pool
+from trajcache.jobs.threads import ONE_THREAD_ENV, thread_counts
 from trajcache.planning.problem import (
     ModelSource,
     PlannerStatus,
@@ -28,7 +30,8 @@ from trajcache.planning.problem import (
 
 
 def scripted_task(problem: PlanningProblem) -> PlanResult:
-    """Do what the scene payload says: log the run, report the pid, sleep, crash, fail."""
+    """Do what the scene payload says: log the run, report the pid (and the numeric threads),
+    sleep, crash, fail."""
     script: dict[str, Any] = problem.scene.payload
     with open(script["log"], "a") as log:
         log.write(f"{os.getpid()}\n")
@@ -41,13 +44,23 @@ def scripted_task(problem: PlanningProblem) -> PlanResult:
         raise RuntimeError("planner exploded")
     status = PlannerStatus(script.get("status", "solved"))
     path = np.array([problem.start, problem.goal]) if status is PlannerStatus.SOLVED else None
+    stats = {"pid": float(os.getpid())}
+    if script.get("threads"):
+        importlib.import_module("numba")  # as the planner's geometry kernels do
+        stats.update({name: float(n) for name, n in thread_counts().items()})
+        stats.update({name: float(os.environ.get(name, "0")) for name in ONE_THREAD_ENV})
     return PlanResult(
-        status,
-        path,
-        message=f"scripted {status.value}",
-        stats={"pid": float(os.getpid())},
-        seed=problem.seed,
+        status, path, message=f"scripted {status.value}", stats=stats, seed=problem.seed
     )
+
+
+def assert_one_numeric_thread(result: PlanResult) -> None:
+    """The worker that ran a `threads` script had every numeric thread pool at one thread."""
+    assert result.status is PlannerStatus.SOLVED, result.message
+    pools = [name for name in result.stats if name.startswith("openblas")]
+    assert pools, "numpy's OpenBLAS was not found in the worker"
+    expected = [*pools, "numba", *ONE_THREAD_ENV]
+    assert {name: result.stats.get(name) for name in expected} == dict.fromkeys(expected, 1.0)
 
 
 def make_problem(
@@ -156,6 +169,10 @@ def test_plans_in_another_process(pool: PlannerPool, tmp_path: Path) -> None:
     assert result.stats["pid"] != os.getpid()
     stats = pool.stats()
     assert (stats.submitted, stats.completed, stats.solved, stats.queue_depth) == (1, 1, 1, 0)
+
+
+def test_workers_run_one_numeric_thread(pool: PlannerPool, tmp_path: Path) -> None:
+    assert_one_numeric_thread(pool.submit(make_problem(tmp_path, threads=True)))
 
 
 def test_task_exception_is_an_error_result(pool: PlannerPool, tmp_path: Path) -> None:

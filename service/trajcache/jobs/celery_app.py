@@ -18,13 +18,14 @@ from functools import lru_cache
 from celery import Celery
 from celery.exceptions import TimeoutError as CeleryTimeout
 from celery.result import AsyncResult
-from celery.signals import worker_process_init
+from celery.signals import worker_init, worker_process_init
 from celery.utils.log import get_logger
 from kombu.exceptions import EncodeError, OperationalError
 from redis.exceptions import RedisError
 
 from trajcache.core.config import Settings, get_settings
 from trajcache.jobs.pool import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
+from trajcache.jobs.threads import pin_one_thread
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 
 PLAN_TASK = "trajcache.plan"
@@ -44,6 +45,14 @@ logger = get_logger(__name__)
 def worker_task_fn() -> TaskFn:
     """The task function this worker process runs (run_planning unless overridden)."""
     return load_task_fn(os.environ.get(TASK_FN_ENV) or DEFAULT_TASK_FN)
+
+
+@worker_init.connect(weak=False)
+@worker_process_init.connect(weak=False)
+def _one_numeric_thread(**_: object) -> None:
+    """One numeric thread in the worker and in each of its pool's processes, before the task
+    function's imports (connected first)."""
+    pin_one_thread()
 
 
 @worker_process_init.connect(weak=False)

@@ -24,6 +24,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Protocol
 
 from trajcache.core.config import Settings
+from trajcache.jobs.threads import pin_one_thread
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 
 TaskFn = Callable[[PlanningProblem], PlanResult]
@@ -251,10 +252,12 @@ class PlannerPool:
         self.close()
 
 
-def _ignore_interrupts() -> None:
+def _init_worker() -> None:
     """Runs first in every worker: Ctrl-C reaches the whole process group, but only the service
-    decides when its workers stop (it stops them when it shuts down)."""
+    decides when its workers stop (it stops them when it shuts down); and one numeric thread,
+    as the workers share the machine's cores."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    pin_one_thread()
 
 
 def _warm_up(task_fn: TaskFn) -> None:
@@ -307,7 +310,7 @@ class LocalBackend:
 
     def _new_generation(self) -> _Generation:
         executor = ProcessPoolExecutor(
-            max_workers=self.processes, mp_context=self._context, initializer=_ignore_interrupts
+            max_workers=self.processes, mp_context=self._context, initializer=_init_worker
         )
         # Start the workers (and import the task's module) now, not on the first request.
         warm_ups = [executor.submit(_warm_up, self.task_fn) for _ in range(self.processes)]
