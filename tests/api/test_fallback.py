@@ -194,6 +194,17 @@ def test_each_plan_gets_a_fresh_seed_recorded_in_its_event(
     assert [item["seed"] for item in items] == [None, *reversed(seeds)]
 
 
+def test_the_workers_validate_with_the_service_settings(client_factory: ClientFactory) -> None:
+    steps = {"step_position_m": 0.05, "step_orientation_rad": 0.03, "step_joint_rad": 0.02}
+    client = client_factory(certified_validation=False, **steps)
+    _setup(client, {"objects": []})
+    backend = _recording(client)
+    assert _plan(client)["source"] == "planner"
+    (problem,) = backend.problems
+    sent = {name: getattr(problem, name) for name in steps}
+    assert (sent, problem.certified_validation) == (steps, False)
+
+
 def test_unknown_planner_is_422(client_factory: ClientFactory) -> None:
     client = client_factory()
     _setup(client, DETOUR_SCENE)

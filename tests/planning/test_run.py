@@ -14,7 +14,8 @@ from tests.planning.test_ompl_planner import DOWN, FORWARD
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import reference_model, reference_urdf
 from trajcache.geometry.scene import scene_to_payload
-from trajcache.planning import run
+from trajcache.geometry.validation import Resolution, TrajectoryValidator
+from trajcache.planning import ompl_planner, rris, run
 from trajcache.planning.problem import (
     ModelSource,
     PlannerStatus,
@@ -23,6 +24,7 @@ from trajcache.planning.problem import (
     SceneSource,
 )
 from trajcache.planning.run import LRUCache, run_planning
+from trajcache.planning.space import prepare_query
 
 
 @pytest.fixture(scope="module")
@@ -81,6 +83,38 @@ def test_the_seed_is_reported_and_repeats_the_search(
     assert (first.seed, again.seed, other.seed) == (11, 11, 12)
     raw = [r.stats["length_before"] for r in (first, again, other)]  # before time-bound passes
     assert raw[0] == raw[1] and raw[0] != raw[2]
+
+
+@pytest.mark.parametrize("planner", ["rrtconnect", "rris"])
+def test_the_validator_settings_reach_the_planners_checks(
+    problem: PlanningProblem, planner: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    built: list[tuple[Resolution, bool]] = []  # validators: resolution, certified
+    checked: list[Resolution] = []  # motion checks: resolution
+
+    class Recording(TrajectoryValidator):
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+            built.append((self.resolution, self.certified))
+
+    def recording_query(*args: object, **kwargs: object) -> object:
+        query = prepare_query(*args, **kwargs)  # type: ignore[arg-type]
+        checked.append(query.spec.resolution)  # type: ignore[union-attr]
+        return query
+
+    for module in (ompl_planner, rris):
+        monkeypatch.setattr(module, "TrajectoryValidator", Recording)
+        monkeypatch.setattr(module, "prepare_query", recording_query)
+    settings = {"step_position_m": 0.03, "step_orientation_rad": 0.02, "step_joint_rad": 0.01}
+    fine = replace(problem, planner=planner, certified_validation=False, **settings)
+    result = run_planning(fine)
+    assert result.status is PlannerStatus.SOLVED, result.message
+    assert (built, checked) == (
+        [(Resolution(0.03, 0.02, 0.01), False)],
+        [Resolution(0.03, 0.02, 0.01)],
+    )
+    assert run_planning(replace(problem, planner=planner)).status is PlannerStatus.SOLVED
+    assert (built[1:], checked[1:]) == ([(Resolution(), True)], [Resolution()])
 
 
 def test_rris_is_dispatched_by_name(problem: PlanningProblem) -> None:

@@ -6,8 +6,9 @@ paper's adaptation step assumes). BIT*'s informed sampler does not support compo
 for BIT* the base angle becomes a bounded real (segments still take the short way, see below).
 
 Motion validation: a `MotionValidator` subclass (the nanobind bindings allow it) whose
-`checkMotion(a, b)` calls `MotionChecker.segment_free`: the segment is sampled at the paper's
-resolution (0.04 m, 0.04 rad, 0.035 rad per joint, θ the short way) and every sample goes into
+`checkMotion(a, b)` calls `MotionChecker.segment_free`: the segment is sampled at the
+validator's resolution (the service's settings; by default the paper's 0.04 m, 0.04 rad,
+0.035 rad per joint), θ the short way, and every sample goes into
 ONE batched collision check, coarse samples first, stopping at the first collision. OMPL's own
 validator (used by `naive=True`, the benchmark baseline) samples at a fraction of the space's
 maximum extent; there the fraction is set so that OMPL's longest valid segment is no longer
@@ -34,7 +35,7 @@ from trajcache.geometry.collision import FREE
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import TrajectoryValidator
+from trajcache.geometry.validation import Resolution, TrajectoryValidator
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlannerStatus, PlanResult
 from trajcache.planning.shortcut import shortcut_and_certify
@@ -221,21 +222,26 @@ def plan_ompl(
     seed: int,
     naive: bool = False,
     shortcut_s: float = 0.25,
+    resolution: Resolution | None = None,
+    certified: bool = True,
 ) -> PlanResult:
-    """Plan start → goal with an OMPL planner; SOLVED paths passed certified validation."""
+    """Plan start → goal with an OMPL planner; SOLVED paths passed the validator that
+    `resolution` and `certified` set up (motion checks sample at that resolution too)."""
     deadline = Deadline(budget_s)
     name = planner.strip().lower()
     if name not in PLANNERS:
         valid = ", ".join(sorted(PLANNERS))
         return PlanResult(PlannerStatus.ERROR, message=f"unknown planner {planner!r}; use {valid}")
     began = time.perf_counter()
-    prepared = prepare_query(problem_model, scene, start, goal)
+    prepared = prepare_query(problem_model, scene, start, goal, resolution=resolution)
     if isinstance(prepared, PlanResult):
         return prepared
     query = prepared
     seed_ompl(seed)
     rng = np.random.default_rng(seed)
-    validator = TrajectoryValidator(problem_model, scene)
+    validator = TrajectoryValidator(
+        problem_model, scene, resolution=resolution, certified=certified
+    )
     endpoints_ms = (time.perf_counter() - began) * 1e3
     stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms, "attempts": 0.0}
     stats["straight"] = 0.0

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from trajcache.geometry.validation import Resolution
+
 # Planner names a request may ask for: the paper's RRIS and the OMPL planners of ompl_planner.
 PLANNER_NAMES = ("rrtconnect", "rrt", "bitstar", "bit*", "prm", "kpiece", "rris")
 SEED_LIMIT = 2**31 - 2  # seeds are 1 … SEED_LIMIT: valid for OMPL and a 32-bit SQL integer
@@ -52,7 +54,9 @@ class SceneSource:
 
 @dataclass(frozen=True)
 class PlanningProblem:
-    """One planning query: robot, scene, endpoints, budget and planner choice."""
+    """One planning query: robot, scene, endpoints, budget, planner choice and seed, and the
+    validator settings its path is certified with (the service's, so that the worker's checks
+    agree with the service's)."""
 
     model: ModelSource
     scene: SceneSource
@@ -63,6 +67,15 @@ class PlanningProblem:
     seed: int = 0  # the planners' random seed: the same seed repeats the same search
     shortcut_s: float = 0.25
     joint_values: tuple[tuple[str, float], ...] = ()  # the robot's held joint values, if set
+    step_position_m: float = Resolution.position_m
+    step_orientation_rad: float = Resolution.orientation_rad
+    step_joint_rad: float = Resolution.joint_rad
+    certified_validation: bool = True
+
+    @property
+    def resolution(self) -> Resolution:
+        """The largest steps between checked samples, for motion checks and validation."""
+        return Resolution(self.step_position_m, self.step_orientation_rad, self.step_joint_rad)
 
 
 @dataclass

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import TrajectoryValidator
+from trajcache.geometry.validation import Resolution, TrajectoryValidator
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlannerStatus, PlanResult
 from trajcache.planning.shortcut import shortcut_and_certify
@@ -192,20 +192,23 @@ def plan_with_rris(
     budget_s: float,
     seed: int,
     shortcut_s: float = 0.25,
+    resolution: Resolution | None = None,
+    certified: bool = True,
 ) -> PlanResult:
-    """Plan with RRIS for a robot in a scene; SOLVED paths passed certified validation.
+    """Plan with RRIS for a robot in a scene; SOLVED paths passed the validator that
+    `resolution` and `certified` set up (motion checks sample at that resolution too).
 
     A path that fails certification (a collision between two checked samples) is searched
     again with motion checks at half the step, while the budget lasts.
     """
     deadline = Deadline(budget_s)
     began = time.perf_counter()
-    prepared = prepare_query(model, scene, start, goal)
+    prepared = prepare_query(model, scene, start, goal, resolution=resolution)
     if isinstance(prepared, PlanResult):
         return prepared
     query = prepared
     rng = np.random.default_rng(seed)
-    validator = TrajectoryValidator(model, scene)
+    validator = TrajectoryValidator(model, scene, resolution=resolution, certified=certified)
 
     def certify(p: FloatArray) -> tuple[bool, str]:
         result = validator.validate(p)

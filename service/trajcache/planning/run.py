@@ -126,6 +126,8 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
                 budget_s=problem.budget_s,
                 seed=problem.seed,
                 shortcut_s=problem.shortcut_s,
+                resolution=problem.resolution,
+                certified=problem.certified_validation,
             )
         else:
             result = plan_ompl(
@@ -137,6 +139,8 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
                 budget_s=problem.budget_s,
                 seed=problem.seed,
                 shortcut_s=problem.shortcut_s,
+                resolution=problem.resolution,
+                certified=problem.certified_validation,
             )
     except Exception as exc:  # a worker task must answer, whatever happened
         detail = traceback.format_exception_only(type(exc), exc)[-1].strip()

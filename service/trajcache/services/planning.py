@@ -537,6 +537,10 @@ def _plan_fallback(
         planner=request.planner,
         seed=fresh_seed(),
         joint_values=tuple(sorted((origin.held or {}).items())),
+        step_position_m=ctx.settings.step_position_m,  # the worker certifies as we validate
+        step_orientation_rad=ctx.settings.step_orientation_rad,
+        step_joint_rad=ctx.settings.step_joint_rad,
+        certified_validation=ctx.settings.certified_validation,
     )
     session.rollback()  # nothing is written yet; release the connection while planning
     outcome = planner.submit(problem)
