@@ -72,9 +72,12 @@ class _RecordingBackend:
 
     def __init__(self) -> None:
         self.problems: list[PlanningProblem] = []
+        self.answer: PlanResult | None = None  # instead of the straight path
 
     def run(self, problem: PlanningProblem, timeout_s: float) -> PlanResult:
         self.problems.append(problem)
+        if self.answer is not None:
+            return self.answer
         path = np.array([problem.start, problem.goal])
         return PlanResult(PlannerStatus.SOLVED, path, seed=problem.seed)
 
@@ -203,6 +206,18 @@ def test_the_workers_validate_with_the_service_settings(client_factory: ClientFa
     (problem,) = backend.problems
     sent = {name: getattr(problem, name) for name in steps}
     assert (sent, problem.certified_validation) == (steps, False)
+
+
+def test_paths_that_could_not_be_certified_are_no_timeout(client_factory: ClientFactory) -> None:
+    client = client_factory()
+    _setup(client, {"objects": []})
+    why = "no certifiable path within the budget (4 found, none certified or repaired); last: …"
+    _recording(client).answer = PlanResult(PlannerStatus.UNCERTIFIED, message=why, seed=5)
+    body = _plan(client)
+    assert (body["status"], body["message"]) == ("failure", f"uncertified: {why}")
+    assert [(e.status, e.error, e.seed) for e in _events(client)] == [
+        ("failure", f"uncertified: {why}", 5)
+    ]
 
 
 def test_unknown_planner_is_422(client_factory: ClientFactory) -> None:

@@ -317,7 +317,7 @@ def test_coalescing_key() -> None:
 # --- negative cache ---
 
 
-@pytest.mark.parametrize("status", ["timeout", "invalid_start", "invalid_goal"])
+@pytest.mark.parametrize("status", ["timeout", "uncertified", "invalid_start", "invalid_goal"])
 def test_failed_query_fails_fast_until_the_ttl(tmp_path: Path, status: str) -> None:
     with make_local_pool(ttl=1.0) as pool:
         first = pool.submit(replace(make_problem(tmp_path, status=status, sleep=0.3), seed=7))
@@ -350,11 +350,14 @@ def test_errors_are_not_negatively_cached(pool: PlannerPool, tmp_path: Path) -> 
     assert pool.stats().negative_hits == 0
 
 
-def test_a_longer_budget_retries_a_timed_out_query(pool: PlannerPool, tmp_path: Path) -> None:
-    pool.submit(make_problem(tmp_path, status="timeout", budget_s=1.0))
-    pool.submit(make_problem(tmp_path, status="timeout", budget_s=1.0))
+@pytest.mark.parametrize("status", ["timeout", "uncertified"])
+def test_a_longer_budget_retries_a_query_that_ran_out_of_budget(
+    pool: PlannerPool, tmp_path: Path, status: str
+) -> None:
+    pool.submit(make_problem(tmp_path, status=status, budget_s=1.0))
+    pool.submit(make_problem(tmp_path, status=status, budget_s=1.0))
     assert runs(tmp_path) == 1
-    pool.submit(make_problem(tmp_path, status="timeout", budget_s=2.0))
+    pool.submit(make_problem(tmp_path, status=status, budget_s=2.0))
     assert runs(tmp_path) == 2
 
 

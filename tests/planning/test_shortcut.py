@@ -184,3 +184,4 @@ def test_finishing_falls_back_to_the_raw_path_when_the_shortcut_fails_validation
         rng=np.random.default_rng(0),
     )
     assert rejected.path is None and "nope" in rejected.message
+    assert 2 <= len(rejected.short) < len(raw)  # the shortcut path, for a repair to mend

@@ -35,7 +35,9 @@ OVERHEAD_S = 1.0  # allowance for scheduling and IPC on top of a request's plann
 CRASH_RETRIES = 1  # runs again of a task whose local worker crashed (make_pool's choice)
 MIN_RETRY_BUDGET_S = 0.1  # a crashed task is not run again with less budget left than this
 NEGATIVE_CACHE_MAX_ENTRIES = 10_000
-_NEGATIVE = (PlannerStatus.TIMEOUT, PlannerStatus.INVALID_START, PlannerStatus.INVALID_GOAL)
+# Failures remembered by the negative cache; those of the first two hold for their budget only.
+_BUDGETED = (PlannerStatus.TIMEOUT, PlannerStatus.UNCERTIFIED)
+_NEGATIVE = (*_BUDGETED, PlannerStatus.INVALID_START, PlannerStatus.INVALID_GOAL)
 
 
 def load_task_fn(path: str = DEFAULT_TASK_FN) -> TaskFn:
@@ -191,9 +193,9 @@ class PlannerPool:
             self._counts["queue_depth"] -= 1
             self._counts["completed"] += 1
             self._counts["solved" if result.status is PlannerStatus.SOLVED else "failures"] += 1
-            # A timeout after a crash retry, or of a task that waited in line for a worker past
-            # the overhead allowance, had less than the flight's budget: not remembered.
-            shortened = result.status is PlannerStatus.TIMEOUT and (
+            # A failure of the budget after a crash retry, or of a task that waited in line for
+            # a worker past the overhead allowance, had less than the flight's: not remembered.
+            shortened = result.status in _BUDGETED and (
                 result.stats.get("crash_retries") or result.stats.get("queued_s")
             )
             if result.status in _NEGATIVE and self.negative_cache_ttl_s > 0 and not shortened:
@@ -217,8 +219,8 @@ class PlannerPool:
         if age >= self.negative_cache_ttl_s:
             del self._failures[key]
             return None
-        # A timeout says nothing about a longer budget; invalid endpoints hold for any budget.
-        if failure.result.status is PlannerStatus.TIMEOUT and budget_s > failure.budget_s:
+        # Running out of budget says nothing of a longer one; invalid endpoints hold for any.
+        if failure.result.status in _BUDGETED and budget_s > failure.budget_s:
             return None
         message = (
             f"{failure.result.message} (negative cache: this query failed "

@@ -7,17 +7,16 @@ for BIT* the base angle becomes a bounded real (segments still take the short wa
 
 Motion validation: a `MotionValidator` subclass (the nanobind bindings allow it) whose
 `checkMotion(a, b)` calls `MotionChecker.segment_free`: the segment is sampled at the
-validator's resolution (the service's settings; by default the paper's 0.04 m, 0.04 rad,
-0.035 rad per joint), θ the short way, and every sample goes into
-ONE batched collision check, coarse samples first, stopping at the first collision. OMPL's own
-validator (used by `naive=True`, the benchmark baseline) samples at a fraction of the space's
-maximum extent; there the fraction is set so that OMPL's longest valid segment is no longer
-than the smallest paper step, and each state costs one Python callback and one check call.
+validator's resolution (the service's settings, by default the paper's: 0.04 m, 0.04 rad, 0.035
+rad per joint; θ the short way) and every sample goes into ONE batched collision check, coarse
+samples first, stopping at the first collision. OMPL's own validator (used by `naive=True`,
+the benchmark baseline) samples at a fraction of the space's maximum extent; there the fraction
+is set so that OMPL's longest valid segment is no longer than the smallest step, and each state
+costs one Python callback and one check call.
 
 The result is shortcut (`shortcut.shortcut_and_certify`, new segments keep 1 cm clearance at
-their samples) and must pass certified validation.
-A raw path that fails it (a thin obstacle between two samples) is replanned with a finer
-motion-check resolution while the budget lasts.
+their samples) and must pass certified validation; a path that fails it is repaired, or another
+is searched for, while the budget lasts (`attempts.plan_until_certified`).
 """
 
 from __future__ import annotations
@@ -36,9 +35,10 @@ from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
 from trajcache.geometry.validation import Resolution, TrajectoryValidator
+from trajcache.planning.attempts import plan_until_certified
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlannerStatus, PlanResult
-from trajcache.planning.shortcut import shortcut_and_certify
+from trajcache.planning.rris import rris_search
 from trajcache.planning.space import (
     SHORTCUT_CLEARANCE_M,
     MotionChecker,
@@ -57,7 +57,6 @@ PLANNERS: dict[str, PlannerFactory] = {
     "kpiece": og.KPIECE1,
 }
 RANGE_FRACTION = 0.2  # RRT-family step as a fraction of the space's maximum extent
-MAX_ATTEMPTS = 3  # plan again, with a finer motion check, when certification fails
 
 ou.setLogLevel(ou.LOG_WARN)
 
@@ -243,48 +242,29 @@ def plan_ompl(
         problem_model, scene, resolution=resolution, certified=certified
     )
     endpoints_ms = (time.perf_counter() - began) * 1e3
-    stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms, "attempts": 0.0}
-    stats["straight"] = 0.0
-    message = "no path found within the time budget"
-    status = PlannerStatus.TIMEOUT
-    for attempt in range(MAX_ATTEMPTS):
-        if attempt and deadline.expired():
-            break
-        stats["attempts"] += 1
-        plan_began = time.perf_counter()
-        segment_free = _segment_fn(query, naive)
-        if attempt == 0 and segment_free(query.start, query.goal):
-            raw: FloatArray | None = np.stack([query.start, query.goal])
+    stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms, "straight": 0.0}
+
+    def search(attempt: int, deadline: Deadline) -> FloatArray | None:
+        if attempt == 0 and _segment_fn(query, naive)(query.start, query.goal):
             stats["straight"] = 1.0
-        else:
-            raw = _solve(query, name, naive, deadline) if not deadline.expired() else None
-        stats["plan_ms"] += (time.perf_counter() - plan_began) * 1e3
-        if raw is None:
-            break
-        finished = shortcut_and_certify(
-            list(raw),
-            segment_free_fn=_segment_fn(query, naive, SHORTCUT_CLEARANCE_M),
-            distance_fn=query.spec.distance,
-            interpolate_fn=query.spec.interpolate,
-            validate_fn=lambda p: _certify(validator, p),
-            budget_s=shortcut_s,
-            rng=rng,
-        )
-        stats.update(finished.stats)
-        if finished.path is not None:
-            stats.update(query.checker.stats())
-            stats["total_ms"] = (time.perf_counter() - began) * 1e3
-            return PlanResult(PlannerStatus.SOLVED, finished.path, stats=stats)
-        status, message = PlannerStatus.TIMEOUT, finished.message
-        query = query.finer()
+            return np.stack([query.start, query.goal])
+        return _solve(query, name, naive, deadline) if not deadline.expired() else None
+
+    result = plan_until_certified(
+        query,
+        search_fn=search,
+        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
+        shortcut_segment_fn=_segment_fn(query, naive, SHORTCUT_CLEARANCE_M),
+        validator=validator,
+        deadline=deadline,
+        rng=rng,
+        shortcut_s=shortcut_s,
+        stats=stats,
+        none_found="no path found within the time budget",
+    )
     stats.update(query.checker.stats())
     stats["total_ms"] = (time.perf_counter() - began) * 1e3
-    return PlanResult(status, message=message, stats=stats)
-
-
-def _certify(validator: TrajectoryValidator, path: FloatArray) -> tuple[bool, str]:
-    result = validator.validate(path)
-    return result.valid, result.message or result.status.value
+    return result
 
 
 def planner_names() -> list[str]:

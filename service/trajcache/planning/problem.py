@@ -25,7 +25,8 @@ class PlannerStatus(str, Enum):
     """How a planning attempt ended (failure is a value, not an exception)."""
 
     SOLVED = "solved"
-    TIMEOUT = "timeout"  # no path within the budget
+    TIMEOUT = "timeout"  # no path found within the budget
+    UNCERTIFIED = "uncertified"  # paths found, none certified (nor repaired) within the budget
     INVALID_START = "invalid_start"
     INVALID_GOAL = "invalid_goal"
     ERROR = "error"  # the planner could not run (crashed worker, backend down, bad planner name)

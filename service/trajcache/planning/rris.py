@@ -33,9 +33,9 @@ from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
 from trajcache.geometry.validation import Resolution, TrajectoryValidator
+from trajcache.planning.attempts import plan_until_certified
 from trajcache.planning.deadline import Deadline
-from trajcache.planning.problem import PlannerStatus, PlanResult
-from trajcache.planning.shortcut import shortcut_and_certify
+from trajcache.planning.problem import PlanResult
 from trajcache.planning.space import SHORTCUT_CLEARANCE_M, Query, prepare_query
 
 SegmentFn = Callable[[FloatArray, FloatArray], bool]
@@ -47,7 +47,6 @@ SampleNearFn = Callable[[FloatArray, float, np.random.Generator], FloatArray]
 InterpolateFn = Callable[[FloatArray, FloatArray, float], FloatArray]
 DistanceFn = Callable[[FloatArray, FloatArray], float]
 
-MAX_ATTEMPTS = 3  # search again, with a finer motion check, when certification fails
 SCORE_STRIDE = 4  # candidates are scored on every 4th sample of their two halves
 
 
@@ -198,8 +197,8 @@ def plan_with_rris(
     """Plan with RRIS for a robot in a scene; SOLVED paths passed the validator that
     `resolution` and `certified` set up (motion checks sample at that resolution too).
 
-    A path that fails certification (a collision between two checked samples) is searched
-    again with motion checks at half the step, while the budget lasts.
+    A path that fails certification is repaired, or searched for again, while the budget lasts
+    (`attempts.plan_until_certified`).
     """
     deadline = Deadline(budget_s)
     began = time.perf_counter()
@@ -209,52 +208,45 @@ def plan_with_rris(
     query = prepared
     rng = np.random.default_rng(seed)
     validator = TrajectoryValidator(model, scene, resolution=resolution, certified=certified)
-
-    def certify(p: FloatArray) -> tuple[bool, str]:
-        result = validator.validate(p)
-        return result.valid, result.message or result.status.value
-
     endpoints_ms = (time.perf_counter() - began) * 1e3
-    stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms, "attempts": 0.0}
-    message = f"RRIS found no path within {budget_s:.3g} s"
-    for attempt in range(MAX_ATTEMPTS):
-        if attempt and deadline.expired():
-            break
-        stats["attempts"] += 1
-        plan_began = time.perf_counter()
-        path = _search(query, deadline, rng)
-        stats["plan_ms"] += (time.perf_counter() - plan_began) * 1e3
-        if path is None:
-            break
-        stats["straight"] = float(len(path) == 2)
-        finished = shortcut_and_certify(
-            path,
-            segment_free_fn=partial(query.checker.segment_free, clearance=SHORTCUT_CLEARANCE_M),
-            distance_fn=query.spec.distance,
-            interpolate_fn=query.spec.interpolate,
-            validate_fn=certify,
-            budget_s=shortcut_s,
-            rng=rng,
-        )
-        stats.update(finished.stats)
-        if finished.path is not None:
-            stats.update(query.checker.stats())
-            stats["total_ms"] = (time.perf_counter() - began) * 1e3
-            return PlanResult(PlannerStatus.SOLVED, finished.path, stats=stats)
-        message = finished.message
-        query = query.finer()
+    stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms}
+
+    def search(attempt: int, deadline: Deadline) -> list[FloatArray] | None:
+        path = rris_search(query, deadline, rng)
+        stats["straight"] = float(path is not None and len(path) == 2)
+        return path
+
+    result = plan_until_certified(
+        query,
+        search_fn=search,
+        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
+        shortcut_segment_fn=partial(query.checker.segment_free, clearance=SHORTCUT_CLEARANCE_M),
+        validator=validator,
+        deadline=deadline,
+        rng=rng,
+        shortcut_s=shortcut_s,
+        stats=stats,
+        none_found=f"RRIS found no path within {budget_s:.3g} s",
+    )
     stats.update(query.checker.stats())
     stats["total_ms"] = (time.perf_counter() - began) * 1e3
-    return PlanResult(PlannerStatus.TIMEOUT, message=message, stats=stats)
+    return result
 
 
-def _search(query: Query, deadline: Deadline, rng: np.random.Generator) -> list[FloatArray] | None:
-    """RRIS on a prepared query, with the batched checks of its MotionChecker."""
+def rris_search(
+    query: Query,
+    deadline: Deadline,
+    rng: np.random.Generator,
+    *,
+    segment_free_fn: SegmentFn | None = None,
+) -> list[FloatArray] | None:
+    """RRIS on a prepared query, with the batched checks of its MotionChecker; a half is kept
+    when `segment_free_fn` passes it (by default the checker's sample check)."""
     spec, checker = query.spec, query.checker
     return plan_rris(
         query.start,
         query.goal,
-        segment_free_fn=checker.segment_free,
+        segment_free_fn=segment_free_fn or checker.segment_free,
         segment_collisions_fn=checker.segment_collisions,
         sample_fn=spec.sample,
         budget=deadline,
@@ -264,5 +256,5 @@ def _search(query: Query, deadline: Deadline, rng: np.random.Generator) -> list[
         distance_fn=spec.distance,
         states_free_fn=checker.states_free,
         segments_collisions_fn=partial(checker.segments_collisions, stride=SCORE_STRIDE),
-        counts_exact=SCORE_STRIDE == 1,
+        counts_exact=segment_free_fn is None and SCORE_STRIDE == 1,  # else confirm halves
     )

@@ -8,7 +8,8 @@ segment it adds was checked with `segment_free_fn`, and every change shortens th
 never lengthens a path nor creates a segment that was not checked.
 
 `shortcut_and_certify` is the finishing pass shared by the planners: shortcut, then the final
-(certified) validation; when the shortcut path fails it, the unshortened path is tried.
+(certified) validation; when the shortcut path fails it, the unshortened path is tried. When both
+fail, the shortcut path comes back with the verdict, for `repair.repair_path` to mend.
 """
 
 from __future__ import annotations
@@ -108,9 +109,10 @@ def shortcut(
 class FinishedPath:
     """What the finishing pass made of a raw planner path."""
 
-    path: FloatArray | None
+    path: FloatArray | None  # the certified path, or None
     message: str = ""
     stats: dict[str, float] = field(default_factory=dict)
+    short: list[FloatArray] = field(default_factory=list)  # the shortcut path, whatever its verdict
 
 
 def shortcut_and_certify(
@@ -150,6 +152,7 @@ def shortcut_and_certify(
             stats["length_after"] = path_length(candidate, distance_fn)
             stats["waypoints_after"] = float(len(candidate))
             stats["shortcut_rejected"] = float(candidate is not short)
-            return FinishedPath(np.asarray(candidate, dtype=float), "", stats)
+            return FinishedPath(np.asarray(candidate, dtype=float), "", stats, short)
         message = message or why
-    return FinishedPath(None, f"the planner's path failed certified validation: {message}", stats)
+    why = f"the planner's path failed certified validation: {message}"
+    return FinishedPath(None, why, stats, short)

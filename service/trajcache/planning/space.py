@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -306,14 +306,6 @@ class Query:
     spec: StateSpaceSpec
     checker: MotionChecker
     base_still: bool
-
-    def finer(self) -> Query:
-        """The same query with motion checks at half the step (the checker's counters go on)."""
-        res = self.spec.resolution
-        half = Resolution(res.position_m / 2, res.orientation_rad / 2, res.joint_rad / 2)
-        self.spec = replace(self.spec, resolution=half)
-        self.checker.spec = self.spec
-        return self
 
 
 def base_is_still(model: RobotModel, start: FloatArray, goal: FloatArray) -> bool:
