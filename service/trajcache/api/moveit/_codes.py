@@ -4,8 +4,10 @@ Native outcome → code:
 
 - a plan answered with a path → SUCCESS;
 - no valid cached trajectory and no planning (`miss`) → PLANNING_FAILED;
-- the planner's failure, by the planner status its message begins with: `timeout` → TIMED_OUT,
-  `invalid_start` / `invalid_goal` (the endpoint collides, or is too close to certify) →
+- the planner's failure, by the planner status its message begins with: `timeout` (no path at
+  all within the budget) → TIMED_OUT, `uncertified` (paths found, none certified) →
+  PLANNING_FAILED, `invalid_start` / `invalid_goal` (the endpoint collides, or is too close to
+  certify) →
   START_STATE_IN_COLLISION / GOAL_IN_COLLISION, a planned path that failed validation →
   INVALID_MOTION_PLAN, anything else → PLANNING_FAILED;
 - a StateError the flow raised (the native endpoint's 422s): a collision of the start or goal →
@@ -48,6 +50,7 @@ class MotionPlanError(Exception):
 
 _PLANNER_CODES = {
     PlannerStatus.TIMEOUT: MoveItErrorCode.TIMED_OUT,
+    PlannerStatus.UNCERTIFIED: MoveItErrorCode.PLANNING_FAILED,
     PlannerStatus.INVALID_START: MoveItErrorCode.START_STATE_IN_COLLISION,
     PlannerStatus.INVALID_GOAL: MoveItErrorCode.GOAL_IN_COLLISION,
 }
