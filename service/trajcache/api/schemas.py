@@ -178,17 +178,9 @@ class SkippedPairOut(BaseModel):
     )
 
 
-class RobotModelOut(BaseModel):
-    """A registered model; `created` is false when the same content was registered before."""
+class ModelSemanticsOut(BaseModel):
+    """What a model's answer tells of its self-collision checks, held joints and named states."""
 
-    model_config = ConfigDict(json_schema_extra=_examples({**_MODEL, "created": True}))
-
-    model_id: str
-    name: str
-    joint_names: list[str]
-    base: BaseName
-    state_names: list[str]
-    created: bool
     skipped_pairs: list[SkippedPairOut] = Field(
         default_factory=list, description="Self-collision pairs that are not checked, and why."
     )
@@ -202,6 +194,19 @@ class RobotModelOut(BaseModel):
     warnings: list[str] = Field(
         default_factory=list, description="What of the SRDF was not applied, and why."
     )
+
+
+class RobotModelOut(ModelSemanticsOut):
+    """A registered model; `created` is false when the same content was registered before."""
+
+    model_config = ConfigDict(json_schema_extra=_examples({**_MODEL, "created": True}))
+
+    model_id: str
+    name: str
+    joint_names: list[str]
+    base: BaseName
+    state_names: list[str]
+    created: bool
 
 
 class ModelFileOut(BaseModel):
@@ -231,7 +236,7 @@ class RobotModelSummary(BaseModel):
     created_at: datetime
 
 
-class RobotModelDetail(RobotModelSummary):
+class RobotModelDetail(RobotModelSummary, ModelSemanticsOut):
     """A model with its links, planning limits (null = unbounded) and files."""
 
     model_config = ConfigDict(
@@ -261,19 +266,6 @@ class RobotModelDetail(RobotModelSummary):
         default=None, description="The link whose path is the end-effector path."
     )
     files: list[ModelFileOut]
-    skipped_pairs: list[SkippedPairOut] = Field(
-        default_factory=list, description="Self-collision pairs that are not checked, and why."
-    )
-    held_joints: dict[str, float] = Field(
-        default_factory=dict, description="Joints outside the planning joints and their values."
-    )
-    named_states: dict[str, list[float]] = Field(
-        default_factory=dict,
-        description="SRDF group states usable as a plan's start or goal: planning joint values.",
-    )
-    warnings: list[str] = Field(
-        default_factory=list, description="What of the SRDF was not applied, and why."
-    )
 
 
 class RobotModelPage(BaseModel):
