@@ -39,6 +39,8 @@ def model_in_scene(
 ) -> RobotModel:
     """`model` with the robot's `held` joint values, the scene's attached objects and its
     allowed link pairs (the model itself when none of them applies)."""
+    if not held and not scene.attached and not scene.allowed:
+        return model  # the common case, on every plan: nothing to look at
     links = set(model.link_names)
     robot_pairs = sorted((a, b) for a, b in scene.allowed if a in links and b in links and a != b)
     if not held and not scene.attached and not robot_pairs:
