@@ -78,8 +78,8 @@ class RobotModel:
     lower: FloatArray  # per state value; base x, y are -inf/+inf, θ is -π/π (wrapped)
     upper: FloatArray
     velocity_limits: FloatArray  # per state value
-    # Link pairs (i < j) whose self-collisions are not checked, and why ("adjacent", "srdf").
-    allowed_pairs: frozenset[tuple[int, int]] = field(default_factory=frozenset)
+    # Link pairs (i < j) whose self-collisions are not checked, and why ("adjacent", "rigid",
+    # "srdf", "scene"); `allowed_pairs` are its keys.
     pair_reasons: Mapping[tuple[int, int], str] = field(default_factory=dict)
     # Values of the movable joints outside the planning joints (held, mimic joints included).
     held_values: Mapping[str, float] = field(default_factory=dict)
@@ -92,6 +92,11 @@ class RobotModel:
     acceleration_limits: FloatArray | None = None
     jerk_limits: FloatArray | None = None
     end_effector_link: str | None = None
+
+    @property
+    def allowed_pairs(self) -> frozenset[tuple[int, int]]:
+        """Link pairs (i < j) whose self-collisions are not checked."""
+        return frozenset(self.pair_reasons)
 
     @property
     def state_names(self) -> tuple[str, ...]:

@@ -602,7 +602,6 @@ def load_robot_model(
             warnings.append(f"SRDF disable_collisions name unknown links {unknown}; not applied")
     return replace(
         model,
-        allowed_pairs=frozenset(reasons),
         pair_reasons=reasons,
         named_states=named,
         warnings=tuple(warnings),

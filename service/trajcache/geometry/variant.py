@@ -130,7 +130,6 @@ def _build(
         link_names=tuple(names),
         joints=(*joints, *extra_joints),
         elements=tuple(elements),
-        allowed_pairs=frozenset(reasons),
         pair_reasons=reasons,
         held_values=_held_values(joints),
     )
