@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
@@ -93,7 +94,7 @@ class RobotModel:
     jerk_limits: FloatArray | None = None
     end_effector_link: str | None = None
 
-    @property
+    @functools.cached_property
     def allowed_pairs(self) -> frozenset[tuple[int, int]]:
         """Link pairs (i < j) whose self-collisions are not checked."""
         return frozenset(self.pair_reasons)
