@@ -86,6 +86,49 @@ class RobotGeometry:
         turn_j = (turning[self.element_link[j]] & mask) * self.radius[j, None]
         return centre, centre + (turn_i + turn_j).T
 
+    @functools.cached_property
+    def kernel_robot(self) -> tuple[np.ndarray, ...]:
+        """Elements, balls, sphere covers and motion coefficients as the compiled levels take
+        them (`compiled.scene_open_kernel`)."""
+        turning = self.motion.rotation & self.motion.ancestors
+        return (
+            self.element_link,
+            np.ascontiguousarray(self.element_origin),
+            np.ascontiguousarray(self.radius, dtype=float),
+            np.ascontiguousarray(self.centre_coef, dtype=float),
+            np.ascontiguousarray(turning),
+            self.sphere_count,
+            np.ascontiguousarray(self.sphere_local),
+            np.ascontiguousarray(self.sphere_radius),
+            np.ascontiguousarray(self.sphere_coef, dtype=float),
+        )
+
+    @functools.cached_property
+    def kernel_motion(self) -> tuple[np.ndarray, ...]:
+        """The revolute dofs and their axes as the compiled levels take them."""
+        mb = self.motion
+        index = np.full(len(mb.rotation), -1, dtype=np.int64)
+        index[mb.rotation_dofs] = np.arange(len(mb.rotation_dofs))
+        return (
+            np.ascontiguousarray(mb.rotation),
+            index,
+            np.ascontiguousarray(mb.after),
+            np.ascontiguousarray(mb.axis_link, dtype=np.int64),
+            np.ascontiguousarray(mb.axis_local, dtype=float),
+        )
+
+    @functools.cached_property
+    def kernel_pairs(self) -> tuple[np.ndarray, ...]:
+        """The self-collision pairs as the compiled levels take them (after `drop_pairs`)."""
+        centre, whole = self.pair_motion()
+        return (
+            np.ascontiguousarray(self.pair_i),
+            np.ascontiguousarray(self.pair_j),
+            np.ascontiguousarray(self.pair_mask, dtype=float),
+            np.ascontiguousarray(centre, dtype=float),
+            np.ascontiguousarray(whole, dtype=float),
+        )
+
     def drop_pairs(self, drop: NDArray[np.bool_]) -> None:
         """Stop checking the self-collision pairs where `drop` (P,) is True.
 
@@ -98,6 +141,7 @@ class RobotGeometry:
         keep = ~np.asarray(drop, dtype=bool)
         self.pair_i, self.pair_j = self.pair_i[keep], self.pair_j[keep]
         self.pair_mask = self.pair_mask[keep]
+        self.__dict__.pop("kernel_pairs", None)
 
     def skipped_link_pairs(self) -> list[tuple[str, str, str]]:
         """Every link pair whose self-collisions are not checked, with the reason: the model's
@@ -147,6 +191,10 @@ class SceneGeometry:
         self.offset = np.einsum("mj,mji->mi", self.position, self.rotation)
         reach = np.einsum("mij,mj->mi", np.abs(self.rotation), self.half)
         self.aabb_lo, self.aabb_hi = self.position - reach, self.position + reach
+        self.kernel_scene = tuple(
+            np.ascontiguousarray(a, dtype=float)
+            for a in (self.rotation, self.position, self.half, self.aabb_lo, self.aabb_hi)
+        )
 
 
 @dataclass

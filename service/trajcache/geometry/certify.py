@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from trajcache.geometry.advance import Advancer
 from trajcache.geometry.bodies import Posed
 from trajcache.geometry.collision import CollisionChecker
+from trajcache.geometry.compiled import scene_open_kernel, self_open_kernel
 from trajcache.geometry.segments import Finding, OpenPairs, SegmentStatus
 from trajcache.geometry.shapes import FloatArray
 
@@ -41,9 +42,16 @@ class SegmentCertifier:
     """Certifies the segments between consecutive samples of one model in one scene."""
 
     def __init__(
-        self, checker: CollisionChecker, *, planar: bool, min_pad: float, max_depth: int
+        self,
+        checker: CollisionChecker,
+        *,
+        planar: bool,
+        min_pad: float,
+        max_depth: int,
+        compiled: bool = True,
     ) -> None:
         self.checker = checker
+        self.compiled = compiled
         self.robot = checker.robot
         self.clearance = checker.clearance
         self.narrow = checker.narrow
@@ -55,6 +63,8 @@ class SegmentCertifier:
         # Configuration-independent motion per unit step: element centres (D, E), pairs (D, P).
         self._centre_coef = rg.centre_coef.T.copy()
         self._pair_coef, self._pair_whole = rg.pair_motion()
+        allowed = self.clearance.allowed
+        self._allowed = np.zeros((0, 0), dtype=bool) if allowed is None else allowed
 
     def certify(self, states: FloatArray) -> Finding:
         """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it."""
@@ -63,7 +73,10 @@ class SegmentCertifier:
         if self.planar:
             delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
         step = self.robot.motion.steps(delta)
-        groups = [self._covers(posed, step, g) for g in self._dense(posed, step)]
+        if self.compiled:
+            groups = self._compiled_levels(posed, step)
+        else:
+            groups = [self._covers(posed, step, g) for g in self._dense(posed, step)]
         found = self._sample_collision(posed, groups)
         if found.status is SegmentStatus.COLLISION:
             return found
@@ -75,6 +88,38 @@ class SegmentCertifier:
                 found = deeper
         found.subdivisions = probes
         return found
+
+    def _compiled_levels(self, posed: Posed, step: FloatArray) -> list[OpenPairs]:
+        """Levels 1 to 3 on every segment at once, compiled (`compiled.py`): what they leave
+        open, scene pairs then robot pairs."""
+        rg = self.robot
+        seg_a = np.arange(len(step), dtype=np.int64)
+        seg_b = seg_a + 1
+        step = np.ascontiguousarray(step, dtype=float)
+        rows, lows = scene_open_kernel(
+            posed.links,
+            seg_a,
+            seg_b,
+            step,
+            rg.kernel_robot,
+            rg.support.kernel_args,
+            rg.kernel_motion,
+            self.clearance.scene.kernel_scene,
+            self.clearance.scene.support.kernel_args,
+            self._allowed,
+        )
+        scene = OpenPairs(True, rows, lows[:, 0], lows[:, 1], lows[:, 2])
+        rows, lows = self_open_kernel(
+            posed.links,
+            seg_a,
+            seg_b,
+            step,
+            rg.kernel_robot,
+            rg.support.kernel_args,
+            rg.kernel_motion,
+            rg.kernel_pairs,
+        )
+        return [scene, OpenPairs(False, rows, lows[:, 0], lows[:, 1], lows[:, 2])]
 
     def _dense(self, posed: Posed, step: FloatArray) -> tuple[OpenPairs, OpenPairs]:
         """Level 1 on every segment at once, with configuration-independent motion bounds.

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from trajcache.geometry.compiled import forward_kinematics_kernel
 from trajcache.geometry.errors import StateError
 from trajcache.geometry.robot import BaseType, KinematicJoint, RobotModel
 from trajcache.geometry.shapes import FloatArray
@@ -37,6 +38,8 @@ class _Tables:
     sine: FloatArray  # (J, 4, 4)
     versine: FloatArray  # (J, 4, 4)
     slide: FloatArray  # (J, 4, 4)
+    parent: IntArray  # (J,) parent link of each joint
+    child: IntArray  # (J,) child link
 
 
 _TABLES: weakref.WeakKeyDictionary[RobotModel, _Tables] = weakref.WeakKeyDictionary()
@@ -70,6 +73,8 @@ def _tables(model: RobotModel) -> _Tables:
             sine=sine,
             versine=versine,
             slide=slide,
+            parent=np.array([j.parent for j in model.joints], dtype=np.int64),
+            child=np.array([j.child for j in model.joints], dtype=np.int64),
         )
         _TABLES[model] = tables
     return tables
@@ -182,29 +187,24 @@ def link_transforms(model: RobotModel, states: ArrayLike) -> FloatArray:
 
 
 def forward_kinematics(model: RobotModel, q: FloatArray) -> FloatArray:
-    """`link_transforms` of states already checked: a finite (N, D) float array."""
-    n = q.shape[0]
+    """`link_transforms` of states already checked: a finite (N, D) float array (compiled)."""
     tables = _tables(model)
-    tf = np.empty((n, len(model.link_names), 4, 4))
-    root = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    if model.base is BaseType.PLANAR:
-        c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
-        root[:, 0, 0], root[:, 0, 1], root[:, 1, 0], root[:, 1, 1] = c, -s, s, c
-        root[:, 0, 3], root[:, 1, 3] = q[:, 0], q[:, 1]
-    tf[:, 0] = root
-    if not model.joints:
-        return tf
-    held = tables.value_index < 0
-    driven = q[:, np.maximum(tables.value_index, 0)] * tables.value_scale + tables.value_offset
-    values = np.where(held, tables.default, driven)  # (N, J)
-    local = (
-        tables.fixed
-        + np.sin(values)[..., None, None] * tables.sine
-        + (1.0 - np.cos(values))[..., None, None] * tables.versine
-        + values[..., None, None] * tables.slide
+    tf = np.empty((q.shape[0], len(model.link_names), 4, 4))
+    forward_kinematics_kernel(
+        np.ascontiguousarray(q, dtype=float),
+        model.base is BaseType.PLANAR,
+        tables.parent,
+        tables.child,
+        tables.value_index,
+        tables.value_scale,
+        tables.value_offset,
+        tables.default,
+        tables.fixed,
+        tables.sine,
+        tables.versine,
+        tables.slide,
+        tf,
     )
-    for k, joint in enumerate(model.joints):
-        np.matmul(tf[:, joint.parent], local[:, k], out=tf[:, joint.child])
     return tf
 
 

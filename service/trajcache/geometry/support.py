@@ -21,6 +21,7 @@ bounds: dist(ball, X) ≥ dist(centre, X) − radius.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -154,6 +155,21 @@ class SupportTable:
             )
             value = flat.reshape(shape)
         return np.asarray(value)
+
+    @functools.cached_property
+    def kernel_args(self) -> tuple[np.ndarray, ...]:
+        """The table as the compiled kernels take it (`compiled._support`)."""
+        return (
+            np.ascontiguousarray(self.centre, dtype=float),
+            np.ascontiguousarray(self.packed, dtype=float),
+            self.hull_slot,
+            self.hull_vertices,
+            self.anchors,
+            self.anchor_start,
+            self.anchor_count,
+            self.neighbours,
+            self.neighbour_start,
+        )
 
     def coarse(self, index: IntArray, local: FloatArray) -> FloatArray:
         """`support` with meshes bounded by their boxes (cheap, looser, still an upper bound)."""

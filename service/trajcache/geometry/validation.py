@@ -131,6 +131,7 @@ class TrajectoryValidator:
         certified: bool = True,
         min_pad: float = 1e-4,
         max_depth: int = 24,
+        compiled: bool = True,
     ) -> None:
         self.model = model
         self.checker = CollisionChecker(model, scene)
@@ -141,6 +142,7 @@ class TrajectoryValidator:
             planar=model.base is BaseType.PLANAR,
             min_pad=min_pad,
             max_depth=max_depth,
+            compiled=compiled,
         )
 
     def validate(self, key_states: FloatArray) -> ValidationResult:

@@ -1,0 +1,655 @@
+"""The certification levels compiled: every segment, pair and cover ball in one call per batch.
+
+`certify.py` settles pairs level by level in numpy (element balls, support-function slabs, the
+sphere covers and the slabs they suggest); the same levels, with the same bounds, run here as
+numba kernels with no Python per segment, pair or ball. What they leave open, the few pairs no
+level settles, goes on to the same FCL-directed slab and conservative advancement as before.
+
+Per segment k (samples a, b) and pair, with lower bounds d_a, d_b at the ends and a bound M on
+how far any point of the pair moves relative to the other over the segment, d_a + d_b > M
+certifies the pair on the segment (`certify.py`). The levels, cheapest first:
+
+1. the element's ball around its origin, the motion of that origin (configuration-independent
+   coefficients; `motion.py`);
+2. slabs along the box's and the element's face normals and toward the nearest box point (for a
+   robot pair: the line between the elements, across both their z axes, both elements' face
+   normals), meshes first as their bounding boxes, then as their hulls; the motion of the whole
+   element, first configuration-independent, then from the axis distances at both ends;
+3. every ball of the element's sphere cover with the motion of its own centre; when a ball is
+   not settled, slabs along the way each ball looks to the box (for a pair, between the closest
+   balls) with the whole element's motion.
+
+Scene objects whose bounding box the element cannot reach within the segment (its ball grown by
+its whole motion, from both ends) are settled by that alone.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from trajcache.geometry.shapes import FloatArray
+
+IntArray = NDArray[np.int64]
+
+_ROUNDING = 1e-7  # added to every axis distance (as `motion.axis_distances` does)
+_TINY = 1e-12
+_GROW = 1024
+
+
+# --- forward kinematics ------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def forward_kinematics_kernel(
+    q: FloatArray,
+    planar: bool,
+    parent: IntArray,
+    child: IntArray,
+    value_index: IntArray,
+    value_scale: FloatArray,
+    value_offset: FloatArray,
+    default: FloatArray,
+    fixed: FloatArray,
+    sine: FloatArray,
+    versine: FloatArray,
+    slide: FloatArray,
+    out: FloatArray,
+) -> None:  # pragma: no cover - compiled
+    """World pose out[n, l] (4 × 4) of every link l at every state q[n].
+
+    Joint j's transform at value v is fixed[j] + sin(v)·sine[j] + (1 − cos(v))·versine[j] +
+    v·slide[j] (`kinematics._Tables`); v is q[n, value_index[j]]·scale + offset, or the held
+    default when value_index[j] < 0. Joints are in an order where a parent is posed first.
+    """
+    local = np.empty((4, 4))
+    for n in range(q.shape[0]):
+        root = out[n, 0]
+        root[:, :] = 0.0
+        for i in range(4):
+            root[i, i] = 1.0
+        if planar:
+            c, s = math.cos(q[n, 2]), math.sin(q[n, 2])
+            root[0, 0], root[0, 1], root[1, 0], root[1, 1] = c, -s, s, c
+            root[0, 3], root[1, 3] = q[n, 0], q[n, 1]
+        for j in range(parent.shape[0]):
+            if value_index[j] >= 0:
+                v = q[n, value_index[j]] * value_scale[j] + value_offset[j]
+            else:
+                v = default[j]
+            sv, cv = math.sin(v), 1.0 - math.cos(v)
+            for r in range(3):
+                for c in range(4):
+                    local[r, c] = (
+                        fixed[j, r, c] + sv * sine[j, r, c] + cv * versine[j, r, c] + v * slide[j, r, c]
+                    )
+            top = out[n, parent[j]]
+            dst = out[n, child[j]]
+            for r in range(3):
+                for c in range(4):
+                    acc = top[r, 0] * local[0, c] + top[r, 1] * local[1, c] + top[r, 2] * local[2, c]
+                    if c == 3:
+                        acc += top[r, 3]
+                    dst[r, c] = acc
+            dst[3, 0], dst[3, 1], dst[3, 2], dst[3, 3] = 0.0, 0.0, 0.0, 1.0
+
+
+# --- support functions and slabs ---------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _support(sup, k, x, y, z, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """h(n) of shape k of a packed support table (`support.SupportTable`) at local direction
+    (x, y, z); a mesh as its bounding box unless `exact`, then as its hull (hill climbing)."""
+    centre, packed, slot, vertices, anchors, anchor_start, anchor_count, neighbours, start = sup
+    p = packed[k]
+    value = (
+        abs(x) * p[0]
+        + abs(y) * p[1]
+        + abs(z) * p[2]
+        + p[3] * math.sqrt(x * x + y * y)
+        + p[4]
+        + x * centre[k, 0]
+        + y * centre[k, 1]
+        + z * centre[k, 2]
+    )
+    s = slot[k]
+    if not exact or s < 0:
+        return value
+    best = -np.inf
+    at = -1
+    for a in range(anchor_start[s], anchor_start[s] + anchor_count[s]):
+        v = anchors[a]
+        val = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
+        if val > best:
+            best = val
+            at = v
+    moved = True
+    while moved:
+        moved = False
+        for m in range(start[at], start[at + 1]):
+            v = neighbours[m]
+            val = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
+            if val > best:
+                best = val
+                at = v
+                moved = True
+    return best
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _slab(nx, ny, nz, pose_a, sup_a, ka, pose_b, sup_b, kb, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The slab bound along world direction n (any length; zero gives 0) between shape ka of
+    `sup_a` at pose_a (3 × 4) and shape kb of `sup_b` at pose_b: the width of the gap between
+    their support planes, n·t_B − h_B(−R_Bᵀn) − n·t_A − h_A(R_Aᵀn), for unit n."""
+    norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if norm <= _TINY:
+        return 0.0
+    nx, ny, nz = nx / norm, ny / norm, nz / norm
+    ax = pose_a[0, 0] * nx + pose_a[1, 0] * ny + pose_a[2, 0] * nz
+    ay = pose_a[0, 1] * nx + pose_a[1, 1] * ny + pose_a[2, 1] * nz
+    az = pose_a[0, 2] * nx + pose_a[1, 2] * ny + pose_a[2, 2] * nz
+    bx = -(pose_b[0, 0] * nx + pose_b[1, 0] * ny + pose_b[2, 0] * nz)
+    by = -(pose_b[0, 1] * nx + pose_b[1, 1] * ny + pose_b[2, 1] * nz)
+    bz = -(pose_b[0, 2] * nx + pose_b[1, 2] * ny + pose_b[2, 2] * nz)
+    gap = (
+        nx * (pose_b[0, 3] - pose_a[0, 3])
+        + ny * (pose_b[1, 3] - pose_a[1, 3])
+        + nz * (pose_b[2, 3] - pose_a[2, 3])
+    )
+    return gap - _support(sup_a, ka, ax, ay, az, exact) - _support(sup_b, kb, bx, by, bz, exact)
+
+
+@numba.njit(cache=True, nogil=True)
+def _scene_slabs(pose_e, sup_r, e, pose_m, sup_s, m, half, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Level 2 for an element and an object: max over the box's and the element's face normals
+    and the way from the element's origin to the nearest point of the object's box."""
+    best = 0.0
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            for pose in (pose_m, pose_e):
+                value = _slab(
+                    sign * pose[0, axis],
+                    sign * pose[1, axis],
+                    sign * pose[2, axis],
+                    pose_e,
+                    sup_r,
+                    e,
+                    pose_m,
+                    sup_s,
+                    m,
+                    exact,
+                )
+                best = max(best, value)
+    # toward the nearest box point: local = R_mᵀ(t_e − t_m), clipped into the box
+    dx = pose_e[0, 3] - pose_m[0, 3]
+    dy = pose_e[1, 3] - pose_m[1, 3]
+    dz = pose_e[2, 3] - pose_m[2, 3]
+    wx, wy, wz = 0.0, 0.0, 0.0
+    for axis in range(3):
+        loc = pose_m[0, axis] * dx + pose_m[1, axis] * dy + pose_m[2, axis] * dz
+        gap = min(max(loc, -half[axis]), half[axis]) - loc
+        wx += pose_m[0, axis] * gap
+        wy += pose_m[1, axis] * gap
+        wz += pose_m[2, axis] * gap
+    return max(best, _slab(wx, wy, wz, pose_e, sup_r, e, pose_m, sup_s, m, exact))
+
+
+@numba.njit(cache=True, nogil=True)
+def _self_slabs(pose_i, pose_j, sup, i, j, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Level 2 for a robot pair: along the line between the elements, across both z axes (both
+    ways) and along both elements' face normals."""
+    best = _slab(
+        pose_j[0, 3] - pose_i[0, 3],
+        pose_j[1, 3] - pose_i[1, 3],
+        pose_j[2, 3] - pose_i[2, 3],
+        pose_i,
+        sup,
+        i,
+        pose_j,
+        sup,
+        j,
+        exact,
+    )
+    cx = pose_i[1, 2] * pose_j[2, 2] - pose_i[2, 2] * pose_j[1, 2]
+    cy = pose_i[2, 2] * pose_j[0, 2] - pose_i[0, 2] * pose_j[2, 2]
+    cz = pose_i[0, 2] * pose_j[1, 2] - pose_i[1, 2] * pose_j[0, 2]
+    for sign in (-1.0, 1.0):
+        best = max(best, _slab(sign * cx, sign * cy, sign * cz, pose_i, sup, i, pose_j, sup, j, exact))
+        for axis in range(3):
+            for pose in (pose_i, pose_j):
+                value = _slab(
+                    sign * pose[0, axis],
+                    sign * pose[1, axis],
+                    sign * pose[2, axis],
+                    pose_i,
+                    sup,
+                    i,
+                    pose_j,
+                    sup,
+                    j,
+                    exact,
+                )
+                best = max(best, value)
+    return best
+
+
+# --- motion bounds -----------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def _point_motion(mo, k, a, b, pa, pb, coef, mask):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Bound on the path of a point of a link over segment k, from its world positions pa (at
+    sample a) and pb (at b) and its coefficients `coef` (D,) (`motion.MotionBounds.levers`,
+    summed); only the dofs where mask > 0 count."""
+    step, rotation, rot_index, after, origins, dirs = mo
+    total = 0.0
+    dof = step.shape[1]
+    for d in range(dof):
+        if mask[d] <= 0.0 or coef[d] == 0.0:
+            continue
+        if not rotation[d]:
+            total += step[k, d] * coef[d]
+            continue
+        spread = 0.0
+        for d2 in range(dof):
+            if after[d, d2]:
+                spread += step[k, d2] * coef[d2]
+        r = rot_index[d]
+        ends = 0.0
+        for end in range(2):
+            sample = a if end == 0 else b
+            p = pa if end == 0 else pb
+            ox = p[0] - origins[sample, r, 0]
+            oy = p[1] - origins[sample, r, 1]
+            oz = p[2] - origins[sample, r, 2]
+            along = ox * dirs[sample, r, 0] + oy * dirs[sample, r, 1] + oz * dirs[sample, r, 2]
+            square = ox * ox + oy * oy + oz * oz - along * along
+            ends += math.sqrt(max(square, 0.0)) + _ROUNDING
+        total += step[k, d] * min(coef[d], (ends + spread) / 2.0)
+    return total
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _turn(step, k, turning, link, mask):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Σ |Δq_d| over the revolute dofs that move `link` (and count under `mask`)."""
+    total = 0.0
+    for d in range(step.shape[1]):
+        if turning[link, d] and mask[d] > 0.0:
+            total += step[k, d]
+    return total
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _transform(pose, x, y, z):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """pose (3 × 4) applied to the point (x, y, z)."""
+    return (
+        pose[0, 0] * x + pose[0, 1] * y + pose[0, 2] * z + pose[0, 3],
+        pose[1, 0] * x + pose[1, 1] * y + pose[1, 2] * z + pose[1, 3],
+        pose[2, 0] * x + pose[2, 1] * y + pose[2, 2] * z + pose[2, 3],
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _box_distance(px, py, pz, rot, pos, half):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Distance from a point to an oriented box (rotation, centre, half extents); 0 inside."""
+    dx, dy, dz = px - pos[0], py - pos[1], pz - pos[2]
+    total = 0.0
+    for axis in range(3):
+        loc = rot[0, axis] * dx + rot[1, axis] * dy + rot[2, axis] * dz
+        out = abs(loc) - half[axis]
+        if out > 0.0:
+            total += out * out
+    return math.sqrt(total)
+
+
+@numba.njit(cache=True, nogil=True)
+def _pose_all(links, element_link, element_origin, axis_link, axis_local):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """World poses (N, E, 3, 4) of every element, and origins and directions (N, R, 3) of the
+    revolute axes."""
+    n_states, n_el, n_ax = links.shape[0], element_link.shape[0], axis_link.shape[0]
+    poses = np.empty((n_states, n_el, 3, 4))
+    origins = np.empty((n_states, n_ax, 3))
+    dirs = np.empty((n_states, n_ax, 3))
+    for n in range(n_states):
+        for e in range(n_el):
+            frame = links[n, element_link[e]]
+            local = element_origin[e]
+            for r in range(3):
+                for c in range(4):
+                    acc = frame[r, 0] * local[0, c] + frame[r, 1] * local[1, c] + frame[r, 2] * local[2, c]
+                    poses[n, e, r, c] = acc + (frame[r, 3] if c == 3 else 0.0)
+        for x in range(n_ax):
+            frame = links[n, axis_link[x]]
+            u = axis_local[x]
+            for r in range(3):
+                origins[n, x, r] = frame[r, 3]
+                dirs[n, x, r] = frame[r, 0] * u[0] + frame[r, 1] * u[1] + frame[r, 2] * u[2]
+    return poses, origins, dirs
+
+
+@numba.njit(cache=True, nogil=True)
+def _grow(rows, lows, count):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The output arrays with twice the room once `count` fills them."""
+    if count < rows.shape[0]:
+        return rows, lows
+    more_rows = np.empty((rows.shape[0] * 2, rows.shape[1]), dtype=np.int64)
+    more_lows = np.empty((lows.shape[0] * 2, 3))
+    more_rows[:count] = rows[:count]
+    more_lows[:count] = lows[:count]
+    return more_rows, more_lows
+
+
+# --- the scene levels ---------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
+    links, seg_a, seg_b, step, robot, sup_r, motion, scene, sup_s, allowed
+):
+    """Rows (K, 3) (segment, element, object) that levels 1-3 leave open on the segments
+    seg_a[k] → seg_b[k] of the posed samples `links` (N, L, 4, 4), with (K, 3) lower bounds at
+    both ends and the motion bound (`OpenPairs`).
+
+    robot: element link, element origin, ball radius, centre coefficients (E, D), turning (L, D),
+    cover ball counts, centres in link frames (E, S, 3), radii (E, S), coefficients (E, S, D);
+    motion: rotation (D,), rotation index (D,), after (D, D), axis link (R,), axis local (R, 3);
+    scene: rotation (M, 3, 3), position, half extents, AABB low and high (M, 3).
+    """
+    link_of, origin, radius, centre_coef, turning, count, sph_local, sph_rad, sph_coef = robot
+    rotation, rot_index, after, axis_link, axis_local = motion
+    rot_m, pos_m, half_m, lo_m, hi_m = scene
+    poses, origins, dirs = _pose_all(links, link_of, origin, axis_link, axis_local)
+    mo = (step, rotation, rot_index, after, origins, dirs)
+    n_el, n_obj, dof = link_of.shape[0], rot_m.shape[0], step.shape[1]
+    width = sph_rad.shape[1]
+    ones = np.ones(dof)
+    pose_obj = np.empty((n_obj, 3, 4))
+    for m in range(n_obj):
+        pose_obj[m, :, :3] = rot_m[m]
+        pose_obj[m, :, 3] = pos_m[m]
+    rows = np.empty((_GROW, 3), dtype=np.int64)
+    lows = np.empty((_GROW, 3))
+    found = 0
+    ball_a = np.empty((width, 3))
+    ball_b = np.empty((width, 3))
+    ball_motion = np.empty(width)
+    for k in range(seg_a.shape[0]):
+        a, b = seg_a[k], seg_b[k]
+        for e in range(n_el):
+            link = link_of[e]
+            centre_motion = 0.0
+            for d in range(dof):
+                centre_motion += step[k, d] * centre_coef[e, d]
+            turn = _turn(step, k, turning, link, ones)
+            whole = centre_motion + radius[e] * turn
+            pa, pb = poses[a, e], poses[b, e]
+            reach = radius[e] + whole
+            lo_x = min(pa[0, 3], pb[0, 3]) - reach
+            lo_y = min(pa[1, 3], pb[1, 3]) - reach
+            lo_z = min(pa[2, 3], pb[2, 3]) - reach
+            hi_x = max(pa[0, 3], pb[0, 3]) + reach
+            hi_y = max(pa[1, 3], pb[1, 3]) + reach
+            hi_z = max(pa[2, 3], pb[2, 3]) + reach
+            dependent = -1.0  # the configuration-dependent whole motion, once needed
+            balls_ready = False
+            for m in range(n_obj):
+                if allowed.shape[0] and allowed[e, m]:
+                    continue
+                if (
+                    lo_m[m, 0] > hi_x
+                    or hi_m[m, 0] < lo_x
+                    or lo_m[m, 1] > hi_y
+                    or hi_m[m, 1] < lo_y
+                    or lo_m[m, 2] > hi_z
+                    or hi_m[m, 2] < lo_z
+                ):
+                    continue
+                # level 1
+                da = max(
+                    _box_distance(pa[0, 3], pa[1, 3], pa[2, 3], rot_m[m], pos_m[m], half_m[m])
+                    - radius[e],
+                    0.0,
+                )
+                db = max(
+                    _box_distance(pb[0, 3], pb[1, 3], pb[2, 3], rot_m[m], pos_m[m], half_m[m])
+                    - radius[e],
+                    0.0,
+                )
+                if da + db > centre_motion:
+                    continue
+                # level 2
+                first = 0 if sup_r[2][e] >= 0 or sup_s[2][m] >= 0 else 1
+                settled = False
+                moving = whole
+                for level in range(first, 2):
+                    exact = level == 1
+                    da = max(da, _scene_slabs(pa, sup_r, e, pose_obj[m], sup_s, m, half_m[m], exact))
+                    db = max(db, _scene_slabs(pb, sup_r, e, pose_obj[m], sup_s, m, half_m[m], exact))
+                    if da + db > moving:
+                        settled = True
+                        break
+                if settled:
+                    continue
+                if dependent < 0.0:
+                    dependent = whole
+                    if turn > 0.0 or centre_motion > 0.0:
+                        pa_c = (pa[0, 3], pa[1, 3], pa[2, 3])
+                        pb_c = (pb[0, 3], pb[1, 3], pb[2, 3])
+                        dependent = min(
+                            whole,
+                            _point_motion(mo, k, a, b, pa_c, pb_c, centre_coef[e], ones)
+                            + radius[e] * turn,
+                        )
+                moving = dependent
+                if da + db > moving:
+                    continue
+                # level 3
+                if not balls_ready:
+                    la, lb = links[a, link], links[b, link]
+                    for s in range(count[e]):
+                        x, y, z = sph_local[e, s, 0], sph_local[e, s, 1], sph_local[e, s, 2]
+                        ball_a[s, 0], ball_a[s, 1], ball_a[s, 2] = _transform(la, x, y, z)
+                        ball_b[s, 0], ball_b[s, 1], ball_b[s, 2] = _transform(lb, x, y, z)
+                        ball_motion[s] = _point_motion(
+                            mo, k, a, b, ball_a[s], ball_b[s], sph_coef[e, s], ones
+                        )
+                    balls_ready = True
+                every = True
+                low_a, low_b, widest = np.inf, np.inf, 0.0
+                for s in range(count[e]):
+                    sa = _box_distance(
+                        ball_a[s, 0], ball_a[s, 1], ball_a[s, 2], rot_m[m], pos_m[m], half_m[m]
+                    )
+                    sb = _box_distance(
+                        ball_b[s, 0], ball_b[s, 1], ball_b[s, 2], rot_m[m], pos_m[m], half_m[m]
+                    )
+                    sa, sb = max(sa - sph_rad[e, s], 0.0), max(sb - sph_rad[e, s], 0.0)
+                    if sa + sb <= ball_motion[s]:
+                        every = False
+                    low_a, low_b = min(low_a, sa), min(low_b, sb)
+                    widest = max(widest, ball_motion[s] + sph_rad[e, s] * turn)
+                if every:
+                    continue
+                da, db = max(da, low_a), max(db, low_b)
+                moving = min(moving, widest)
+                for s in range(count[e]):
+                    for side in range(2):
+                        ball = ball_a if side == 0 else ball_b
+                        pose = pa if side == 0 else pb
+                        # the way from the ball's centre to the nearest point of the box
+                        dx = ball[s, 0] - pos_m[m, 0]
+                        dy = ball[s, 1] - pos_m[m, 1]
+                        dz = ball[s, 2] - pos_m[m, 2]
+                        wx, wy, wz = 0.0, 0.0, 0.0
+                        for axis in range(3):
+                            r0, r1, r2 = rot_m[m, 0, axis], rot_m[m, 1, axis], rot_m[m, 2, axis]
+                            loc = r0 * dx + r1 * dy + r2 * dz
+                            gap = min(max(loc, -half_m[m, axis]), half_m[m, axis]) - loc
+                            wx, wy, wz = wx + r0 * gap, wy + r1 * gap, wz + r2 * gap
+                        value = _slab(wx, wy, wz, pose, sup_r, e, pose_obj[m], sup_s, m, True)
+                        if side == 0:
+                            da = max(da, value)
+                        else:
+                            db = max(db, value)
+                if da + db > moving:
+                    continue
+                rows, lows = _grow(rows, lows, found)
+                rows[found, 0], rows[found, 1], rows[found, 2] = k, e, m
+                lows[found, 0], lows[found, 1], lows[found, 2] = da, db, moving
+                found += 1
+    return rows[:found], lows[:found]
+
+
+# --- the robot's own pairs ----------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def self_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
+    links, seg_a, seg_b, step, robot, sup, motion, pairs
+):
+    """Rows (K, 2) (segment, pair) that levels 1-3 leave open, with (K, 3) lower bounds at both
+    ends and the motion bound; `pairs`: first and second elements (P,), the dofs that change the
+    pair's distance (P, D) as 0/1, and the configuration-independent motion per unit step of the
+    element centres and of the whole elements (D, P)."""
+    link_of, origin, radius, centre_coef, turning, count, sph_local, sph_rad, sph_coef = robot
+    rotation, rot_index, after, axis_link, axis_local = motion
+    pair_i, pair_j, pair_mask, pair_centre, pair_whole = pairs
+    poses, origins, dirs = _pose_all(links, link_of, origin, axis_link, axis_local)
+    mo = (step, rotation, rot_index, after, origins, dirs)
+    dof = step.shape[1]
+    width = sph_rad.shape[1]
+    rows = np.empty((_GROW, 2), dtype=np.int64)
+    lows = np.empty((_GROW, 3))
+    found = 0
+    balls = np.empty((2, 2, width, 3))  # (element of the pair, end, ball, xyz)
+    motion_i = np.empty(width)
+    motion_j = np.empty(width)
+    low = np.empty((2, width, width))
+    for k in range(seg_a.shape[0]):
+        a, b = seg_a[k], seg_b[k]
+        for p in range(pair_i.shape[0]):
+            i, j = pair_i[p], pair_j[p]
+            mask = pair_mask[p]
+            pia, pib, pja, pjb = poses[a, i], poses[b, i], poses[a, j], poses[b, j]
+            centre_motion, moving = 0.0, 0.0
+            for d in range(dof):
+                centre_motion += step[k, d] * pair_centre[d, p]
+                moving += step[k, d] * pair_whole[d, p]
+            gap_a = math.sqrt(
+                (pia[0, 3] - pja[0, 3]) ** 2 + (pia[1, 3] - pja[1, 3]) ** 2 + (pia[2, 3] - pja[2, 3]) ** 2
+            )
+            gap_b = math.sqrt(
+                (pib[0, 3] - pjb[0, 3]) ** 2 + (pib[1, 3] - pjb[1, 3]) ** 2 + (pib[2, 3] - pjb[2, 3]) ** 2
+            )
+            da = max(gap_a - radius[i] - radius[j], 0.0)
+            db = max(gap_b - radius[i] - radius[j], 0.0)
+            if da + db > centre_motion:
+                continue
+            first = 0 if sup[2][i] >= 0 or sup[2][j] >= 0 else 1
+            settled = False
+            for level in range(first, 2):
+                exact = level == 1
+                da = max(da, _self_slabs(pia, pja, sup, i, j, exact))
+                db = max(db, _self_slabs(pib, pjb, sup, i, j, exact))
+                if da + db > moving:
+                    settled = True
+                    break
+            if settled:
+                continue
+            turn_i = _turn(step, k, turning, link_of[i], mask)
+            turn_j = _turn(step, k, turning, link_of[j], mask)
+            dependent = (
+                _point_motion(
+                    mo, k, a, b, (pia[0, 3], pia[1, 3], pia[2, 3]),
+                    (pib[0, 3], pib[1, 3], pib[2, 3]), centre_coef[i], mask,
+                )
+                + radius[i] * turn_i
+                + _point_motion(
+                    mo, k, a, b, (pja[0, 3], pja[1, 3], pja[2, 3]),
+                    (pjb[0, 3], pjb[1, 3], pjb[2, 3]), centre_coef[j], mask,
+                )
+                + radius[j] * turn_j
+            )  # fmt: skip
+            moving = min(moving, dependent)
+            if da + db > moving:
+                continue
+            # level 3: every ball of one cover against every ball of the other
+            for side in range(2):
+                element = i if side == 0 else j
+                la, lb = links[a, link_of[element]], links[b, link_of[element]]
+                for s in range(count[element]):
+                    x = sph_local[element, s, 0]
+                    y = sph_local[element, s, 1]
+                    z = sph_local[element, s, 2]
+                    balls[side, 0, s, 0], balls[side, 0, s, 1], balls[side, 0, s, 2] = _transform(
+                        la, x, y, z
+                    )
+                    balls[side, 1, s, 0], balls[side, 1, s, 1], balls[side, 1, s, 2] = _transform(
+                        lb, x, y, z
+                    )
+            for s in range(count[i]):
+                motion_i[s] = _point_motion(
+                    mo, k, a, b, balls[0, 0, s], balls[0, 1, s], sph_coef[i, s], mask
+                )
+            for t in range(count[j]):
+                motion_j[t] = _point_motion(
+                    mo, k, a, b, balls[1, 0, t], balls[1, 1, t], sph_coef[j, t], mask
+                )
+            every = True
+            low_a, low_b = np.inf, np.inf
+            for s in range(count[i]):
+                for t in range(count[j]):
+                    for end in range(2):
+                        gap = math.sqrt(
+                            (balls[0, end, s, 0] - balls[1, end, t, 0]) ** 2
+                            + (balls[0, end, s, 1] - balls[1, end, t, 1]) ** 2
+                            + (balls[0, end, s, 2] - balls[1, end, t, 2]) ** 2
+                        )
+                        low[end, s, t] = max(gap - sph_rad[i, s] - sph_rad[j, t], 0.0)
+                    if low[0, s, t] + low[1, s, t] <= motion_i[s] + motion_j[t]:
+                        every = False
+                    low_a, low_b = min(low_a, low[0, s, t]), min(low_b, low[1, s, t])
+            if every:
+                continue
+            widest_i, widest_j = 0.0, 0.0
+            for s in range(count[i]):
+                widest_i = max(widest_i, motion_i[s] + sph_rad[i, s] * turn_i)
+            for t in range(count[j]):
+                widest_j = max(widest_j, motion_j[t] + sph_rad[j, t] * turn_j)
+            da, db = max(da, low_a), max(db, low_b)
+            moving = min(moving, widest_i + widest_j)
+            # slabs between the closest balls, at each end
+            for end in range(2):
+                pose_i = pia if end == 0 else pib
+                pose_j = pja if end == 0 else pjb
+                best = 0.0
+                for _round in range(min(4, count[i] * count[j])):
+                    pick_s, pick_t, least = -1, -1, np.inf
+                    for s in range(count[i]):
+                        for t in range(count[j]):
+                            if low[end, s, t] < least:
+                                least, pick_s, pick_t = low[end, s, t], s, t
+                    low[end, pick_s, pick_t] = np.inf
+                    value = _slab(
+                        balls[1, end, pick_t, 0] - balls[0, end, pick_s, 0],
+                        balls[1, end, pick_t, 1] - balls[0, end, pick_s, 1],
+                        balls[1, end, pick_t, 2] - balls[0, end, pick_s, 2],
+                        pose_i, sup, i, pose_j, sup, j, True,
+                    )  # fmt: skip
+                    best = max(best, value)
+                if end == 0:
+                    da = max(da, best)
+                else:
+                    db = max(db, best)
+            if da + db > moving:
+                continue
+            rows, lows = _grow(rows, lows, found)
+            rows[found, 0], rows[found, 1] = k, p
+            lows[found, 0], lows[found, 1], lows[found, 2] = da, db, moving
+            found += 1
+    return rows[:found], lows[:found]
+
