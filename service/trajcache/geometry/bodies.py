@@ -204,21 +204,24 @@ class Posed:
     robot: RobotGeometry
     states: FloatArray  # (N, D)
     links: FloatArray  # (N, L, 4, 4)
-    centres: FloatArray  # (N, E, 3) element origins: the centres of the level-1 balls
 
     @classmethod
     def build(cls, robot: RobotGeometry, states: FloatArray) -> Posed:
         """Forward kinematics of checked `states` (N, D), once for every use."""
-        links = forward_kinematics(robot.model, states)
-        frames = links[:, robot.element_link]  # (N, E, 4, 4)
+        return cls(robot, states, forward_kinematics(robot.model, states))
+
+    @functools.cached_property
+    def centres(self) -> FloatArray:
+        """(N, E, 3) element origins: the centres of the level-1 balls."""
+        robot = self.robot
+        frames = self.links[:, robot.element_link]  # (N, E, 4, 4)
         local = robot.element_origin[:, :3, 3]
-        centres = (
+        return np.asarray(
             frames[..., :3, 0] * local[:, 0, None]
             + frames[..., :3, 1] * local[:, 1, None]
             + frames[..., :3, 2] * local[:, 2, None]
             + frames[..., :3, 3]
         )
-        return cls(robot, states, links, centres)
 
     @functools.cached_property
     def axes(self) -> tuple[FloatArray, FloatArray]:

@@ -77,6 +77,8 @@ class SegmentCertifier:
             groups = self._compiled_levels(posed, step)
         else:
             groups = [self._covers(posed, step, g) for g in self._dense(posed, step)]
+        if not any(len(group.rows) for group in groups):
+            return Finding(SegmentStatus.FREE)  # the usual case: every pair certified
         found = self._sample_collision(posed, groups)
         if found.status is SegmentStatus.COLLISION:
             return found
@@ -93,13 +95,9 @@ class SegmentCertifier:
         """Levels 1 to 3 on every segment at once, compiled (`compiled.py`): what they leave
         open, scene pairs then robot pairs."""
         rg = self.robot
-        seg_a = np.arange(len(step), dtype=np.int64)
-        seg_b = seg_a + 1
         step = np.ascontiguousarray(step, dtype=float)
         rows, lows = scene_open_kernel(
             posed.links,
-            seg_a,
-            seg_b,
             step,
             rg.kernel_robot,
             rg.support.kernel_args,
@@ -111,8 +109,6 @@ class SegmentCertifier:
         scene = OpenPairs(True, rows, lows[:, 0], lows[:, 1], lows[:, 2])
         rows, lows = self_open_kernel(
             posed.links,
-            seg_a,
-            seg_b,
             step,
             rg.kernel_robot,
             rg.support.kernel_args,

@@ -347,12 +347,41 @@ def _grow(rows, lows, count):  # type: ignore[no-untyped-def]  # pragma: no cove
 
 
 @numba.njit(cache=True, nogil=True)
+def _scene_bound(n, want, ball, low, level, poses, e, radius, sup_r, pose_m, sup_s, m, scene):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """A lower bound for element e and object m at sample n: with `want` 1, of the element's
+    ball (whose points move as its centre does); with 2, of the element itself, by slabs with
+    meshes as boxes; with 3, by slabs with meshes as hulls. Cached in ball[n] (−1: not yet) and
+    low[n], level[n] (0: not yet)."""
+    pose = poses[n, e]
+    rot_m, pos_m, half_m = scene[0], scene[1], scene[2]
+    if ball[n] < 0.0:
+        gap = _box_distance(pose[0, 3], pose[1, 3], pose[2, 3], rot_m[m], pos_m[m], half_m[m])
+        ball[n] = max(gap - radius[e], 0.0)
+    if want == 1:
+        return ball[n]
+    if level[n] < 2:
+        low[n] = max(ball[n], _scene_slabs(pose, sup_r, e, pose_m, sup_s, m, half_m[m], False))
+        level[n] = 2
+    if want >= 3 and level[n] < 3:
+        if sup_r[2][e] >= 0 or sup_s[2][m] >= 0:
+            low[n] = max(low[n], _scene_slabs(pose, sup_r, e, pose_m, sup_s, m, half_m[m], True))
+        level[n] = 3
+    return low[n]
+
+
+@numba.njit(cache=True, nogil=True)
 def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    links, seg_a, seg_b, step, robot, sup_r, motion, scene, sup_s, allowed
+    links, step, robot, sup_r, motion, scene, sup_s, allowed
 ):
     """Rows (K, 3) (segment, element, object) that levels 1-3 leave open on the segments
-    seg_a[k] → seg_b[k] of the posed samples `links` (N, L, 4, 4), with (K, 3) lower bounds at
-    both ends and the motion bound (`OpenPairs`).
+    between consecutive samples of `links` (N, L, 4, 4) (segment k: sample k to k + 1, steps
+    `step` (N − 1, D) from `MotionBounds.steps`), with (K, 3) lower bounds at both ends and the
+    motion bound (`OpenPairs`).
+
+    Motion bounds add up along a path, so a lower bound d at sample n certifies every following
+    segment up to the one where the summed motion from n reaches d (conservative advancement
+    over the samples, the ball's bound first, then the slabs'); a segment that the bound at its
+    start does not reach past is tried on its own, from both ends and with the dearer levels.
 
     robot: element link, element origin, ball radius, centre coefficients (E, D), turning (L, D),
     cover ball counts, centres in link frames (E, S, 3), radii (E, S), coefficients (E, S, D);
@@ -365,6 +394,8 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     poses, origins, dirs = _pose_all(links, link_of, origin, axis_link, axis_local)
     mo = (step, rotation, rot_index, after, origins, dirs)
     n_el, n_obj, dof = link_of.shape[0], rot_m.shape[0], step.shape[1]
+    n_samples = links.shape[0]
+    n_seg = n_samples - 1
     width = sph_rad.shape[1]
     ones = np.ones(dof)
     pose_obj = np.empty((n_obj, 3, 4))
@@ -374,127 +405,165 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     rows = np.empty((_GROW, 3), dtype=np.int64)
     lows = np.empty((_GROW, 3))
     found = 0
-    ball_a = np.empty((width, 3))
-    ball_b = np.empty((width, 3))
-    ball_motion = np.empty(width)
-    for k in range(seg_a.shape[0]):
-        a, b = seg_a[k], seg_b[k]
-        for e in range(n_el):
-            link = link_of[e]
-            centre_motion = 0.0
+    centre_sum = np.zeros(n_samples)
+    whole_sum = np.zeros(n_samples)
+    turns = np.empty(max(n_seg, 1))
+    dependent = np.empty(max(n_seg, 1))
+    low = np.empty(n_samples)
+    level = np.empty(n_samples, dtype=np.int64)
+    balls = np.empty((n_samples, width, 3))
+    balls_known = np.empty(n_samples, dtype=np.bool_)
+    ball_motion = np.empty((max(n_seg, 1), width))
+    motion_known = np.empty(max(n_seg, 1), dtype=np.bool_)
+    ball_low = np.empty(n_samples)
+    for e in range(n_el):
+        link = link_of[e]
+        widest = 0.0
+        for k in range(n_seg):
+            centre = 0.0
             for d in range(dof):
-                centre_motion += step[k, d] * centre_coef[e, d]
-            turn = _turn(step, k, turning, link, ones)
-            whole = centre_motion + radius[e] * turn
-            pa, pb = poses[a, e], poses[b, e]
-            reach = radius[e] + whole
-            lo_x = min(pa[0, 3], pb[0, 3]) - reach
-            lo_y = min(pa[1, 3], pb[1, 3]) - reach
-            lo_z = min(pa[2, 3], pb[2, 3]) - reach
-            hi_x = max(pa[0, 3], pb[0, 3]) + reach
-            hi_y = max(pa[1, 3], pb[1, 3]) + reach
-            hi_z = max(pa[2, 3], pb[2, 3]) + reach
-            dependent = -1.0  # the configuration-dependent whole motion, once needed
-            balls_ready = False
-            for m in range(n_obj):
-                if allowed.shape[0] and allowed[e, m]:
-                    continue
-                if (
-                    lo_m[m, 0] > hi_x
-                    or hi_m[m, 0] < lo_x
-                    or lo_m[m, 1] > hi_y
-                    or hi_m[m, 1] < lo_y
-                    or lo_m[m, 2] > hi_z
-                    or hi_m[m, 2] < lo_z
-                ):
-                    continue
-                # level 1
-                da = max(
-                    _box_distance(pa[0, 3], pa[1, 3], pa[2, 3], rot_m[m], pos_m[m], half_m[m])
-                    - radius[e],
-                    0.0,
+                centre += step[k, d] * centre_coef[e, d]
+            turns[k] = _turn(step, k, turning, link, ones)
+            whole = centre + radius[e] * turns[k]
+            centre_sum[k + 1] = centre_sum[k] + centre
+            whole_sum[k + 1] = whole_sum[k] + whole
+            widest = max(widest, whole)
+        # every point of the element stays within radius + widest of its origin at a sample
+        reach = radius[e] + widest
+        lo_x, lo_y, lo_z = np.inf, np.inf, np.inf
+        hi_x, hi_y, hi_z = -np.inf, -np.inf, -np.inf
+        for n in range(n_samples):
+            x, y, z = poses[n, e, 0, 3], poses[n, e, 1, 3], poses[n, e, 2, 3]
+            lo_x, lo_y, lo_z = min(lo_x, x), min(lo_y, y), min(lo_z, z)
+            hi_x, hi_y, hi_z = max(hi_x, x), max(hi_y, y), max(hi_z, z)
+        dependent[:] = -1.0
+        balls_known[:] = False
+        motion_known[:] = False
+        for m in range(n_obj):
+            if allowed.shape[0] and allowed[e, m]:
+                continue
+            if (
+                lo_m[m, 0] > hi_x + reach
+                or hi_m[m, 0] < lo_x - reach
+                or lo_m[m, 1] > hi_y + reach
+                or hi_m[m, 1] < lo_y - reach
+                or lo_m[m, 2] > hi_z + reach
+                or hi_m[m, 2] < lo_z - reach
+            ):
+                continue
+            ball_low[:] = -1.0
+            level[:] = 0
+            at = 0  # every segment before sample `at` is certified
+            while at < n_seg:
+                # ahead from `at` while the summed motion stays below the bound there
+                ahead = at
+                d = _scene_bound(
+                    at, 1, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s, m, scene
                 )
-                db = max(
-                    _box_distance(pb[0, 3], pb[1, 3], pb[2, 3], rot_m[m], pos_m[m], half_m[m])
-                    - radius[e],
-                    0.0,
-                )
-                if da + db > centre_motion:
+                while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
+                    ahead += 1
+                if ahead == at:
+                    d = _scene_bound(
+                        at, 3, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s, m,
+                        scene,
+                    )  # fmt: skip
+                    while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
+                        ahead += 1
+                if ahead > at:
+                    at = ahead
                     continue
-                # level 2
-                first = 0 if sup_r[2][e] >= 0 or sup_s[2][m] >= 0 else 1
+                # segment `at` on its own, from both ends
+                lo, hi = at, at + 1
+                at += 1
                 settled = False
-                moving = whole
-                for level in range(first, 2):
-                    exact = level == 1
-                    da = max(da, _scene_slabs(pa, sup_r, e, pose_obj[m], sup_s, m, half_m[m], exact))
-                    db = max(db, _scene_slabs(pb, sup_r, e, pose_obj[m], sup_s, m, half_m[m], exact))
-                    if da + db > moving:
+                moving = whole_sum[hi] - whole_sum[lo]
+                for want in range(1, 4):
+                    da = _scene_bound(
+                        lo, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
+                        m, scene,
+                    )  # fmt: skip
+                    db = _scene_bound(
+                        hi, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
+                        m, scene,
+                    )  # fmt: skip
+                    limit = centre_sum[hi] - centre_sum[lo] if want == 1 else moving
+                    if da + db > limit:
                         settled = True
                         break
                 if settled:
                     continue
-                if dependent < 0.0:
-                    dependent = whole
-                    if turn > 0.0 or centre_motion > 0.0:
-                        pa_c = (pa[0, 3], pa[1, 3], pa[2, 3])
-                        pb_c = (pb[0, 3], pb[1, 3], pb[2, 3])
-                        dependent = min(
-                            whole,
-                            _point_motion(mo, k, a, b, pa_c, pb_c, centre_coef[e], ones)
-                            + radius[e] * turn,
+                k = lo
+                if dependent[k] < 0.0:
+                    pa, pb = poses[k, e], poses[k + 1, e]
+                    dependent[k] = min(
+                        moving,
+                        _point_motion(
+                            mo, k, k, k + 1, (pa[0, 3], pa[1, 3], pa[2, 3]),
+                            (pb[0, 3], pb[1, 3], pb[2, 3]), centre_coef[e], ones,
                         )
-                moving = dependent
+                        + radius[e] * turns[k],
+                    )  # fmt: skip
+                moving = dependent[k]
                 if da + db > moving:
                     continue
-                # level 3
-                if not balls_ready:
-                    la, lb = links[a, link], links[b, link]
+                # level 3: the sphere cover
+                for n in range(k, k + 2):
+                    if not balls_known[n]:
+                        frame = links[n, link]
+                        for s in range(count[e]):
+                            bx, by, bz = _transform(
+                                frame, sph_local[e, s, 0], sph_local[e, s, 1], sph_local[e, s, 2]
+                            )
+                            balls[n, s, 0], balls[n, s, 1], balls[n, s, 2] = bx, by, bz
+                        balls_known[n] = True
+                if not motion_known[k]:
                     for s in range(count[e]):
-                        x, y, z = sph_local[e, s, 0], sph_local[e, s, 1], sph_local[e, s, 2]
-                        ball_a[s, 0], ball_a[s, 1], ball_a[s, 2] = _transform(la, x, y, z)
-                        ball_b[s, 0], ball_b[s, 1], ball_b[s, 2] = _transform(lb, x, y, z)
-                        ball_motion[s] = _point_motion(
-                            mo, k, a, b, ball_a[s], ball_b[s], sph_coef[e, s], ones
+                        ball_motion[k, s] = _point_motion(
+                            mo, k, k, k + 1, balls[k, s], balls[k + 1, s], sph_coef[e, s], ones
                         )
-                    balls_ready = True
+                    motion_known[k] = True
                 every = True
-                low_a, low_b, widest = np.inf, np.inf, 0.0
+                low_a, low_b, ball_whole = np.inf, np.inf, 0.0
                 for s in range(count[e]):
                     sa = _box_distance(
-                        ball_a[s, 0], ball_a[s, 1], ball_a[s, 2], rot_m[m], pos_m[m], half_m[m]
+                        balls[k, s, 0], balls[k, s, 1], balls[k, s, 2], rot_m[m], pos_m[m], half_m[m]
                     )
                     sb = _box_distance(
-                        ball_b[s, 0], ball_b[s, 1], ball_b[s, 2], rot_m[m], pos_m[m], half_m[m]
+                        balls[k + 1, s, 0],
+                        balls[k + 1, s, 1],
+                        balls[k + 1, s, 2],
+                        rot_m[m],
+                        pos_m[m],
+                        half_m[m],
                     )
                     sa, sb = max(sa - sph_rad[e, s], 0.0), max(sb - sph_rad[e, s], 0.0)
-                    if sa + sb <= ball_motion[s]:
+                    if sa + sb <= ball_motion[k, s]:
                         every = False
                     low_a, low_b = min(low_a, sa), min(low_b, sb)
-                    widest = max(widest, ball_motion[s] + sph_rad[e, s] * turn)
+                    ball_whole = max(ball_whole, ball_motion[k, s] + sph_rad[e, s] * turns[k])
                 if every:
                     continue
                 da, db = max(da, low_a), max(db, low_b)
-                moving = min(moving, widest)
-                for s in range(count[e]):
-                    for side in range(2):
-                        ball = ball_a if side == 0 else ball_b
-                        pose = pa if side == 0 else pb
+                moving = min(moving, ball_whole)
+                for n in range(k, k + 2):
+                    best = 0.0
+                    for s in range(count[e]):
                         # the way from the ball's centre to the nearest point of the box
-                        dx = ball[s, 0] - pos_m[m, 0]
-                        dy = ball[s, 1] - pos_m[m, 1]
-                        dz = ball[s, 2] - pos_m[m, 2]
+                        dx = balls[n, s, 0] - pos_m[m, 0]
+                        dy = balls[n, s, 1] - pos_m[m, 1]
+                        dz = balls[n, s, 2] - pos_m[m, 2]
                         wx, wy, wz = 0.0, 0.0, 0.0
                         for axis in range(3):
                             r0, r1, r2 = rot_m[m, 0, axis], rot_m[m, 1, axis], rot_m[m, 2, axis]
                             loc = r0 * dx + r1 * dy + r2 * dz
                             gap = min(max(loc, -half_m[m, axis]), half_m[m, axis]) - loc
                             wx, wy, wz = wx + r0 * gap, wy + r1 * gap, wz + r2 * gap
-                        value = _slab(wx, wy, wz, pose, sup_r, e, pose_obj[m], sup_s, m, True)
-                        if side == 0:
-                            da = max(da, value)
-                        else:
-                            db = max(db, value)
+                        value = _slab(wx, wy, wz, poses[n, e], sup_r, e, pose_obj[m], sup_s, m, True)
+                        best = max(best, value)
+                    if n == k:
+                        da = max(da, best)
+                    else:
+                        db = max(db, best)
                 if da + db > moving:
                     continue
                 rows, lows = _grow(rows, lows, found)
@@ -508,68 +577,105 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def self_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    links, seg_a, seg_b, step, robot, sup, motion, pairs
-):
+def _self_bound(n, want, ball, low, level, poses, i, j, radius, sup):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """A lower bound for elements i and j at sample n, as `_scene_bound`."""
+    pi, pj = poses[n, i], poses[n, j]
+    if ball[n] < 0.0:
+        gap = math.sqrt(
+            (pi[0, 3] - pj[0, 3]) ** 2 + (pi[1, 3] - pj[1, 3]) ** 2 + (pi[2, 3] - pj[2, 3]) ** 2
+        )
+        ball[n] = max(gap - radius[i] - radius[j], 0.0)
+    if want == 1:
+        return ball[n]
+    if level[n] < 2:
+        low[n] = max(ball[n], _self_slabs(pi, pj, sup, i, j, False))
+        level[n] = 2
+    if want >= 3 and level[n] < 3:
+        if sup[2][i] >= 0 or sup[2][j] >= 0:
+            low[n] = max(low[n], _self_slabs(pi, pj, sup, i, j, True))
+        level[n] = 3
+    return low[n]
+
+
+@numba.njit(cache=True, nogil=True)
+def self_open_kernel(links, step, robot, sup, motion, pairs):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Rows (K, 2) (segment, pair) that levels 1-3 leave open, with (K, 3) lower bounds at both
-    ends and the motion bound; `pairs`: first and second elements (P,), the dofs that change the
-    pair's distance (P, D) as 0/1, and the configuration-independent motion per unit step of the
-    element centres and of the whole elements (D, P)."""
+    ends and the motion bound, runs of segments first (as `scene_open_kernel`); `pairs`: first
+    and second elements (P,), the dofs that change the pair's distance (P, D) as 0/1, and the
+    configuration-independent motion per unit step of the element centres and of the whole
+    elements (D, P)."""
     link_of, origin, radius, centre_coef, turning, count, sph_local, sph_rad, sph_coef = robot
     rotation, rot_index, after, axis_link, axis_local = motion
     pair_i, pair_j, pair_mask, pair_centre, pair_whole = pairs
     poses, origins, dirs = _pose_all(links, link_of, origin, axis_link, axis_local)
     mo = (step, rotation, rot_index, after, origins, dirs)
     dof = step.shape[1]
+    n_samples = links.shape[0]
+    n_seg = n_samples - 1
     width = sph_rad.shape[1]
     rows = np.empty((_GROW, 2), dtype=np.int64)
     lows = np.empty((_GROW, 3))
     found = 0
-    balls = np.empty((2, 2, width, 3))  # (element of the pair, end, ball, xyz)
+    centre_sum = np.zeros(n_samples)
+    whole_sum = np.zeros(n_samples)
+    low = np.empty(n_samples)
+    level = np.empty(n_samples, dtype=np.int64)
+    balls = np.empty((link_of.shape[0], n_samples, width, 3))
+    balls_known = np.zeros((link_of.shape[0], n_samples), dtype=np.bool_)
     motion_i = np.empty(width)
     motion_j = np.empty(width)
-    low = np.empty((2, width, width))
-    for k in range(seg_a.shape[0]):
-        a, b = seg_a[k], seg_b[k]
-        for p in range(pair_i.shape[0]):
-            i, j = pair_i[p], pair_j[p]
-            mask = pair_mask[p]
-            pia, pib, pja, pjb = poses[a, i], poses[b, i], poses[a, j], poses[b, j]
-            centre_motion, moving = 0.0, 0.0
+    cover_low = np.empty((2, width, width))
+    ball_low = np.empty(n_samples)
+    for p in range(pair_i.shape[0]):
+        i, j = pair_i[p], pair_j[p]
+        mask = pair_mask[p]
+        for k in range(n_seg):
+            centre, whole = 0.0, 0.0
             for d in range(dof):
-                centre_motion += step[k, d] * pair_centre[d, p]
-                moving += step[k, d] * pair_whole[d, p]
-            gap_a = math.sqrt(
-                (pia[0, 3] - pja[0, 3]) ** 2 + (pia[1, 3] - pja[1, 3]) ** 2 + (pia[2, 3] - pja[2, 3]) ** 2
-            )
-            gap_b = math.sqrt(
-                (pib[0, 3] - pjb[0, 3]) ** 2 + (pib[1, 3] - pjb[1, 3]) ** 2 + (pib[2, 3] - pjb[2, 3]) ** 2
-            )
-            da = max(gap_a - radius[i] - radius[j], 0.0)
-            db = max(gap_b - radius[i] - radius[j], 0.0)
-            if da + db > centre_motion:
+                centre += step[k, d] * pair_centre[d, p]
+                whole += step[k, d] * pair_whole[d, p]
+            centre_sum[k + 1] = centre_sum[k] + centre
+            whole_sum[k + 1] = whole_sum[k] + whole
+        ball_low[:] = -1.0
+        level[:] = 0
+        at = 0  # every segment before sample `at` is certified
+        while at < n_seg:
+            ahead = at
+            d = _self_bound(at, 1, ball_low, low, level, poses, i, j, radius, sup)
+            while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
+                ahead += 1
+            if ahead == at:
+                d = _self_bound(at, 3, ball_low, low, level, poses, i, j, radius, sup)
+                while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
+                    ahead += 1
+            if ahead > at:
+                at = ahead
                 continue
-            first = 0 if sup[2][i] >= 0 or sup[2][j] >= 0 else 1
+            lo, hi = at, at + 1
+            at += 1
             settled = False
-            for level in range(first, 2):
-                exact = level == 1
-                da = max(da, _self_slabs(pia, pja, sup, i, j, exact))
-                db = max(db, _self_slabs(pib, pjb, sup, i, j, exact))
-                if da + db > moving:
+            moving = whole_sum[hi] - whole_sum[lo]
+            for want in range(1, 4):
+                da = _self_bound(lo, want, ball_low, low, level, poses, i, j, radius, sup)
+                db = _self_bound(hi, want, ball_low, low, level, poses, i, j, radius, sup)
+                limit = centre_sum[hi] - centre_sum[lo] if want == 1 else moving
+                if da + db > limit:
                     settled = True
                     break
             if settled:
                 continue
+            k = lo
+            pia, pib, pja, pjb = poses[k, i], poses[k + 1, i], poses[k, j], poses[k + 1, j]
             turn_i = _turn(step, k, turning, link_of[i], mask)
             turn_j = _turn(step, k, turning, link_of[j], mask)
             dependent = (
                 _point_motion(
-                    mo, k, a, b, (pia[0, 3], pia[1, 3], pia[2, 3]),
+                    mo, k, k, k + 1, (pia[0, 3], pia[1, 3], pia[2, 3]),
                     (pib[0, 3], pib[1, 3], pib[2, 3]), centre_coef[i], mask,
                 )
                 + radius[i] * turn_i
                 + _point_motion(
-                    mo, k, a, b, (pja[0, 3], pja[1, 3], pja[2, 3]),
+                    mo, k, k, k + 1, (pja[0, 3], pja[1, 3], pja[2, 3]),
                     (pjb[0, 3], pjb[1, 3], pjb[2, 3]), centre_coef[j], mask,
                 )
                 + radius[j] * turn_j
@@ -580,39 +686,43 @@ def self_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
             # level 3: every ball of one cover against every ball of the other
             for side in range(2):
                 element = i if side == 0 else j
-                la, lb = links[a, link_of[element]], links[b, link_of[element]]
-                for s in range(count[element]):
-                    x = sph_local[element, s, 0]
-                    y = sph_local[element, s, 1]
-                    z = sph_local[element, s, 2]
-                    balls[side, 0, s, 0], balls[side, 0, s, 1], balls[side, 0, s, 2] = _transform(
-                        la, x, y, z
-                    )
-                    balls[side, 1, s, 0], balls[side, 1, s, 1], balls[side, 1, s, 2] = _transform(
-                        lb, x, y, z
-                    )
+                for n in range(k, k + 2):
+                    if not balls_known[element, n]:
+                        frame = links[n, link_of[element]]
+                        for s in range(count[element]):
+                            bx, by, bz = _transform(
+                                frame,
+                                sph_local[element, s, 0],
+                                sph_local[element, s, 1],
+                                sph_local[element, s, 2],
+                            )
+                            balls[element, n, s, 0] = bx
+                            balls[element, n, s, 1] = by
+                            balls[element, n, s, 2] = bz
+                        balls_known[element, n] = True
             for s in range(count[i]):
                 motion_i[s] = _point_motion(
-                    mo, k, a, b, balls[0, 0, s], balls[0, 1, s], sph_coef[i, s], mask
+                    mo, k, k, k + 1, balls[i, k, s], balls[i, k + 1, s], sph_coef[i, s], mask
                 )
             for t in range(count[j]):
                 motion_j[t] = _point_motion(
-                    mo, k, a, b, balls[1, 0, t], balls[1, 1, t], sph_coef[j, t], mask
+                    mo, k, k, k + 1, balls[j, k, t], balls[j, k + 1, t], sph_coef[j, t], mask
                 )
             every = True
             low_a, low_b = np.inf, np.inf
             for s in range(count[i]):
                 for t in range(count[j]):
                     for end in range(2):
+                        n = k + end
                         gap = math.sqrt(
-                            (balls[0, end, s, 0] - balls[1, end, t, 0]) ** 2
-                            + (balls[0, end, s, 1] - balls[1, end, t, 1]) ** 2
-                            + (balls[0, end, s, 2] - balls[1, end, t, 2]) ** 2
+                            (balls[i, n, s, 0] - balls[j, n, t, 0]) ** 2
+                            + (balls[i, n, s, 1] - balls[j, n, t, 1]) ** 2
+                            + (balls[i, n, s, 2] - balls[j, n, t, 2]) ** 2
                         )
-                        low[end, s, t] = max(gap - sph_rad[i, s] - sph_rad[j, t], 0.0)
-                    if low[0, s, t] + low[1, s, t] <= motion_i[s] + motion_j[t]:
+                        cover_low[end, s, t] = max(gap - sph_rad[i, s] - sph_rad[j, t], 0.0)
+                    if cover_low[0, s, t] + cover_low[1, s, t] <= motion_i[s] + motion_j[t]:
                         every = False
-                    low_a, low_b = min(low_a, low[0, s, t]), min(low_b, low[1, s, t])
+                    low_a, low_b = min(low_a, cover_low[0, s, t]), min(low_b, cover_low[1, s, t])
             if every:
                 continue
             widest_i, widest_j = 0.0, 0.0
@@ -622,23 +732,22 @@ def self_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 widest_j = max(widest_j, motion_j[t] + sph_rad[j, t] * turn_j)
             da, db = max(da, low_a), max(db, low_b)
             moving = min(moving, widest_i + widest_j)
-            # slabs between the closest balls, at each end
+            # slabs between the four closest pairs of balls, at each end
             for end in range(2):
-                pose_i = pia if end == 0 else pib
-                pose_j = pja if end == 0 else pjb
+                n = k + end
                 best = 0.0
                 for _round in range(min(4, count[i] * count[j])):
-                    pick_s, pick_t, least = -1, -1, np.inf
+                    pick_s, pick_t, least = 0, 0, np.inf
                     for s in range(count[i]):
                         for t in range(count[j]):
-                            if low[end, s, t] < least:
-                                least, pick_s, pick_t = low[end, s, t], s, t
-                    low[end, pick_s, pick_t] = np.inf
+                            if cover_low[end, s, t] < least:
+                                least, pick_s, pick_t = cover_low[end, s, t], s, t
+                    cover_low[end, pick_s, pick_t] = np.inf
                     value = _slab(
-                        balls[1, end, pick_t, 0] - balls[0, end, pick_s, 0],
-                        balls[1, end, pick_t, 1] - balls[0, end, pick_s, 1],
-                        balls[1, end, pick_t, 2] - balls[0, end, pick_s, 2],
-                        pose_i, sup, i, pose_j, sup, j, True,
+                        balls[j, n, pick_t, 0] - balls[i, n, pick_s, 0],
+                        balls[j, n, pick_t, 1] - balls[i, n, pick_s, 1],
+                        balls[j, n, pick_t, 2] - balls[i, n, pick_s, 2],
+                        poses[n, i], sup, i, poses[n, j], sup, j, True,
                     )  # fmt: skip
                     best = max(best, value)
                 if end == 0:
@@ -652,4 +761,3 @@ def self_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
             lows[found, 0], lows[found, 1], lows[found, 2] = da, db, moving
             found += 1
     return rows[:found], lows[:found]
-
