@@ -16,8 +16,8 @@ certifies the pair on the segment (`certify.py`). The levels, cheapest first:
    normals), meshes first as their bounding boxes, then as their hulls; the motion of the whole
    element, first configuration-independent, then from the axis distances at both ends;
 3. every ball of the element's sphere cover with the motion of its own centre; when a ball is
-   not settled, slabs along the way each ball looks to the box (for a pair, between the closest
-   balls) with the whole element's motion.
+   not settled, slabs along the ways the four closest balls look to the box (for a pair,
+   between the four closest pairs of balls) with the whole element's motion.
 
 Scene objects whose bounding box the element cannot reach within the segment (its ball grown by
 its whole motion, from both ends) are settled by that alone.
@@ -38,6 +38,7 @@ IntArray = NDArray[np.int64]
 _ROUNDING = 1e-7  # added to every axis distance (as `motion.axis_distances` does)
 _TINY = 1e-12
 _GROW = 1024
+_COVER_SLABS = 4  # slabs along the ways of the closest cover balls, per end
 
 
 # --- forward kinematics ------------------------------------------------------------------------
@@ -414,6 +415,7 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     balls = np.empty((n_samples, width, 3))
     balls_known = np.empty(n_samples, dtype=np.bool_)
     ball_motion = np.empty((max(n_seg, 1), width))
+    cover = np.empty((2, width))
     motion_known = np.empty(max(n_seg, 1), dtype=np.bool_)
     ball_low = np.empty(n_samples)
     for e in range(n_el):
@@ -516,14 +518,7 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                             )
                             balls[n, s, 0], balls[n, s, 1], balls[n, s, 2] = bx, by, bz
                         balls_known[n] = True
-                if not motion_known[k]:
-                    for s in range(count[e]):
-                        ball_motion[k, s] = _point_motion(
-                            mo, k, k, k + 1, balls[k, s], balls[k + 1, s], sph_coef[e, s], ones
-                        )
-                    motion_known[k] = True
-                every = True
-                low_a, low_b, ball_whole = np.inf, np.inf, 0.0
+                low_a, low_b, touching = np.inf, np.inf, False
                 for s in range(count[e]):
                     sa = _box_distance(
                         balls[k, s, 0], balls[k, s, 1], balls[k, s, 2], rot_m[m], pos_m[m], half_m[m]
@@ -537,18 +532,36 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                         half_m[m],
                     )
                     sa, sb = max(sa - sph_rad[e, s], 0.0), max(sb - sph_rad[e, s], 0.0)
-                    if sa + sb <= ball_motion[k, s]:
-                        every = False
+                    cover[0, s], cover[1, s] = sa, sb
                     low_a, low_b = min(low_a, sa), min(low_b, sb)
-                    ball_whole = max(ball_whole, ball_motion[k, s] + sph_rad[e, s] * turns[k])
-                if every:
-                    continue
+                    touching = touching or sa + sb <= 0.0
+                ball_whole = np.inf
+                if not touching:  # no ball settles otherwise: its motion is not needed
+                    if not motion_known[k]:
+                        for s in range(count[e]):
+                            ball_motion[k, s] = _point_motion(
+                                mo, k, k, k + 1, balls[k, s], balls[k + 1, s], sph_coef[e, s], ones
+                            )
+                        motion_known[k] = True
+                    every = True
+                    ball_whole = 0.0
+                    for s in range(count[e]):
+                        if cover[0, s] + cover[1, s] <= ball_motion[k, s]:
+                            every = False
+                        ball_whole = max(ball_whole, ball_motion[k, s] + sph_rad[e, s] * turns[k])
+                    if every:
+                        continue
                 da, db = max(da, low_a), max(db, low_b)
                 moving = min(moving, ball_whole)
                 for n in range(k, k + 2):
                     best = 0.0
-                    for s in range(count[e]):
-                        # the way from the ball's centre to the nearest point of the box
+                    for _round in range(min(_COVER_SLABS, count[e])):
+                        # the way from the closest ball's centre to the nearest point of the box
+                        s, least = 0, np.inf
+                        for t in range(count[e]):
+                            if cover[n - k, t] < least:
+                                s, least = t, cover[n - k, t]
+                        cover[n - k, s] = np.inf
                         dx = balls[n, s, 0] - pos_m[m, 0]
                         dy = balls[n, s, 1] - pos_m[m, 1]
                         dz = balls[n, s, 2] - pos_m[m, 2]
