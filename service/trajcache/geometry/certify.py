@@ -63,8 +63,7 @@ class SegmentCertifier:
         # Configuration-independent motion per unit step: element centres (D, E), pairs (D, P).
         self._centre_coef = rg.centre_coef.T.copy()
         self._pair_coef, self._pair_whole = rg.pair_motion()
-        allowed = self.clearance.allowed
-        self._allowed = np.zeros((0, 0), dtype=bool) if allowed is None else allowed
+        self._allowed = checker._allowed
 
     def certify(self, states: FloatArray) -> Finding:
         """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it."""
@@ -91,9 +90,21 @@ class SegmentCertifier:
         found.subdivisions = probes
         return found
 
-    def _compiled_levels(self, posed: Posed, step: FloatArray) -> list[OpenPairs]:
+    def settled_by_bounds(self, states: FloatArray) -> bool:
+        """True when the compiled levels alone certify every segment of `states` (N ≥ 2); they
+        stop at the first pair they leave open. A quick yes for planners' motion checks."""
+        posed = Posed.build(self.robot, states)
+        delta = np.diff(states, axis=0)
+        if self.planar:
+            delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
+        step = self.robot.motion.steps(delta)
+        return not any(len(g.rows) for g in self._compiled_levels(posed, step, first_only=True))
+
+    def _compiled_levels(
+        self, posed: Posed, step: FloatArray, *, first_only: bool = False
+    ) -> list[OpenPairs]:
         """Levels 1 to 3 on every segment at once, compiled (`compiled.py`): what they leave
-        open, scene pairs then robot pairs."""
+        open, scene pairs then robot pairs (with `first_only`, at most the first one found)."""
         rg = self.robot
         step = np.ascontiguousarray(step, dtype=float)
         rows, lows = scene_open_kernel(
@@ -105,8 +116,11 @@ class SegmentCertifier:
             self.clearance.scene.kernel_scene,
             self.clearance.scene.support.kernel_args,
             self._allowed,
+            first_only,
         )
         scene = OpenPairs(True, rows, lows[:, 0], lows[:, 1], lows[:, 2])
+        if first_only and len(rows):
+            return [scene, OpenPairs(False, np.zeros((0, 2), np.int64), *np.zeros((3, 0)))]
         rows, lows = self_open_kernel(
             posed.links,
             step,
@@ -114,6 +128,7 @@ class SegmentCertifier:
             rg.support.kernel_args,
             rg.kernel_motion,
             rg.kernel_pairs,
+            first_only,
         )
         return [scene, OpenPairs(False, rows, lows[:, 0], lows[:, 1], lows[:, 2])]
 

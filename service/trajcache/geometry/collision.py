@@ -1,9 +1,9 @@
 """Batched collision checking of robot states against a scene and against the robot itself.
 
-A check bounds every (state, element, object) and (state, element pair) distance from below in
-numpy (the levels of `clearance.py`: element balls, then support-function slabs for the rows
-the balls cannot settle, when there are enough of them to pay off) and asks FCL only about the
-rows no bound clears.
+A check bounds every (state, element, object) and (state, element pair) distance from below,
+compiled (`compiled.state_rows_kernel`: element balls, then support-function slabs with meshes
+as boxes, then as hulls; with `compiled=False` the numpy levels of `clearance.py`), and asks FCL
+only about the rows no bound clears.
 The verdict is FCL's own collision test for those rows, so it agrees with a per-state FCL loop.
 
 Clearance, for planners: with `pad` > 0 a row counts as AMBIGUOUS when no bound clears it by
@@ -27,6 +27,7 @@ from trajcache.geometry.bodies import (
     scene_geometry,
 )
 from trajcache.geometry.clearance import Clearance
+from trajcache.geometry.compiled import state_rows_kernel
 from trajcache.geometry.kinematics import check_states
 from trajcache.geometry.narrow import Narrow
 from trajcache.geometry.robot import RobotModel
@@ -87,11 +88,14 @@ class BatchVerdict:
 class CollisionChecker:
     """Checks batches of states of one robot model in one scene."""
 
-    def __init__(self, model: RobotModel, scene: Scene) -> None:
+    def __init__(self, model: RobotModel, scene: Scene, *, compiled: bool = True) -> None:
         self.model = model
+        self.compiled = compiled  # the bounds of `compiled.py`; else the numpy levels
         self.robot = robot_geometry(model)
         self.scene = scene_geometry(scene)
         self.clearance = Clearance(self.robot, self.scene)
+        allowed = self.clearance.allowed
+        self._allowed = np.zeros((0, 0), dtype=bool) if allowed is None else allowed
         self.narrow = Narrow(self.robot, self.scene, self.clearance)
         self._contacts: dict[tuple[int, int], Contact] = {}  # (element, object) or (pair, -1)
 
@@ -129,17 +133,32 @@ class CollisionChecker:
         padded = element_pad is not None or pair_pad is not None
         epad = np.zeros((n, len(self.robot.radius))) if element_pad is None else element_pad
         ppad = np.zeros((n, len(self.robot.pair_i))) if pair_pad is None else pair_pad
-        scene_rows = cl.scene_ball_rows(posed, np.asarray(epad, dtype=float))
-        self_rows = np.argwhere(cl.self_balls(posed) <= ppad)
         status = np.full(n, FREE, dtype=np.int8)
-        if len(scene_rows) == 0 and len(self_rows) == 0:
-            return BatchVerdict(status, -1, [], 0)
-        scene_pad = epad[scene_rows[:, 0], scene_rows[:, 1]]
-        self_pad = ppad[self_rows[:, 0], self_rows[:, 1]]
-        if len(scene_rows) >= _FEW_ROWS:
-            scene_rows, scene_pad = self._filter(posed, scene_rows, scene_pad)
-        if len(self_rows) >= _FEW_ROWS:
-            self_rows, self_pad = self._filter(posed, self_rows, self_pad)
+        if self.compiled:
+            rg = self.robot
+            scene_rows, self_rows = state_rows_kernel(
+                posed.links,
+                rg.kernel_robot,
+                rg.support.kernel_args,
+                rg.kernel_motion,
+                self.scene.kernel_scene,
+                self.scene.support.kernel_args,
+                self._allowed,
+                rg.kernel_pairs,
+                np.ascontiguousarray(epad, dtype=float),
+                np.ascontiguousarray(ppad, dtype=float),
+            )
+            scene_pad = epad[scene_rows[:, 0], scene_rows[:, 1]]
+            self_pad = ppad[self_rows[:, 0], self_rows[:, 1]]
+        else:
+            scene_rows = cl.scene_ball_rows(posed, np.asarray(epad, dtype=float))
+            self_rows = np.argwhere(cl.self_balls(posed) <= ppad)
+            scene_pad = epad[scene_rows[:, 0], scene_rows[:, 1]]
+            self_pad = ppad[self_rows[:, 0], self_rows[:, 1]]
+            if len(scene_rows) >= _FEW_ROWS:
+                scene_rows, scene_pad = self._filter(posed, scene_rows, scene_pad)
+            if len(self_rows) >= _FEW_ROWS:
+                self_rows, self_pad = self._filter(posed, self_rows, self_pad)
         if len(scene_rows) == 0 and len(self_rows) == 0:
             return BatchVerdict(status, -1, [], self.narrow.fcl_calls - before)
         hit_scene, hit_self, near_scene, near_self = self.narrow.first_collision(

@@ -372,7 +372,7 @@ def _scene_bound(n, want, ball, low, level, poses, e, radius, sup_r, pose_m, sup
 
 @numba.njit(cache=True, nogil=True)
 def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    links, step, robot, sup_r, motion, scene, sup_s, allowed
+    links, step, robot, sup_r, motion, scene, sup_s, allowed, first_only
 ):
     """Rows (K, 3) (segment, element, object) that levels 1-3 leave open on the segments
     between consecutive samples of `links` (N, L, 4, 4) (segment k: sample k to k + 1, steps
@@ -387,7 +387,8 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     robot: element link, element origin, ball radius, centre coefficients (E, D), turning (L, D),
     cover ball counts, centres in link frames (E, S, 3), radii (E, S), coefficients (E, S, D);
     motion: rotation (D,), rotation index (D,), after (D, D), axis link (R,), axis local (R, 3);
-    scene: rotation (M, 3, 3), position, half extents, AABB low and high (M, 3).
+    scene: rotation (M, 3, 3), position, half extents, AABB low and high (M, 3). With
+    `first_only`, it returns as soon as it finds one open row.
     """
     link_of, origin, radius, centre_coef, turning, count, sph_local, sph_rad, sph_coef = robot
     rotation, rot_index, after, axis_link, axis_local = motion
@@ -583,6 +584,8 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 rows[found, 0], rows[found, 1], rows[found, 2] = k, e, m
                 lows[found, 0], lows[found, 1], lows[found, 2] = da, db, moving
                 found += 1
+                if first_only:
+                    return rows[:found], lows[:found]
     return rows[:found], lows[:found]
 
 
@@ -611,7 +614,7 @@ def _self_bound(n, want, ball, low, level, poses, i, j, radius, sup):  # type: i
 
 
 @numba.njit(cache=True, nogil=True)
-def self_open_kernel(links, step, robot, sup, motion, pairs):  # type: ignore[no-untyped-def]  # pragma: no cover
+def self_open_kernel(links, step, robot, sup, motion, pairs, first_only):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Rows (K, 2) (segment, pair) that levels 1-3 leave open, with (K, 3) lower bounds at both
     ends and the motion bound, runs of segments first (as `scene_open_kernel`); `pairs`: first
     and second elements (P,), the dofs that change the pair's distance (P, D) as 0/1, and the
@@ -773,4 +776,85 @@ def self_open_kernel(links, step, robot, sup, motion, pairs):  # type: ignore[no
             rows[found, 0], rows[found, 1] = k, p
             lows[found, 0], lows[found, 1], lows[found, 2] = da, db, moving
             found += 1
+            if first_only:
+                return rows[:found], lows[:found]
     return rows[:found], lows[:found]
+
+
+# --- states on their own --------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def state_rows_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
+    links, robot, sup_r, motion, scene, sup_s, allowed, pairs, element_pad, pair_pad
+):
+    """The rows of states on their own (no motion) whose lower bounds do not exceed the pads:
+    scene rows (K, 3) (state, element, object) with bound ≤ element_pad[state, element], and
+    robot-pair rows (K', 2) (state, pair) with bound ≤ pair_pad[state, pair]. Levels as in
+    `scene_open_kernel`: the element's ball, then slabs with meshes as boxes, then as hulls.
+    Only these rows need FCL's collision test."""
+    link_of, origin, radius = robot[0], robot[1], robot[2]
+    axis_link, axis_local = motion[3], motion[4]
+    rot_m, pos_m, half_m, lo_m, hi_m = scene
+    pair_i, pair_j = pairs[0], pairs[1]
+    poses, _, _ = _pose_all(links, link_of, origin, axis_link, axis_local)
+    n_states, n_el, n_obj = links.shape[0], link_of.shape[0], rot_m.shape[0]
+    pose_obj = np.empty((n_obj, 3, 4))
+    for m in range(n_obj):
+        pose_obj[m, :, :3] = rot_m[m]
+        pose_obj[m, :, 3] = pos_m[m]
+    scene_rows = np.empty((_GROW, 3), dtype=np.int64)
+    scene_low = np.empty((_GROW, 3))
+    self_rows = np.empty((_GROW, 2), dtype=np.int64)
+    self_low = np.empty((_GROW, 3))
+    n_scene, n_self = 0, 0
+    ball = np.empty(1)
+    low = np.empty(1)
+    level = np.empty(1, dtype=np.int64)
+    for n in range(n_states):
+        for e in range(n_el):
+            pad = element_pad[n, e]
+            reach = radius[e] + pad
+            x, y, z = poses[n, e, 0, 3], poses[n, e, 1, 3], poses[n, e, 2, 3]
+            for m in range(n_obj):
+                if allowed.shape[0] and allowed[e, m]:
+                    continue
+                if (
+                    lo_m[m, 0] > x + reach
+                    or hi_m[m, 0] < x - reach
+                    or lo_m[m, 1] > y + reach
+                    or hi_m[m, 1] < y - reach
+                    or lo_m[m, 2] > z + reach
+                    or hi_m[m, 2] < z - reach
+                ):
+                    continue
+                ball[0], level[0] = -1.0, 0
+                settled = False
+                for want in range(1, 4):
+                    d = _scene_bound(
+                        0, want, ball, low, level, poses[n : n + 1], e, radius, sup_r, pose_obj[m],
+                        sup_s, m, scene,
+                    )  # fmt: skip
+                    if d > pad:
+                        settled = True
+                        break
+                if settled:
+                    continue
+                scene_rows, scene_low = _grow(scene_rows, scene_low, n_scene)
+                scene_rows[n_scene, 0], scene_rows[n_scene, 1], scene_rows[n_scene, 2] = n, e, m
+                n_scene += 1
+        for p in range(pair_i.shape[0]):
+            pad = pair_pad[n, p]
+            ball[0], level[0] = -1.0, 0
+            settled = False
+            for want in range(1, 4):
+                d = _self_bound(0, want, ball, low, level, poses[n : n + 1], pair_i[p], pair_j[p], radius, sup_r)
+                if d > pad:
+                    settled = True
+                    break
+            if settled:
+                continue
+            self_rows, self_low = _grow(self_rows, self_low, n_self)
+            self_rows[n_self, 0], self_rows[n_self, 1] = n, p
+            n_self += 1
+    return scene_rows[:n_scene], self_rows[:n_self]

@@ -128,16 +128,23 @@ def _state_space(spec: StateSpaceSpec, compound: bool) -> ob.StateSpace:
 
 
 class SegmentMotionValidator(ob.MotionValidator):
-    """OMPL motion validation by one batched check of the segment's paper-resolution samples."""
+    """OMPL motion validation by one call for the whole segment: certified (the compiled
+    bounds over the paper-resolution samples and every motion between them), or one batched
+    check of those samples."""
 
-    def __init__(self, si: ob.SpaceInformation, codec: _Codec, checker: MotionChecker) -> None:
+    def __init__(
+        self,
+        si: ob.SpaceInformation,
+        codec: _Codec,
+        segment_fn: Callable[[FloatArray, FloatArray], bool],
+    ) -> None:
         super().__init__(si)
         self._codec = codec
-        self._checker = checker
+        self._segment_fn = segment_fn
 
     def checkMotion(self, s1: ob.State, s2: ob.State) -> bool:
         """True when the straight motion s1 → s2 is free (s1 assumed valid)."""
-        return self._checker.segment_free(self._codec.array(s1), self._codec.array(s2))
+        return self._segment_fn(self._codec.array(s1), self._codec.array(s2))
 
 
 def _naive_resolution(spec: StateSpaceSpec, space: ob.StateSpace, compound: bool) -> float:
@@ -150,7 +157,9 @@ def _naive_resolution(spec: StateSpaceSpec, space: ob.StateSpace, compound: bool
     return step / space.getMaximumExtent()
 
 
-def _setup(query: Query, planner: str, naive: bool) -> tuple[og.SimpleSetup, _Codec, list[object]]:
+def _setup(
+    query: Query, planner: str, naive: bool, certified: bool
+) -> tuple[og.SimpleSetup, _Codec, list[object]]:
     """SimpleSetup with the space, validity checking and the planner; returns keep-alives."""
     spec, checker = query.spec, query.checker
     compound = spec.planar and not spec.held[0] and planner not in ("bitstar", "bit*")
@@ -162,7 +171,7 @@ def _setup(query: Query, planner: str, naive: bool) -> tuple[og.SimpleSetup, _Co
     if naive:  # OMPL's DiscreteMotionValidator: one validity callback per sampled state
         si.setStateValidityCheckingResolution(_naive_resolution(spec, space, compound))
     else:
-        validator = SegmentMotionValidator(si, codec, checker)
+        validator = SegmentMotionValidator(si, codec, _segment_fn(query, naive, certified))
         si.setMotionValidator(validator)
         keep.append(validator)
     si.setup()
@@ -180,9 +189,11 @@ def _setup(query: Query, planner: str, naive: bool) -> tuple[og.SimpleSetup, _Co
     return ss, codec, keep
 
 
-def _solve(query: Query, planner: str, naive: bool, deadline: Deadline) -> FloatArray | None:
+def _solve(
+    query: Query, planner: str, naive: bool, certified: bool, deadline: Deadline
+) -> FloatArray | None:
     """One OMPL run within the deadline; the raw path (N, D) or None."""
-    ss, codec, _keep = _setup(query, planner, naive)
+    ss, codec, _keep = _setup(query, planner, naive, certified)
     ptc = ob.timedPlannerTerminationCondition(deadline.remaining())
     with _quiet():
         status = ss.solve(ptc)
@@ -193,10 +204,13 @@ def _solve(query: Query, planner: str, naive: bool, deadline: Deadline) -> Float
 
 
 def _segment_fn(
-    query: Query, naive: bool, clearance: float = 0.0
+    query: Query, naive: bool, certified: bool, clearance: float = 0.0
 ) -> Callable[[FloatArray, FloatArray], bool]:
-    """Batched segment checks, or one check call per sample for the naive baseline."""
+    """Certified segment checks (the path then passes certified validation as it is found),
+    batched sample checks, or one check call per sample for the naive baseline."""
     checker, spec = query.checker, query.spec
+    if certified and not naive:
+        return checker.segment_certified
     if not naive:
         return lambda a, b: checker.segment_free(a, b, clearance)
 
@@ -245,16 +259,18 @@ def plan_ompl(
     stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms, "straight": 0.0}
 
     def search(attempt: int, deadline: Deadline) -> FloatArray | None:
-        if attempt == 0 and _segment_fn(query, naive)(query.start, query.goal):
+        if attempt == 0 and _segment_fn(query, naive, certified)(query.start, query.goal):
             stats["straight"] = 1.0
             return np.stack([query.start, query.goal])
-        return _solve(query, name, naive, deadline) if not deadline.expired() else None
+        if deadline.expired():
+            return None
+        return _solve(query, name, naive, certified, deadline)
 
     result = plan_until_certified(
         query,
         search_fn=search,
         detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
-        shortcut_segment_fn=_segment_fn(query, naive, SHORTCUT_CLEARANCE_M),
+        shortcut_segment_fn=_segment_fn(query, naive, certified, SHORTCUT_CLEARANCE_M),
         validator=validator,
         deadline=deadline,
         rng=rng,

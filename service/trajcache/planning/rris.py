@@ -220,7 +220,9 @@ def plan_with_rris(
         query,
         search_fn=search,
         detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
-        shortcut_segment_fn=partial(query.checker.segment_free, clearance=SHORTCUT_CLEARANCE_M),
+        shortcut_segment_fn=query.checker.segment_certified
+        if certified
+        else partial(query.checker.segment_free, clearance=SHORTCUT_CLEARANCE_M),
         validator=validator,
         deadline=deadline,
         rng=rng,

@@ -23,7 +23,8 @@ from trajcache.geometry.kinematics import check_limits, check_states
 from trajcache.geometry.robot import BaseType, RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import Resolution, interpolate
+from trajcache.geometry.segments import SegmentStatus
+from trajcache.geometry.validation import Resolution, TrajectoryValidator, interpolate
 from trajcache.planning.problem import PlannerStatus, PlanResult
 
 EMPTY_SCENE_MARGIN_M = 2.0  # base bounds around the query when the scene gives no extent
@@ -32,6 +33,7 @@ CERTIFIABLE_CLEARANCE_M = 1e-4
 # Shortcut segments hug obstacles; checked samples keep this clearance so that collisions
 # between samples (which certified validation would find) stay rare.
 SHORTCUT_CLEARANCE_M = 0.01
+_SPREAD_SAMPLES = 8  # samples a certified motion check looks at before certifying in full
 
 
 def wrap_angle(angle: FloatArray | float) -> FloatArray:
@@ -205,6 +207,41 @@ class MotionChecker:
         self.states_checked = 0
         self.segments_checked = 0
         self.calls = 0
+        self.certified_checks = 0
+        self._validator: TrajectoryValidator | None = None
+
+    @property
+    def validator(self) -> TrajectoryValidator:
+        """The certified validator at the spec's resolution (built on first use)."""
+        if self._validator is None:
+            self._validator = TrajectoryValidator(
+                self.spec.model, self.checker.scene.scene, resolution=self.spec.resolution
+            )
+        return self._validator
+
+    def segment_certified(self, a: FloatArray, b: FloatArray) -> bool:
+        """True when the straight motion a → b is certified free: its samples are the ones
+        validation takes on that segment (`validation.interpolate`), and the compiled bounds
+        (or, for the few pairs they leave open, conservative advancement) prove every motion
+        between them free. A path made of such motions passes certified validation.
+
+        The compiled bounds answer first, stopping at the first pair they leave open; then a
+        check of a few spread-out samples finds most blocked motions; only what neither settles
+        is certified in full."""
+        samples = interpolate(np.stack([a, b]), self.spec.model, self.spec.resolution)
+        self.calls += 1
+        self.segments_checked += 1
+        self.certified_checks += 1
+        self.states_checked += len(samples) - 1
+        if len(samples) < 2:
+            return True
+        certifier = self.validator.certifier
+        if certifier.settled_by_bounds(samples):  # the usual free motion
+            return True
+        spread = samples[1:][coarse_to_fine(len(samples) - 1)[:_SPREAD_SAMPLES]]
+        if self.checker.check(spread, stop_at_first=True).first_collision >= 0:
+            return False  # the usual blocked motion: a sample collides
+        return certifier.certify(samples).status is SegmentStatus.FREE
 
     @property
     def narrow_checks(self) -> int:
@@ -218,6 +255,7 @@ class MotionChecker:
             "segment_checks": float(self.segments_checked),
             "check_calls": float(self.calls),
             "narrow_checks": float(self.narrow_checks),
+            "certified_checks": float(self.certified_checks),
         }
 
     def state_free(self, state: FloatArray) -> bool:
