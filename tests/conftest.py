@@ -58,3 +58,12 @@ def redis_url() -> str:
     """URL of a Redis database reserved for tests."""
     require_service("Redis", "127.0.0.1", 6379)
     return REDIS_URL
+
+
+@pytest.fixture(scope="session", autouse=True)
+def compiled_kernels() -> None:
+    """The compiled kernels in numba's on-disk cache before any test starts a server (a server
+    compiling them inside a request would time out)."""
+    from trajcache.geometry import kernels
+
+    kernels.warm()

@@ -85,13 +85,18 @@ def forward_kinematics_kernel(
             for r in range(3):
                 for c in range(4):
                     local[r, c] = (
-                        fixed[j, r, c] + sv * sine[j, r, c] + cv * versine[j, r, c] + v * slide[j, r, c]
+                        fixed[j, r, c]
+                        + sv * sine[j, r, c]
+                        + cv * versine[j, r, c]
+                        + v * slide[j, r, c]
                     )
             top = out[n, parent[j]]
             dst = out[n, child[j]]
             for r in range(3):
                 for c in range(4):
-                    acc = top[r, 0] * local[0, c] + top[r, 1] * local[1, c] + top[r, 2] * local[2, c]
+                    acc = (
+                        top[r, 0] * local[0, c] + top[r, 1] * local[1, c] + top[r, 2] * local[2, c]
+                    )
                     if c == 3:
                         acc += top[r, 3]
                     dst[r, c] = acc
@@ -219,7 +224,9 @@ def _self_slabs(pose_i, pose_j, sup, i, j, exact):  # type: ignore[no-untyped-de
     cy = pose_i[2, 2] * pose_j[0, 2] - pose_i[0, 2] * pose_j[2, 2]
     cz = pose_i[0, 2] * pose_j[1, 2] - pose_i[1, 2] * pose_j[0, 2]
     for sign in (-1.0, 1.0):
-        best = max(best, _slab(sign * cx, sign * cy, sign * cz, pose_i, sup, i, pose_j, sup, j, exact))
+        best = max(
+            best, _slab(sign * cx, sign * cy, sign * cz, pose_i, sup, i, pose_j, sup, j, exact)
+        )
         for axis in range(3):
             for pose in (pose_i, pose_j):
                 value = _slab(
@@ -321,7 +328,11 @@ def _pose_all(links, element_link, element_origin, axis_link, axis_local):  # ty
             local = element_origin[e]
             for r in range(3):
                 for c in range(4):
-                    acc = frame[r, 0] * local[0, c] + frame[r, 1] * local[1, c] + frame[r, 2] * local[2, c]
+                    acc = (
+                        frame[r, 0] * local[0, c]
+                        + frame[r, 1] * local[1, c]
+                        + frame[r, 2] * local[2, c]
+                    )
                     poses[n, e, r, c] = acc + (frame[r, 3] if c == 3 else 0.0)
         for x in range(n_ax):
             frame = links[n, axis_link[x]]
@@ -461,7 +472,19 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 # ahead from `at` while the summed motion stays below the bound there
                 ahead = at
                 d = _scene_bound(
-                    at, 1, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s, m, scene
+                    at,
+                    1,
+                    ball_low,
+                    low,
+                    level,
+                    poses,
+                    e,
+                    radius,
+                    sup_r,
+                    pose_obj[m],
+                    sup_s,
+                    m,
+                    scene,
                 )
                 while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
                     ahead += 1
@@ -522,7 +545,12 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 low_a, low_b, touching = np.inf, np.inf, False
                 for s in range(count[e]):
                     sa = _box_distance(
-                        balls[k, s, 0], balls[k, s, 1], balls[k, s, 2], rot_m[m], pos_m[m], half_m[m]
+                        balls[k, s, 0],
+                        balls[k, s, 1],
+                        balls[k, s, 2],
+                        rot_m[m],
+                        pos_m[m],
+                        half_m[m],
                     )
                     sb = _box_distance(
                         balls[k + 1, s, 0],
@@ -572,7 +600,9 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                             loc = r0 * dx + r1 * dy + r2 * dz
                             gap = min(max(loc, -half_m[m, axis]), half_m[m, axis]) - loc
                             wx, wy, wz = wx + r0 * gap, wy + r1 * gap, wz + r2 * gap
-                        value = _slab(wx, wy, wz, poses[n, e], sup_r, e, pose_obj[m], sup_s, m, True)
+                        value = _slab(
+                            wx, wy, wz, poses[n, e], sup_r, e, pose_obj[m], sup_s, m, True
+                        )
                         best = max(best, value)
                     if n == k:
                         da = max(da, best)
@@ -795,7 +825,7 @@ def state_rows_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     Only these rows need FCL's collision test."""
     link_of, origin, radius = robot[0], robot[1], robot[2]
     axis_link, axis_local = motion[3], motion[4]
-    rot_m, pos_m, half_m, lo_m, hi_m = scene
+    rot_m, pos_m, lo_m, hi_m = scene[0], scene[1], scene[3], scene[4]
     pair_i, pair_j = pairs[0], pairs[1]
     poses, _, _ = _pose_all(links, link_of, origin, axis_link, axis_local)
     n_states, n_el, n_obj = links.shape[0], link_of.shape[0], rot_m.shape[0]
@@ -848,7 +878,9 @@ def state_rows_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
             ball[0], level[0] = -1.0, 0
             settled = False
             for want in range(1, 4):
-                d = _self_bound(0, want, ball, low, level, poses[n : n + 1], pair_i[p], pair_j[p], radius, sup_r)
+                d = _self_bound(
+                    0, want, ball, low, level, poses[n : n + 1], pair_i[p], pair_j[p], radius, sup_r
+                )
                 if d > pad:
                     settled = True
                     break

@@ -41,7 +41,6 @@ from trajcache.planning.problem import PlannerStatus, PlanResult
 from trajcache.planning.rris import rris_search
 from trajcache.planning.space import (
     SHORTCUT_CLEARANCE_M,
-    MotionChecker,
     Query,
     StateSpaceSpec,
     prepare_query,

@@ -22,8 +22,8 @@ from trajcache.geometry.errors import StateError
 from trajcache.geometry.kinematics import check_limits, check_states
 from trajcache.geometry.robot import BaseType, RobotModel
 from trajcache.geometry.scene import Scene
-from trajcache.geometry.shapes import FloatArray
 from trajcache.geometry.segments import SegmentStatus
+from trajcache.geometry.shapes import FloatArray
 from trajcache.geometry.validation import Resolution, TrajectoryValidator, interpolate
 from trajcache.planning.problem import PlannerStatus, PlanResult
 
