@@ -33,6 +33,7 @@ import numpy as np
 
 import validation_panda
 from naive_fcl import NaiveChecker, timed
+from trajcache.geometry import kernels
 from trajcache.geometry.collision import COLLIDING, CollisionChecker
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import reference_model
@@ -84,12 +85,17 @@ def make_trajectories(
     return free, late
 
 
+Checkers = tuple[TrajectoryValidator, TrajectoryValidator, NaiveChecker, TrajectoryValidator]
+
+
 def workload_motions(
     model: RobotModel, seed: int, count: int
-) -> list[tuple[np.ndarray, TrajectoryValidator, TrajectoryValidator, NaiveChecker]]:
-    """Free straight motions of a cleaning run, each with the checkers of its call's scene."""
+) -> list[tuple[np.ndarray, TrajectoryValidator, TrajectoryValidator, NaiveChecker,
+                TrajectoryValidator]]:  # fmt: skip
+    """Free straight motions of a cleaning run, each with the checkers of its call's scene
+    (certified, plain, naive, certified on numpy levels)."""
     run = cleaning_run(seed)
-    by_scene: dict[str, tuple[TrajectoryValidator, TrajectoryValidator, NaiveChecker]] = {}
+    by_scene: dict[str, Checkers] = {}
     motions = []
     for call in run.calls:
         scene = run.scene_for(call)
@@ -98,17 +104,19 @@ def workload_motions(
                 TrajectoryValidator(model, scene, certified=True),
                 TrajectoryValidator(model, scene, certified=False),
                 NaiveChecker(model, scene),
+                TrajectoryValidator(model, scene, compiled=False),
             )
-        certified, plain, naive = by_scene[scene.hash]
+        certified, plain, naive, numpy = by_scene[scene.hash]
         key = np.stack([call.start, call.goal])
         if certified.validate(key).valid:
-            motions.append((key, certified, plain, naive))
+            motions.append((key, certified, plain, naive, numpy))
         if len(motions) == count:
             break
     return motions
 
 
-Row = tuple[str, int, int, float, float, float]  # label, count, states, naive, plain, certified s
+# label, count, states; naive, plain, certified on numpy levels, certified (compiled) s
+Row = tuple[str, int, int, float, float, float, float]
 
 
 def reference_rows(
@@ -125,30 +133,34 @@ def reference_rows(
     free, late = make_trajectories(model, checker, rng, n_traj)
     certified = TrajectoryValidator(model, scene, certified=True)
     plain = TrajectoryValidator(model, scene, certified=False)
+    numpy = TrajectoryValidator(model, scene, compiled=False)
     rows = []
     for label, trajs in (("collision-free", free), ("collides late", late)):
         samples = [interpolate(k, model, Resolution()) for k in trajs]
         total = sum(len(s) for s in samples)
-        t_naive, t_plain, t_cert = timed(
+        t_naive, t_plain, t_numpy, t_cert = timed(
             [
                 lambda s=samples: [naive.validate(x) for x in s],
                 lambda t=trajs: [plain.validate(k) for k in t],
+                lambda t=trajs: [numpy.validate(k) for k in t],
                 lambda t=trajs: [certified.validate(k) for k in t],
             ],
             repeats,
         )
-        rows.append((label, len(trajs), total, t_naive, t_plain, t_cert))
+        rows.append((label, len(trajs), total, t_naive, t_plain, t_numpy, t_cert))
     motions = workload_motions(model, seed, n_traj * 3)
     samples = [interpolate(k, model, Resolution()) for k, *_ in motions]
-    t_naive, t_plain, t_cert = timed(
+    t_naive, t_plain, t_numpy, t_cert = timed(
         [
-            lambda: [m[3].validate(x) for m, x in zip(motions, samples, strict=True)],
-            lambda: [p.validate(k) for k, _, p, _ in motions],
-            lambda: [c.validate(k) for k, c, _, _ in motions],
+            lambda: [m[3].validate(x) for m, x in zip(motions, samples, strict=True)],  # naive
+            lambda: [p.validate(k) for k, _, p, _, _ in motions],
+            lambda: [n.validate(k) for k, _, _, _, n in motions],
+            lambda: [c.validate(k) for k, c, _, _, _ in motions],
         ],
         repeats,
     )
-    rows.append(("workload", len(motions), sum(len(x) for x in samples), t_naive, t_plain, t_cert))
+    total = sum(len(x) for x in samples)
+    rows.append(("workload", len(motions), total, t_naive, t_plain, t_numpy, t_cert))
     return rows
 
 
@@ -157,16 +169,20 @@ def print_table(rows: list[Row]) -> dict[str, float]:
     figures: dict[str, float] = {}
     print(
         f"{'trajectories':<16}{'count':>6}{'states':>8}{'naive st/s':>12}{'plain st/s':>12}"
-        f"{'certified st/s':>16}{'ratio':>8}{'certified ms':>14}"
+        f"{'numpy st/s':>12}{'certified st/s':>16}{'ratio':>8}{'numpy ms':>10}"
+        f"{'certified ms':>14}"
     )
-    for label, count, total, t_naive, t_plain, t_cert in rows:
+    for label, count, total, t_naive, t_plain, t_numpy, t_cert in rows:
         figures[label] = a = total / t_naive
         figures[label + "/plain"] = total / t_plain
+        figures[label + "/numpy"] = total / t_numpy
         figures[label + "/certified"] = c = total / t_cert
         figures[label + "/ms"] = t_cert / count * 1e3
+        figures[label + "/numpy_ms"] = t_numpy / count * 1e3
         print(
             f"{label:<16}{count:>6}{total:>8}{a:>12.0f}{figures[label + '/plain']:>12.0f}"
-            f"{c:>16.0f}{c / a:>8.2f}{figures[label + '/ms']:>14.2f}"
+            f"{figures[label + '/numpy']:>12.0f}{c:>16.0f}{c / a:>8.2f}"
+            f"{figures[label + '/numpy_ms']:>10.2f}{figures[label + '/ms']:>14.2f}"
         )
     return figures
 
@@ -181,6 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     n_traj, n_states, repeats = (4, 1000, 1) if args.smoke else (30, 10_000, 3)
     per_family = args.panda_problems or (1 if args.smoke else 10)
 
+    kernels.warm()  # as the service does at startup: no timed call loads a compiled kernel
     rng = np.random.default_rng(args.seed)
     model = reference_model()
     scene = restroom_scene(doors=[30.0, 60.0, 90.0])
@@ -214,6 +231,10 @@ def main(argv: list[str] | None = None) -> int:
         "ratio_plain": round(figures["collision-free/plain"] / figures["collision-free"], 2),
         "ratio_late": round(figures["collides late/certified"] / figures["collides late"], 2),
         "ratio_workload": round(figures["workload/certified"] / figures["workload"], 2),
+        "ratio_numpy": round(figures["collision-free/numpy"] / figures["collision-free"], 2),
+        "compiled_speedup": round(
+            figures["collision-free/certified"] / figures["collision-free/numpy"], 2
+        ),
         "validator_ms_per_trajectory": round(figures["collision-free/ms"], 3),
         "workload_ms_per_trajectory": round(figures["workload/ms"], 3),
         "mismatches": mismatches + panda["panda_mismatches"],

@@ -66,6 +66,7 @@ class PathTiming:
     naive: float
     pairs: float
     plain: float
+    numpy: float  # the certified validator on its numpy levels (`compiled=False`)
     certified: float
 
 
@@ -80,6 +81,7 @@ class PandaTally:
     first_call: list[float] = field(default_factory=list)  # validator built + first path (s)
     mismatches: int = 0
     naive_disagreements: int = 0  # paths the two naive loops judge differently
+    numpy_only: int = 0  # paths the numpy levels certify and the compiled ones do not
     conservative: Counter[str] = field(default_factory=Counter)
 
 
@@ -136,6 +138,7 @@ class SceneCheckers:
     model: RobotModel
     certified: TrajectoryValidator
     plain: TrajectoryValidator
+    numpy: TrajectoryValidator
     naive: NaiveChecker
     pairs: PairChecker
     dense: MeshChecker
@@ -148,11 +151,15 @@ class SceneCheckers:
                 lambda: self.naive.validate(samples),
                 lambda: self.pairs.validate(samples),
                 lambda: self.plain.validate(key),
+                lambda: self.numpy.validate(key),
                 lambda: self.certified.validate(key),
             ],
             repeats,
         )
-        naive_free, pairs_free, _, result = verdicts
+        naive_free, pairs_free, _, numpy_result, result = verdicts
+        assert isinstance(numpy_result, ValidationResult)
+        if numpy_result.valid and not result.valid:
+            tally.numpy_only += 1
         assert isinstance(result, ValidationResult)
         tally.naive_disagreements += naive_free != pairs_free
         collides, checked = dense_collides(self.dense, key)
@@ -176,8 +183,15 @@ def run_panda(per_family: int, seed: int, repeats: int) -> PandaTally:
         certified.validate(paths[0][1])  # what the first path after a scene change pays
         tally.first_call.append(time.perf_counter() - began)
         plain = TrajectoryValidator(model, scene, certified=False)
+        numpy = TrajectoryValidator(model, scene, compiled=False)
         checkers = SceneCheckers(
-            model, certified, plain, NaiveChecker(model, scene), PairChecker(model, scene), dense
+            model,
+            certified,
+            plain,
+            numpy,
+            NaiveChecker(model, scene),
+            PairChecker(model, scene),
+            dense,
         )
         for kind, key in paths:
             checkers.measure(kind, key, repeats, tally)
@@ -194,8 +208,9 @@ def groups(tally: PandaTally) -> dict[str, list[PathTiming]]:
     return {label: paths for label, paths in found.items() if paths}
 
 
-def rows(tally: PandaTally) -> list[tuple[str, int, int, float, float, float]]:
-    """Table rows (label, paths, states, naive s, plain s, certified s) of each group."""
+def rows(tally: PandaTally) -> list[tuple[str, int, int, float, float, float, float]]:
+    """Table rows (label, paths, states, naive s, plain s, numpy certified s, certified s) of
+    each group."""
     return [
         (
             label,
@@ -203,14 +218,17 @@ def rows(tally: PandaTally) -> list[tuple[str, int, int, float, float, float]]:
             sum(p.samples for p in paths),
             sum(p.naive for p in paths),
             sum(p.plain for p in paths),
+            sum(p.numpy for p in paths),
             sum(p.certified for p in paths),
         )
         for label, paths in groups(tally).items()
     ]
 
 
-def _ms_p50(paths: list[PathTiming]) -> float | None:
-    return round(statistics.median(p.certified for p in paths) * 1e3, 3) if paths else None
+def _ms_p50(paths: list[PathTiming], numpy: bool = False) -> float | None:
+    if not paths:
+        return None
+    return round(statistics.median(p.numpy if numpy else p.certified for p in paths) * 1e3, 3)
 
 
 def figures(tally: PandaTally) -> dict[str, Any]:
@@ -230,6 +248,9 @@ def figures(tally: PandaTally) -> dict[str, Any]:
             else None
         ),
         "panda_path_ms_p50": _ms_p50(paths),
+        "panda_numpy_path_ms_p50": _ms_p50(paths, numpy=True),
+        "panda_compiled_speedup": round(sum(p.numpy for p in paths) / t_cert, 2),
+        "panda_numpy_only": tally.numpy_only,
         "panda_accepted_ms_p50": _ms_p50(accepted),
         "panda_rejected_ms_p50": _ms_p50(rejected),
         "panda_status_ms_p50": {
@@ -262,7 +283,10 @@ def print_summary(panda: dict[str, Any]) -> None:
         f"conservative {panda['panda_conservative']}; validator built + first path "
         f"{panda['panda_first_call_ms_p50']:.1f} ms p50; path ms p50 "
         f"{panda['panda_path_ms_p50']} (accepted {panda['panda_accepted_ms_p50']}, rejected "
-        f"{panda['panda_rejected_ms_p50']}; by verdict {panda['panda_status_ms_p50']})"
+        f"{panda['panda_rejected_ms_p50']}; by verdict {panda['panda_status_ms_p50']}); "
+        f"numpy levels: path ms p50 {panda['panda_numpy_path_ms_p50']}, compiled "
+        f"{panda['panda_compiled_speedup']}× faster; paths only the numpy levels certify: "
+        f"{panda['panda_numpy_only']}"
     )
     print(
         f"panda, naive asking only the pairs it must check: {panda['panda_pairs_states_per_s']:.0f}"

@@ -13,8 +13,9 @@ certifies the pair on the segment (`certify.py`). The levels, cheapest first:
    coefficients; `motion.py`);
 2. slabs along the box's and the element's face normals and toward the nearest box point (for a
    robot pair: the line between the elements, across both their z axes, both elements' face
-   normals), meshes first as their bounding boxes, then as their hulls; the motion of the whole
-   element, first configuration-independent, then from the axis distances at both ends;
+   normals), meshes first as their bounding boxes, then as their hulls along the three best of
+   those directions; the motion of the whole element, first configuration-independent, then
+   from the axis distances at both ends;
 3. every ball of the element's sphere cover with the motion of its own centre; when a ball is
    not settled, slabs along the ways the four closest balls look to the box (for a pair,
    between the four closest pairs of balls) with the whole element's motion.
@@ -39,6 +40,7 @@ _ROUNDING = 1e-7  # added to every axis distance (as `motion.axis_distances` doe
 _TINY = 1e-12
 _GROW = 1024
 _COVER_SLABS = 4  # slabs along the ways of the closest cover balls, per end
+_EXACT_DIRECTIONS = 3  # directions a slab level looks at meshes as hulls along
 
 
 # --- forward kinematics ------------------------------------------------------------------------
@@ -170,79 +172,75 @@ def _slab(nx, ny, nz, pose_a, sup_a, ka, pose_b, sup_b, kb, exact):  # type: ign
 
 
 @numba.njit(cache=True, nogil=True)
-def _scene_slabs(pose_e, sup_r, e, pose_m, sup_s, m, half, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Level 2 for an element and an object: max over the box's and the element's face normals
-    and the way from the element's origin to the nearest point of the object's box."""
+def _best_slab(dirs, pose_a, sup_a, ka, pose_b, sup_b, kb, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """max over the directions `dirs` (Q, 3) of the slab bound, meshes as their boxes; with
+    `exact`, also along the best few of them with meshes as their hulls (a hull's bound along a
+    direction is at least its box's, and the best exact direction is nearly always among the
+    best box ones)."""
+    count = dirs.shape[0]
+    values = np.empty(count)
     best = 0.0
+    for q in range(count):
+        values[q] = _slab(
+            dirs[q, 0], dirs[q, 1], dirs[q, 2], pose_a, sup_a, ka, pose_b, sup_b, kb, False
+        )
+        best = max(best, values[q])
+    if not exact or (sup_a[2][ka] < 0 and sup_b[2][kb] < 0):
+        return best
+    for _round in range(min(_EXACT_DIRECTIONS, count)):
+        pick = np.argmax(values)
+        values[pick] = -np.inf
+        value = _slab(
+            dirs[pick, 0], dirs[pick, 1], dirs[pick, 2], pose_a, sup_a, ka, pose_b, sup_b, kb, True
+        )
+        best = max(best, value)
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def _scene_slabs(pose_e, sup_r, e, pose_m, sup_s, m, half, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Level 2 for an element and an object: the box's and the element's face normals and the
+    way from the element's origin to the nearest point of the object's box (`_best_slab`)."""
+    dirs = np.empty((13, 3))
+    q = 0
     for axis in range(3):
         for sign in (-1.0, 1.0):
-            for pose in (pose_m, pose_e):
-                value = _slab(
-                    sign * pose[0, axis],
-                    sign * pose[1, axis],
-                    sign * pose[2, axis],
-                    pose_e,
-                    sup_r,
-                    e,
-                    pose_m,
-                    sup_s,
-                    m,
-                    exact,
-                )
-                best = max(best, value)
+            for r in range(3):
+                dirs[q, r] = sign * pose_m[r, axis]
+                dirs[q + 1, r] = sign * pose_e[r, axis]
+            q += 2
     # toward the nearest box point: local = R_mᵀ(t_e − t_m), clipped into the box
     dx = pose_e[0, 3] - pose_m[0, 3]
     dy = pose_e[1, 3] - pose_m[1, 3]
     dz = pose_e[2, 3] - pose_m[2, 3]
-    wx, wy, wz = 0.0, 0.0, 0.0
+    dirs[12, :] = 0.0
     for axis in range(3):
         loc = pose_m[0, axis] * dx + pose_m[1, axis] * dy + pose_m[2, axis] * dz
         gap = min(max(loc, -half[axis]), half[axis]) - loc
-        wx += pose_m[0, axis] * gap
-        wy += pose_m[1, axis] * gap
-        wz += pose_m[2, axis] * gap
-    return max(best, _slab(wx, wy, wz, pose_e, sup_r, e, pose_m, sup_s, m, exact))
+        for r in range(3):
+            dirs[12, r] += pose_m[r, axis] * gap
+    return _best_slab(dirs, pose_e, sup_r, e, pose_m, sup_s, m, exact)
 
 
 @numba.njit(cache=True, nogil=True)
 def _self_slabs(pose_i, pose_j, sup, i, j, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Level 2 for a robot pair: along the line between the elements, across both z axes (both
-    ways) and along both elements' face normals."""
-    best = _slab(
-        pose_j[0, 3] - pose_i[0, 3],
-        pose_j[1, 3] - pose_i[1, 3],
-        pose_j[2, 3] - pose_i[2, 3],
-        pose_i,
-        sup,
-        i,
-        pose_j,
-        sup,
-        j,
-        exact,
-    )
-    cx = pose_i[1, 2] * pose_j[2, 2] - pose_i[2, 2] * pose_j[1, 2]
-    cy = pose_i[2, 2] * pose_j[0, 2] - pose_i[0, 2] * pose_j[2, 2]
-    cz = pose_i[0, 2] * pose_j[1, 2] - pose_i[1, 2] * pose_j[0, 2]
-    for sign in (-1.0, 1.0):
-        best = max(
-            best, _slab(sign * cx, sign * cy, sign * cz, pose_i, sup, i, pose_j, sup, j, exact)
-        )
-        for axis in range(3):
-            for pose in (pose_i, pose_j):
-                value = _slab(
-                    sign * pose[0, axis],
-                    sign * pose[1, axis],
-                    sign * pose[2, axis],
-                    pose_i,
-                    sup,
-                    i,
-                    pose_j,
-                    sup,
-                    j,
-                    exact,
-                )
-                best = max(best, value)
-    return best
+    """Level 2 for a robot pair: the line between the elements, across both z axes (both ways)
+    and both elements' face normals (`_best_slab`)."""
+    dirs = np.empty((15, 3))
+    for r in range(3):
+        dirs[0, r] = pose_j[r, 3] - pose_i[r, 3]
+    dirs[1, 0] = pose_i[1, 2] * pose_j[2, 2] - pose_i[2, 2] * pose_j[1, 2]
+    dirs[1, 1] = pose_i[2, 2] * pose_j[0, 2] - pose_i[0, 2] * pose_j[2, 2]
+    dirs[1, 2] = pose_i[0, 2] * pose_j[1, 2] - pose_i[1, 2] * pose_j[0, 2]
+    dirs[2, :] = -dirs[1, :]
+    q = 3
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            for r in range(3):
+                dirs[q, r] = sign * pose_i[r, axis]
+                dirs[q + 1, r] = sign * pose_j[r, axis]
+            q += 2
+    return _best_slab(dirs, pose_i, sup, i, pose_j, sup, j, exact)
 
 
 # --- motion bounds -----------------------------------------------------------------------------
@@ -531,6 +529,16 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                     )  # fmt: skip
                 moving = dependent[k]
                 if da + db > moving:
+                    continue
+                if da <= 0.0 or db <= 0.0:
+                    # an end in contact, or too close to tell: FCL's collision test decides it
+                    # before anything finer is worth computing (`certify._sample_collision`)
+                    rows, lows = _grow(rows, lows, found)
+                    rows[found, 0], rows[found, 1], rows[found, 2] = k, e, m
+                    lows[found, 0], lows[found, 1], lows[found, 2] = da, db, moving
+                    found += 1
+                    if first_only:
+                        return rows[:found], lows[:found]
                     continue
                 # level 3: the sphere cover
                 for n in range(k, k + 2):
