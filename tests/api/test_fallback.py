@@ -285,3 +285,54 @@ def test_unreachable_planner_backend_is_a_503_and_recorded(client_factory: Clien
     assert time.monotonic() - began < 5.0
     assert_detail(reply, 503, "planning is unavailable", "worker backend unavailable")
     assert [e.status for e in _events(client)] == ["error"]
+
+
+def test_a_planned_trajectory_gets_its_quality_after_the_answer(
+    client_factory: ClientFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Quality and timing of a new trajectory are computed by the record writer, after the
+    answer, and stored with its plan record."""
+    client = client_factory()
+    _setup(client, {"objects": [_box("far", 2.0, 0.0, 0.1)]})
+    _recording(client)
+    threads: list[str] = []
+    from trajcache.services import planning
+
+    columns = planning.quality_columns
+
+    def spy(*args: Any) -> Any:
+        threads.append(threading.current_thread().name)
+        return columns(*args)
+
+    monkeypatch.setattr(planning, "quality_columns", spy)
+    body = _plan(client)
+    assert (body["status"], body["source"]) == ("success", "planner")
+    assert threads and threading.current_thread().name not in threads  # not the request's
+    stored = client.get(f"/v1/trajectories/{body['trajectory_id']}").json()
+    assert stored["length"] == pytest.approx(1.0)
+    assert stored["duration_s"] > 0 and stored["min_clearance"] > 1.0
+
+
+def test_a_timing_failure_is_recorded_on_the_trajectory(
+    client_factory: ClientFactory, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    from trajcache.services import quality
+    from trajcache.timing import TimingError
+
+    def fails(*args: Any, **kwargs: Any) -> Any:
+        raise TimingError("toppra found no parameterization: ERR_INFEASIBLE")
+
+    client = client_factory()
+    _setup(client, {"objects": [_box("far", 2.0, 0.0, 0.1)]})
+    _recording(client)
+    monkeypatch.setattr(quality, "time_states", fails)
+    body = _plan(client)
+    assert body["status"] == "success"
+    stored = client.get(f"/v1/trajectories/{body['trajectory_id']}").json()
+    assert stored["duration_s"] is None and stored["length"] == pytest.approx(1.0)
+    with ctx_of(client).session() as session:
+        from trajcache.db.models import Trajectory
+
+        details = session.get(Trajectory, body["trajectory_id"]).quality
+    assert "ERR_INFEASIBLE" in details["timing"]["error"]
+    assert not [r for r in caplog.records if r.exc_info], "a traceback was logged"

@@ -1,10 +1,12 @@
 """Plan bookkeeping written off the request path: usage counters and plan events, in order.
 
 An answered plan does not wait for its bookkeeping. The plan flow submits a :class:`PlanRecord`
-(the trajectory that served, the candidates that failed validation, the plan event) and gets a
-sequence number; one writer thread per process commits records in submission order, many per
-transaction: counter updates grouped per trajectory (in id order, so replicas writing the same
-rows cannot deadlock) and the events as one multi-row insert. Event timestamps are taken when
+(the trajectory that served, the candidates that failed validation, the plan event, and for a
+newly planned trajectory its quality metrics and timing, a :class:`QualityJob` the writer
+computes just before the record's transaction) and gets a sequence number; one writer thread
+per process commits records in submission order, many per transaction: counter updates grouped
+per trajectory (in id order, so replicas writing the same rows cannot deadlock), the events as
+one multi-row insert, and the quality columns of new trajectories. Event timestamps are taken when
 the plan is answered, not when it is written.
 
 The writer lingers up to `linger_s` after the first record of a batch, so that an answer goes
@@ -50,7 +52,7 @@ from sqlalchemy.exc import DataError, IntegrityError, SQLAlchemyError
 
 from trajcache.db.models import PlanEvent, Trajectory
 
-__all__ = ["PlanRecord", "PlanRecorder", "RecorderStats"]
+__all__ = ["PlanRecord", "PlanRecorder", "QualityJob", "RecorderStats"]
 
 _log = logging.getLogger(__name__)
 _T = Trajectory
@@ -80,6 +82,38 @@ _USAGE = (
 )
 
 _EVENTS = sa.insert(PlanEvent)
+_QUALITY = (
+    sa.update(_T)
+    .where(_T.id == sa.bindparam("q_id"))
+    .values(
+        length=sa.bindparam("length"),
+        ee_length=sa.bindparam("ee_length"),
+        min_clearance=sa.bindparam("min_clearance"),
+        duration_s=sa.bindparam("duration_s"),
+        quality=sa.bindparam("quality", type_=_T.quality.type),
+    )
+)
+
+
+class QualityJob:
+    """The quality columns of a trajectory the planner just stored, computed off the request
+    path (by the writer, before the record's transaction; once, whatever the retries)."""
+
+    def __init__(self, trajectory_id: int, compute: Callable[[], Mapping[str, Any] | None]):
+        self.trajectory_id = trajectory_id
+        self._compute: Callable[[], Mapping[str, Any] | None] | None = compute
+        self._values: Mapping[str, Any] | None = None
+
+    def values(self) -> Mapping[str, Any] | None:
+        """The column values (None: nothing could be computed); computed on the first call."""
+        if self._compute is not None:
+            compute, self._compute = self._compute, None
+            try:
+                self._values = compute()
+            except Exception:  # a metric must never cost the record
+                _log.warning("quality of trajectory %d could not be computed", self.trajectory_id,
+                             exc_info=True)  # fmt: skip
+        return self._values
 
 
 @dataclass(frozen=True)
@@ -92,6 +126,7 @@ class PlanRecord:
     event: Mapping[str, Any]  # plan_events column values (without id and created_at)
     real: bool = False  # served to a real robot: counts as a real-world validation
     key: str = field(default_factory=lambda: uuid.uuid4().hex)  # its event's record_key
+    quality: QualityJob | None = None  # a newly planned trajectory's quality, written with it
 
 
 @dataclass(frozen=True)
@@ -330,10 +365,14 @@ class PlanRecorder:
 
 
 def _write(engine: Engine, records: Iterable[PlanRecord]) -> None:
-    """Commit the records' counter updates and events in one transaction."""
+    """Commit the records' counter updates, events and quality columns in one transaction."""
     usage: dict[int, _Usage] = {}
     events: list[dict[str, Any]] = []
+    qualities: list[dict[str, Any]] = []
     for record in records:
+        values = record.quality.values() if record.quality is not None else None
+        if values is not None and record.quality is not None:
+            qualities.append({"q_id": record.quality.trajectory_id, **values})
         for trajectory_id in record.failed:
             u = usage.setdefault(trajectory_id, _Usage())
             u.failures += 1
@@ -357,6 +396,8 @@ def _write(engine: Engine, records: Iterable[PlanRecord]) -> None:
             conn.execute(_USAGE, _one_or_many(rows))
         if events:
             conn.execute(_EVENTS, _one_or_many(events))
+        for values in qualities:  # few: one per planned trajectory
+            conn.execute(_QUALITY, values)
 
 
 def _committed(engine: Engine, record: PlanRecord) -> bool:

@@ -66,9 +66,9 @@ from trajcache.planning.problem import PlannerStatus, PlanningProblem, SceneSour
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import UnavailableError
 from trajcache.services.models import get_model, model_source
-from trajcache.services.plan_records import PlanRecord
+from trajcache.services.plan_records import PlanRecord, QualityJob
 from trajcache.services.robots import robot_scene
-from trajcache.services.trajectories import store_trajectory
+from trajcache.services.trajectories import quality_columns, store_trajectory
 
 
 class PlanStatus(str, Enum):
@@ -575,8 +575,7 @@ def _plan_fallback(
             seed,
         )
     t = time.perf_counter()
-    _record_usage(session, None, failed)
-    trajectory_id, _created = store_trajectory(
+    trajectory_id, created = store_trajectory(
         session=session,
         model=model,
         states=outcome.path,
@@ -586,31 +585,28 @@ def _plan_fallback(
         env=scene.env,
         planning_time_ms=clock.plan * 1e3,
         max_states=ctx.settings.max_trajectory_states,
-        commit=False,
-        scene=scene,  # quality (clearance) in the scene it was planned in, without a re-read
-        settings=ctx.settings,
+        compute_quality=False,  # computed after the answer, with the plan record
     )
-    session.add(
-        _event(
-            robot_id,
-            model,
-            scene,
-            PlanStatus.SUCCESS,
-            PlanSource.PLANNER,
-            trajectory_id,
-            tried,
-            clock.timings(),
-            seed=seed,
-        )
-    )
-    session.commit()
     clock.db += time.perf_counter() - t
+    # The usage of the failed candidates, the event and the new trajectory's quality (its
+    # clearance in the scene it was planned in) are written in order, off the request path.
+    job = None
+    if created:
+        path = outcome.path
+        job = QualityJob(trajectory_id, lambda: quality_columns(model, path, ctx.settings, scene))
+    timings = clock.timings()
+    event = _event_values(
+        robot_id, model, scene, PlanStatus.SUCCESS, PlanSource.PLANNER, trajectory_id, tried,
+        timings, seed=seed,
+    )  # fmt: skip
+    record = ctx.records.submit(PlanRecord(utcnow(), None, tuple(failed), event, quality=job))
     return PlanAnswer(
         PlanStatus.SUCCESS,
         PlanSource.PLANNER,
         trajectory_id,
         outcome.path,
         tried,
-        clock.timings(),
+        timings,
         rejected=rejected,
+        record=record,
     )

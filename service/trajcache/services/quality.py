@@ -21,6 +21,7 @@ from trajcache.timing import (
     PathShape,
     Samples,
     TimedTrajectory,
+    TimingError,
     TimingMethod,
     kinematic_limits,
     time_trajectory,
@@ -94,9 +95,23 @@ def trajectory_quality(
     *,
     scene: Scene | None = None,
 ) -> tuple[Quality, dict[str, Any]]:
-    """Every metric of `states`, clearance only with a scene; also details for the JSON column."""
+    """Every metric of `states`, clearance only with a scene; also details for the JSON column.
+
+    When timing fails (TOPP-RA finds no parameterization), the duration is None and the details
+    say why (`timing.error`); the other metrics are still computed.
+    """
     validator = validator_for(model, scene, settings) if scene is not None else None
-    timed = time_states(model, states, settings, TimingRequest(), validator_fn=lambda: validator)
+    details: dict[str, Any] = {}
+    try:
+        timed = time_states(
+            model, states, settings, TimingRequest(), validator_fn=lambda: validator
+        )
+    except TimingError as exc:  # recorded on the trajectory: its duration stays unknown
+        duration = None
+        details["timing"] = {"error": str(exc)[:500]}
+    else:
+        duration = timed.duration
+        details["timing"] = {"method": timed.method.value, "path": timed.path.value}
     clearance = None
     if validator is not None:
         clearance = min_clearance(validator.checker, states, resolution=validator.resolution)
@@ -104,9 +119,8 @@ def trajectory_quality(
         path_length=path_length(states, planar=model.base is BaseType.PLANAR),
         ee_path_length=ee_path_length(model, states),
         min_clearance=None if clearance is None else clearance.distance,
-        duration_s=timed.duration,
+        duration_s=duration,
     )
-    details: dict[str, Any] = {"timing": {"method": timed.method.value, "path": timed.path.value}}
     if clearance is not None:
         details["clearance"] = {
             "link": clearance.link,

@@ -28,7 +28,6 @@ from trajcache.services.errors import (
 )
 from trajcache.services.quality import trajectory_quality
 from trajcache.services.robots import SceneCache, check_robot_id
-from trajcache.timing import TimingError
 
 logger = logging.getLogger(__name__)
 
@@ -132,16 +131,29 @@ def _set_quality(
     settings: Settings,
     scene: Scene | None,
 ) -> None:
+    values = quality_columns(model, states, settings, scene)
+    if values is not None:
+        for name, value in values.items():
+            setattr(row, name, value)
+
+
+def quality_columns(
+    model: RobotModel, states: np.ndarray, settings: Settings, scene: Scene | None
+) -> dict[str, Any] | None:
+    """The quality columns of a trajectory (`trajectory_quality`): path lengths, clearance in
+    `scene`, duration; None when they cannot be computed (a metric never blocks storing)."""
     try:
         quality, details = trajectory_quality(model, states, settings, scene=scene)
-    except (TimingError, ValueError, RuntimeError):  # a metric must never block storing
-        logger.warning("quality of a new trajectory could not be computed", exc_info=True)
-        return
-    row.length = quality.path_length
-    row.ee_length = quality.ee_path_length
-    row.min_clearance = quality.min_clearance
-    row.duration_s = quality.duration_s
-    row.quality = details
+    except (ValueError, RuntimeError) as exc:
+        logger.warning("quality of a new trajectory could not be computed: %s", exc)
+        return None
+    return {
+        "length": quality.path_length,
+        "ee_length": quality.ee_path_length,
+        "min_clearance": quality.min_clearance,
+        "duration_s": quality.duration_s,
+        "quality": details,
+    }
 
 
 def _check_count(count: int | None, max_states: int | None) -> None:
