@@ -205,3 +205,17 @@ def test_certified_never_accepts_what_a_denser_check_rejects_on_the_panda(
             ):
                 assert reference.validate(key).status is verdict.status
     assert outcomes["valid"] > 5 and outcomes["rejected"] > 5, outcomes
+
+
+def test_a_trajectory_that_starts_or_ends_in_collision_is_a_collision(panda: RobotModel) -> None:
+    rng = np.random.default_rng(3)
+    start, goal = _states(panda, rng, 2)
+    hand = link_transforms(panda, start)[0][panda.link_names.index("panda_hand")]
+    block = make_scene([SceneObject("block", Shape(ShapeKind.BOX, (0.05, 0.05, 0.05)), hand)])
+    validator = TrajectoryValidator(panda, block)
+    first = validator.validate(np.stack([start, goal]))
+    assert first.status is ValidationStatus.COLLISION, first.message
+    assert first.state is not None and np.allclose(first.state, start)  # the first sample
+    assert "block" in first.message
+    last = validator.validate(np.stack([goal, start]))  # the block is met on the way, or last
+    assert last.status is ValidationStatus.COLLISION and "block" in last.message

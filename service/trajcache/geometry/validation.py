@@ -41,6 +41,7 @@ from trajcache.geometry.segments import Finding, SegmentStatus
 from trajcache.geometry.shapes import FloatArray
 
 _CHUNK = 256
+_SPREAD = 9  # samples checked first, spread along the trajectory
 
 
 class ValidationStatus(str, Enum):
@@ -180,8 +181,18 @@ class TrajectoryValidator:
                     )
             return _result(ValidationStatus.VALID, samples, self.checker.narrow_checks - before)
         probes = 0
-        for lo in range(0, len(samples) - 1, _CHUNK):
-            chunk = samples[lo : lo + _CHUNK + 1]  # consecutive chunks share their end sample
+        # A few spread samples first: when one collides, only the samples up to it need
+        # certifying (the earliest colliding sample is the finding either way).
+        spread = np.unique(np.linspace(0, len(samples) - 1, _SPREAD).round().astype(np.int64))
+        verdict = self.checker.check(samples[spread], stop_at_first=True)
+        hit = verdict.first_collision
+        if hit == 0:  # the first sample
+            checks = self.checker.narrow_checks - before
+            return _result(ValidationStatus.COLLISION, samples, checks, state=samples[0],
+                           contacts=verdict.contacts)  # fmt: skip
+        upto = samples[: spread[hit] + 1] if hit > 0 else samples
+        for lo in range(0, len(upto) - 1, _CHUNK):
+            chunk = upto[lo : lo + _CHUNK + 1]  # consecutive chunks share their end sample
             found = self.certifier.certify(chunk)
             probes += found.subdivisions
             if found.status is not SegmentStatus.FREE:
