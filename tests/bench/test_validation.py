@@ -48,8 +48,9 @@ def _checkers(panda: tuple[RobotModel, MeshChecker], certified: Any) -> SceneChe
     dense.set_scene([SLAB])
     scene = parse_scene({"objects": [SLAB]})
     plain = TrajectoryValidator(model, scene, certified=False)
+    numpy = TrajectoryValidator(model, scene, compiled=False)
     naive, pairs = NaiveChecker(model, scene), PairChecker(model, scene)
-    return SceneCheckers(model, certified, plain, naive, pairs, dense)
+    return SceneCheckers(model, certified, plain, numpy, naive, pairs, dense)
 
 
 def test_a_colliding_path_accepted_is_a_mismatch(panda: tuple[RobotModel, MeshChecker]) -> None:

@@ -24,6 +24,7 @@ from kombu.exceptions import EncodeError, OperationalError
 from redis.exceptions import RedisError
 
 from trajcache.core.config import Settings, get_settings
+from trajcache.geometry import kernels
 from trajcache.jobs.pool import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
 from trajcache.jobs.threads import pin_one_thread
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
@@ -53,6 +54,13 @@ def _one_numeric_thread(**_: object) -> None:
     """One numeric thread in the worker and in each of its pool's processes, before the task
     function's imports (connected first)."""
     pin_one_thread()
+
+
+@worker_init.connect(weak=False)
+def _warm_kernels(**_: object) -> None:
+    """Compile, or load, the geometry kernels once in the worker, before it forks its pool's
+    processes: they start with the kernels ready."""
+    kernels.warm()
 
 
 @worker_process_init.connect(weak=False)

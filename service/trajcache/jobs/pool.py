@@ -301,7 +301,9 @@ class LocalBackend:
         # Not "fork": the web server that owns the pool is multi-threaded.
         self._context = multiprocessing.get_context(start_method)
         if start_method == "forkserver":
-            self._context.set_forkserver_preload(["trajcache.planning.problem", task_fn.__module__])
+            self._context.set_forkserver_preload(
+                ["trajcache.geometry.warm", "trajcache.planning.problem", task_fn.__module__]
+            )
         self.task_fn = task_fn
         self.processes = processes
         self.overrun_grace_s = overrun_grace_s
