@@ -41,6 +41,7 @@ from trajcache.planning.run import run_planning
 from trajcache.protocol.service import running_service
 from trajcache.quality import Quality
 from trajcache.services.quality import TimingRequest, time_states, trajectory_quality
+from trajcache.timing import TimingError
 from trajcache.workload.cleaning import CleaningRun, PlanCall, cleaning_run
 
 ROBOT = "bench-reuse"
@@ -141,17 +142,25 @@ def ratios(hits: list[Hit], metric: str) -> list[float]:
     return out
 
 
-def timing_cost_ms(model: RobotModel, hits: list[Hit], settings: Settings) -> list[float]:
-    """In-process time of default toppra timing of each answered hit (best of 3, ms)."""
+def timing_cost_ms(
+    model: RobotModel, hits: list[Hit], settings: Settings
+) -> tuple[list[float], int]:
+    """In-process time of default toppra timing of each answered hit (best of 3, ms), and how
+    many hits toppra could not time."""
     costs = []
+    failures = 0
     for hit in hits:
         best = float("inf")
-        for _ in range(3):
-            began = time.perf_counter()
-            time_states(model, hit.states, settings, TimingRequest())
-            best = min(best, (time.perf_counter() - began) * 1e3)
+        try:
+            for _ in range(3):
+                began = time.perf_counter()
+                time_states(model, hit.states, settings, TimingRequest())
+                best = min(best, (time.perf_counter() - began) * 1e3)
+        except TimingError:
+            failures += 1
+            continue
         costs.append(best)
-    return costs
+    return costs, failures
 
 
 def replay_latency(
@@ -223,7 +232,7 @@ def main() -> None:
         plain, timed = replay_latency(client, replayed, 3 if args.smoke else 5)
 
     compared = [h for h in hits if h.fresh is not None]
-    toppra_ms = timing_cost_ms(model, hits, settings)
+    toppra_ms, toppra_failures = timing_cost_ms(model, hits, settings)
     server_ms = [h.server_timing_ms for h in hits]
 
     print(f"{'run':<6}{'calls':>7}{'hits':>7}{'planned':>9}{'other':>7}")
@@ -269,6 +278,7 @@ def main() -> None:
     summary.update(
         {
             "toppra_ms_p50": round(percentile(toppra_ms, 50), 3),
+            "toppra_failures": toppra_failures,
             "server_timing_ms_p50": round(percentile(server_ms, 50), 3),
             "store_quality_ms_p50": round(percentile(STORE_QUALITY_MS, 50), 3),
             "hit_latency_ms_p50": round(percentile(plain, 50), 3),
