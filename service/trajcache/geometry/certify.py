@@ -68,9 +68,7 @@ class SegmentCertifier:
     def certify(self, states: FloatArray) -> Finding:
         """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it."""
         posed = Posed.build(self.robot, states)
-        delta = np.diff(states, axis=0)
-        if self.planar:
-            delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
+        delta = self._deltas(states)
         step = self.robot.motion.steps(delta)
         if self.compiled:
             groups = self._compiled_levels(posed, step)
@@ -90,14 +88,18 @@ class SegmentCertifier:
         found.subdivisions = probes
         return found
 
+    def _deltas(self, states: FloatArray) -> FloatArray:
+        """Differences of consecutive states, the base angle the short way."""
+        delta = np.diff(states, axis=0)
+        if self.planar:
+            delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
+        return delta
+
     def settled_by_bounds(self, states: FloatArray) -> bool:
         """True when the compiled levels alone certify every segment of `states` (N ≥ 2); they
         stop at the first pair they leave open. A quick yes for planners' motion checks."""
         posed = Posed.build(self.robot, states)
-        delta = np.diff(states, axis=0)
-        if self.planar:
-            delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
-        step = self.robot.motion.steps(delta)
+        step = self.robot.motion.steps(self._deltas(states))
         return not any(len(g.rows) for g in self._compiled_levels(posed, step, first_only=True))
 
     def _compiled_levels(

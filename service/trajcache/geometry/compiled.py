@@ -32,6 +32,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from trajcache.geometry.kernels import hull_climb
 from trajcache.geometry.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
@@ -127,25 +128,7 @@ def _support(sup, k, x, y, z, exact):  # type: ignore[no-untyped-def]  # pragma:
     s = slot[k]
     if not exact or s < 0:
         return value
-    best = -np.inf
-    at = -1
-    for a in range(anchor_start[s], anchor_start[s] + anchor_count[s]):
-        v = anchors[a]
-        val = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
-        if val > best:
-            best = val
-            at = v
-    moved = True
-    while moved:
-        moved = False
-        for m in range(start[at], start[at + 1]):
-            v = neighbours[m]
-            val = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
-            if val > best:
-                best = val
-                at = v
-                moved = True
-    return best
+    return hull_climb(vertices, anchors, anchor_start, anchor_count, neighbours, start, s, x, y, z)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

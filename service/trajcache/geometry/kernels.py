@@ -39,28 +39,47 @@ def hull_support_climb(
     """
     for q in range(slot.shape[0]):
         s = slot[q]
-        if s < 0:
-            continue
-        x, y, z = local[q, 0], local[q, 1], local[q, 2]
-        best = -np.inf
-        at = -1
-        for a in range(anchor_start[s], anchor_start[s] + anchor_count[s]):
-            v = anchors[a]
+        if s >= 0:
+            out[q] = hull_climb(
+                vertices, anchors, anchor_start, anchor_count, neighbours, neighbour_start, s,
+                local[q, 0], local[q, 1], local[q, 2],
+            )  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def hull_climb(
+    vertices: FloatArray,
+    anchors: np.ndarray,
+    anchor_start: np.ndarray,
+    anchor_count: np.ndarray,
+    neighbours: np.ndarray,
+    neighbour_start: np.ndarray,
+    s: int,
+    x: float,
+    y: float,
+    z: float,
+) -> float:  # pragma: no cover - compiled
+    """max over the vertices v of hull s of (x, y, z)·v, by the climb `hull_support_climb`
+    describes (one direction; also called from the certification kernels)."""
+    best = -np.inf
+    at = -1
+    for a in range(anchor_start[s], anchor_start[s] + anchor_count[s]):
+        v = anchors[a]
+        value = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
+        if value > best:
+            best = value
+            at = v
+    moved = True
+    while moved:
+        moved = False
+        for n in range(neighbour_start[at], neighbour_start[at + 1]):
+            v = neighbours[n]
             value = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
             if value > best:
                 best = value
                 at = v
-        moved = True
-        while moved:
-            moved = False
-            for n in range(neighbour_start[at], neighbour_start[at + 1]):
-                v = neighbours[n]
-                value = x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
-                if value > best:
-                    best = value
-                    at = v
-                    moved = True
-        out[q] = best
+                moved = True
+    return best
 
 
 _WARM_URDF = """<robot name="warm">
