@@ -94,7 +94,7 @@ def test_fcl_distance_is_not_trusted_where_it_is_wrong() -> None:
         cl.scene_slabs(posed, rows)[0],
         spheres.lower.min(),
         cl.scene_cover_slabs(posed, rows, spheres)[0],
-        checker.narrow.scene_nearest(posed, rows)[0],
+        checker.narrow.scene_exact(posed, rows)[0],
     ]
     assert all(b <= truth + 1e-9 for b in bounds), bounds
     assert max(bounds) > truth - 0.005  # and the best of them is still close
@@ -141,14 +141,14 @@ def test_scene_bounds_stay_below_the_sampled_distance(restroom) -> None:  # type
         cl.scene_slabs(posed, rows),
         np.maximum(spheres.lower.min(axis=1), 0.0),
         cl.scene_cover_slabs(posed, rows, spheres),
-        checker.narrow.scene_nearest(posed, rows),
+        checker.narrow.scene_exact(posed, rows),
     ]
     for k, (sample, element, obj) in enumerate(rows):
         pose = posed.pose(np.array([sample]), np.array([element]))[0]
         truth = _box_distance(_surface(model.elements[element].shape, pose, 80), scene.objects[obj])
         for level, bound in enumerate(levels):
             assert bound[k] <= truth + 1e-9, (level, bound[k], truth)
-        assert levels[-1][k] > truth - 0.003 or truth == 0.0  # FCL's direction makes it tight
+        assert levels[-1][k] > truth - 0.003 or truth == 0.0  # exact, less its margin
 
 
 def test_self_bounds_stay_below_the_sampled_distance(restroom) -> None:  # type: ignore[no-untyped-def]
@@ -172,7 +172,7 @@ def test_self_bounds_stay_below_the_sampled_distance(restroom) -> None:  # type:
         cl.self_slabs(posed, rows),
         np.maximum(spheres.lower.min(axis=(1, 2)), 0.0),
         cl.self_cover_slabs(posed, rows, spheres),
-        checker.narrow.self_nearest(posed, rows),
+        checker.narrow.self_exact(posed, rows),
     ]
     for k, (sample, pair) in enumerate(rows):
         ei, ej = rg.pair_i[pair], rg.pair_j[pair]

@@ -6,7 +6,7 @@ M·(t_b − t_a) and the distance is positive wherever the bound from one end st
 while d_a − M·(t − t_a) > 0, near t_b likewise. The rest, [t_a + d_a/M, t_b − d_b/M] in segment
 fractions, is split in its middle (kept within the middle half of the piece, so pieces shrink
 at least by a quarter) and both halves are tried again with the bounds at the new state (the
-cheap levels first, FCL's nearest-point direction only where they fall short). It ends in a
+cheap levels first, coal's exact distance only where they fall short). It ends in a
 certificate, in a state where FCL finds a contact, or - once a piece's motion bound falls below
 `min_pad`, or after `max_depth` rounds - in TOO_CLOSE.
 """
@@ -109,8 +109,8 @@ class Advancer:
             lower[weak] = np.maximum(lower[weak], better)
             weak = lower <= need
         if np.any(weak):
-            nearest = self.narrow.scene_nearest if left.scene else self.narrow.self_nearest
-            lower[weak] = np.maximum(lower[weak], nearest(posed, rows[weak]))
+            exact = self.narrow.scene_exact if left.scene else self.narrow.self_exact
+            lower[weak] = np.maximum(lower[weak], exact(posed, rows[weak]))
         hit = np.zeros(len(rows), dtype=bool)
         zero = lower <= 0.0
         if np.any(zero):

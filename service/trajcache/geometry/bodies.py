@@ -12,6 +12,7 @@ import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 
+import coal
 import fcl
 import numpy as np
 from numpy.typing import NDArray
@@ -21,7 +22,7 @@ from trajcache.geometry.motion import MotionBounds, motion_bounds
 from trajcache.geometry.robot import RobotModel
 from trajcache.geometry.scene import Scene
 from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.support import SupportTable, hull_fcl, sphere_cover
+from trajcache.geometry.support import SupportTable, sphere_cover
 
 IntArray = NDArray[np.int64]
 _CACHE_SIZE = 64
@@ -35,8 +36,8 @@ class RobotGeometry:
         self.motion: MotionBounds = motion_bounds(model)
         elements = model.elements
         self.geometries = [e.shape.to_fcl() for e in elements]
-        # Convex hulls of meshes, for nearest-point directions only (never for a verdict).
-        self.hull_geometries = [hull_fcl(e.shape) for e in elements]
+        # coal's geometries, for exact distances (FCL's can be too large).
+        self.exact_geometries = [e.shape.to_coal() for e in elements]
         self.element_link = np.array([e.link for e in elements], dtype=np.int64)
         self.element_origin = np.array([e.origin for e in elements], dtype=float).reshape(-1, 4, 4)
         self.support = SupportTable.build([e.shape for e in elements])
@@ -159,26 +160,27 @@ class RobotGeometry:
         proven = {links(i, j) for i, j in self.proven_free} - checked
         return out + [(names[a], names[b], "proven") for a, b in sorted(proven)]
 
-    def objects(self, *, hulls: bool = False) -> list[fcl.CollisionObject]:
-        """This thread's FCL objects (transforms are mutated during a check); with `hulls`, a
-        mesh's is its convex hull."""
-        name = "hull_objects" if hulls else "objects"
-        objs: list[fcl.CollisionObject] | None = getattr(self._local, name, None)
+    def objects(self) -> list[fcl.CollisionObject]:
+        """This thread's FCL objects (transforms are mutated during a check)."""
+        objs: list[fcl.CollisionObject] | None = getattr(self._local, "objects", None)
         if objs is None:
-            geometries = self.hull_geometries if hulls else self.geometries
-            objs = [fcl.CollisionObject(g, fcl.Transform()) for g in geometries]
-            setattr(self._local, name, objs)
+            objs = [fcl.CollisionObject(g, fcl.Transform()) for g in self.geometries]
+            self._local.objects = objs
         return objs
 
 
 class SceneGeometry:
-    """FCL objects, oriented bounding boxes and support tables of one scene version."""
+    """FCL and coal objects, oriented bounding boxes and support tables of one scene version."""
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.ids = [o.id for o in scene.objects]
         self.objects = [
             fcl.CollisionObject(o.shape.to_fcl(), fcl.Transform(o.pose[:3, :3], o.pose[:3, 3]))
+            for o in scene.objects
+        ]
+        self.exact_objects = [
+            (o.shape.to_coal(), coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]))
             for o in scene.objects
         ]
         count = len(scene.objects)

@@ -10,15 +10,15 @@ segment the distance is at least max(d_a − t·M, d_b − (1 − t)·M) ≥ (d_
 Pairs are settled level by level, dense and cheap first (`clearance.py`): element balls with the
 motion of their centre; slabs with the motion of the whole element (its centre's, plus its ball
 radius times the turn of the dofs that move it); every ball of the sphere covers with its own
-motion; the slab along FCL's nearest-point direction. The dense first level uses the
+motion; the exact distance (coal, meshes as their triangles). The dense first level uses the
 configuration-independent motion bound (one matrix product); the configuration-dependent one
 is computed for the pairs it leaves. Before going further, FCL's collision test runs where a
 pair's bound at a sample is not positive: a colliding sample ends the search at once, as in the
 plain check. A pair no level settles is conservative advancement's job (`advance.py`), which
 ends in a certificate, a colliding state, or TOO_CLOSE.
 
-Every bound is a true bound (FCL supplies directions and the collision test, never a distance),
-so a certified motion has no collision anywhere along it. A sample in collision always reaches
+Every bound is a true bound (coal's exact distances less a margin for its tolerance; FCL
+supplies the collision test, never a distance), so a certified motion has no collision anywhere along it. A sample in collision always reaches
 FCL's collision test: there d = 0, the other end's d ≤ M, and no level certifies its segments.
 """
 
@@ -80,7 +80,7 @@ class SegmentCertifier:
         if found.status is SegmentStatus.COLLISION:
             return found
         probes = 0
-        for group in (self._nearest(posed, g) for g in groups):
+        for group in (self._exact(posed, g) for g in groups):
             deeper = self.advancer.advance(states, delta, group)
             probes += deeper.subdivisions
             if deeper.position < found.position:
@@ -329,16 +329,16 @@ class SegmentCertifier:
         sample = min(s for s, _ in hits)
         return Finding(SegmentStatus.COLLISION, sample, 0.0, [c for s, c in hits if s == sample])
 
-    def _nearest(self, posed: Posed, group: OpenPairs) -> OpenPairs:
-        """Level 4 at the ends of the pairs left (each end once)."""
+    def _exact(self, posed: Posed, group: OpenPairs) -> OpenPairs:
+        """Level 4, exact distances, at the ends of the pairs left (each end once)."""
         count = len(group.rows)
         if count == 0:
             return group
         both = np.concatenate([group.rows, group.ends])
         unique, where = np.unique(both, axis=0, return_inverse=True)
         where = where.reshape(-1)
-        nearest = self.narrow.scene_nearest if group.scene else self.narrow.self_nearest
-        bound = nearest(posed, unique)
+        exact = self.narrow.scene_exact if group.scene else self.narrow.self_exact
+        bound = exact(posed, unique)
         group.lower_a = np.maximum(group.lower_a, bound[where[:count]])
         group.lower_b = np.maximum(group.lower_b, bound[where[count:]])
         return group.open()

@@ -1,7 +1,7 @@
 """Sound lower bounds on the distance of posed robot elements to scene objects and to each other.
 
-Four levels, each tighter and dearer than the one before; every one is a true lower bound (it
-never exceeds the distance), so any of them may prove clearance:
+Three levels, each tighter and dearer than the one before, and a fourth in `narrow.py`; every one
+is a true lower bound (it never exceeds the distance), so any of them may prove clearance:
 
 1. balls: one ball around each element's origin against each object's oriented box (or the other
    element's ball), dense over every state, element and object in one numpy pass;
@@ -11,9 +11,10 @@ never exceeds the distance), so any of them may prove clearance:
    both elements' face normals);
 3. sphere covers: every ball of the element's cover against the box (or every ball of the other
    element's cover), plus slabs along the directions those balls suggest;
-4. the slab along the line between FCL's nearest points (`narrow.py`). FCL's distance value
-   itself is never used: its GJK overestimates some box–cylinder distances by centimetres, which
-   would make a bound unsound; a poor direction only makes the bound looser.
+4. the exact distance, from coal (`narrow.py`): a mesh as its triangles, so a body inside a
+   concave mesh's hull but clear of the mesh is settled. FCL's distance value is never used:
+   its GJK overestimates some box–cylinder distances by centimetres, which would make a bound
+   unsound.
 
 Rows are (state, element, object) for the scene and (state, pair) for the robot itself. Hot
 loops avoid numpy reductions over short trailing axes (slow): 3-vectors are summed by component.
@@ -70,7 +71,7 @@ class SelfSpheres:
 
 
 class Clearance:
-    """Distance bounds (levels 1 to 3, and the slab arithmetic of level 4) between one robot's
+    """Distance bounds (levels 1 to 3) between one robot's
     elements and one scene."""
 
     def __init__(self, robot: RobotGeometry, scene: SceneGeometry) -> None:

@@ -96,13 +96,13 @@ class CollisionChecker:
         self.clearance = Clearance(self.robot, self.scene)
         allowed = self.clearance.allowed
         self._allowed = np.zeros((0, 0), dtype=bool) if allowed is None else allowed
-        self.narrow = Narrow(self.robot, self.scene, self.clearance)
+        self.narrow = Narrow(self.robot, self.scene)
         self._contacts: dict[tuple[int, int], Contact] = {}  # (element, object) or (pair, -1)
 
     @property
     def narrow_checks(self) -> int:
         """FCL calls made by this thread so far."""
-        return self.narrow.fcl_calls
+        return self.narrow.calls
 
     def pose(self, states: FloatArray) -> Posed:
         """Forward kinematics of a batch of states, as the bounds use it."""
@@ -128,7 +128,7 @@ class CollisionChecker:
         """
         posed = self.pose(states)
         n = len(posed.states)
-        before = self.narrow.fcl_calls
+        before = self.narrow.calls
         cl = self.clearance
         padded = element_pad is not None or pair_pad is not None
         epad = np.zeros((n, len(self.robot.radius))) if element_pad is None else element_pad
@@ -160,7 +160,7 @@ class CollisionChecker:
             if len(self_rows) >= _FEW_ROWS:
                 self_rows, self_pad = self._filter(posed, self_rows, self_pad)
         if len(scene_rows) == 0 and len(self_rows) == 0:
-            return BatchVerdict(status, -1, [], self.narrow.fcl_calls - before)
+            return BatchVerdict(status, -1, [], self.narrow.calls - before)
         hit_scene, hit_self, near_scene, near_self = self.narrow.first_collision(
             posed,
             scene_rows,
@@ -184,7 +184,7 @@ class CollisionChecker:
             status=status,
             first_collision=first,
             contacts=[c for _, c in contacts],
-            narrow_checks=self.narrow.fcl_calls - before,
+            narrow_checks=self.narrow.calls - before,
         )
 
     def _filter(self, posed: Posed, rows: IntArray, pad: FloatArray) -> tuple[IntArray, FloatArray]:

@@ -12,8 +12,8 @@ the other from c to any state of the cell (h the cell's half widths), give
 A cell the bound does not settle is split in two along each of its dofs and tried again, within a
 budget of centres per pair; a pair is dropped only when every cell of its box is settled, and
 kept as soon as a centre has no positive bound. The
-lower bounds are the validator's own: support-function slabs, and the slab along FCL's
-nearest-point direction (FCL supplies directions, never a distance). Revolute dofs without
+lower bounds are the validator's own: support-function slabs, and coal's exact distance
+(FCL's distances are never used). Revolute dofs without
 limits span one turn.
 
 This is the sampled "never in collision" rule of motion-planning setup tools made a proof: a
@@ -50,7 +50,7 @@ def proven_free_pairs(robot: RobotGeometry) -> BoolArray:
         return free
     scene = SceneGeometry(Scene(objects=()))
     clearance = Clearance(robot, scene)
-    narrow = Narrow(robot, scene, clearance)
+    narrow = Narrow(robot, scene)
     _, whole = robot.pair_motion()  # (D, P)
     anc = robot.motion.ancestors
     for pair in range(len(free)):
@@ -115,12 +115,12 @@ def _lower_bound(
     states: FloatArray,
     need: float,
 ) -> FloatArray:
-    """A lower bound on the pair's distance at each state; the nearest-point slab only where
+    """A lower bound on the pair's distance at each state; the exact distance only where
     the cheaper slabs do not already exceed `need`."""
     posed = Posed.build(robot, states)
     rows = np.column_stack([np.arange(len(states)), np.full(len(states), pair)])
     bound = np.maximum(clearance.self_slabs(posed, rows), 0.0)
     weak = bound <= need + _ROUNDING
     if np.any(weak):
-        bound[weak] = np.maximum(bound[weak], narrow.self_nearest(posed, rows[weak]))
+        bound[weak] = np.maximum(bound[weak], narrow.self_exact(posed, rows[weak]))
     return bound

@@ -1,71 +1,93 @@
-"""FCL's part of a check: nearest-point directions for the last bound level, and the verdict.
+"""The narrow phase: exact distances for the last bound level, and the verdict.
 
-FCL answers two questions here, one call per row: which way the two bodies are nearest each
-other (level 4 of `clearance.py` then bounds their distance along that line; FCL's own distance
-value is not used, it can be too large), and whether they touch (FCL's collision test, the
-verdict plain checks give, so that they agree with a per-state FCL loop). For planners'
-clearance checks it also gives its distance value, as a heuristic. Calls are counted per thread.
+Two libraries answer here, one call per row. coal gives the exact distance between the two
+bodies, meshes as their triangles (not their hulls), which settles pairs near concave meshes
+where every cheaper level only bounds the distance to a hull or a box; it is level 4 of the
+bounds (`EXACT_MARGIN` less, for GJK's tolerance). python-fcl gives the verdict, its collision
+test, so that a check agrees with a per-state FCL loop; FCL's distances are never used as bounds
+(python-fcl 0.7 overestimates some by centimetres), only as a heuristic for planners' clearance
+checks. Calls are counted per thread.
 """
 
 from __future__ import annotations
 
 import threading
 
+import coal
 import fcl
 import numpy as np
 from numpy.typing import NDArray
 
 from trajcache.geometry.bodies import Posed, RobotGeometry, SceneGeometry
-from trajcache.geometry.clearance import Clearance
 from trajcache.geometry.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
+# Subtracted from coal's distances: ten times its GJK tolerance (1e-6), in metres.
+EXACT_MARGIN = 1e-5
+
 
 class Narrow:
-    """FCL queries on rows of one robot and one scene, the robot's objects posed per row."""
+    """coal and FCL queries on rows of one robot and one scene, the robot posed per row."""
 
-    def __init__(self, robot: RobotGeometry, scene: SceneGeometry, clearance: Clearance) -> None:
+    def __init__(self, robot: RobotGeometry, scene: SceneGeometry) -> None:
         self.robot = robot
         self.scene = scene
-        self.clearance = clearance
         self._counts = threading.local()
-        self._request = fcl.DistanceRequest(enable_nearest_points=True)
         self._collide = fcl.CollisionRequest()
 
     @property
-    def fcl_calls(self) -> int:
-        """FCL calls made by this thread so far."""
+    def calls(self) -> int:
+        """coal and FCL calls made by this thread so far."""
         return int(getattr(self._counts, "calls", 0))
 
     def _count(self, calls: int) -> None:
-        self._counts.calls = self.fcl_calls + calls
+        self._counts.calls = self.calls + calls
 
-    def scene_nearest(self, posed: Posed, rows: IntArray) -> FloatArray:
-        """Level 4 for scene rows: the slab bound along FCL's nearest-point direction."""
-        return self._nearest(posed, rows, scene=True)
-
-    def self_nearest(self, posed: Posed, rows: IntArray) -> FloatArray:
-        """Level 4 for robot pairs."""
-        return self._nearest(posed, rows, scene=False)
-
-    def _nearest(self, posed: Posed, rows: IntArray, *, scene: bool) -> FloatArray:
-        # A mesh is queried as its convex hull: only the direction is used, and any direction
-        # gives a valid slab.
+    def scene_exact(self, posed: Posed, rows: IntArray) -> FloatArray:
+        """Level 4 for scene rows: coal's distance between element and object, less
+        `EXACT_MARGIN` (≤ 0 where they touch)."""
         if len(rows) == 0:
             return np.zeros(0)
-        dirs = np.zeros((len(rows), 1, 3))
-        poser = _Poser(self, posed, rows, scene=scene, at={}, hulls=True)
-        for k in range(len(rows)):
-            first, second = poser.pair(k)
-            result = fcl.DistanceResult()
-            if fcl.distance(first, second, self._request, result) > 0.0:
-                near_a, near_b = result.nearest_points
-                dirs[k, 0] = np.asarray(near_b) - np.asarray(near_a)
+        robot, scene = self.robot, self.scene
+        poses = posed.pose(rows[:, 0], rows[:, 1])
+        request = coal.DistanceRequest()
+        out = np.empty(len(rows))
+        for k, (element, obj) in enumerate(rows[:, 1:3].tolist()):
+            geometry, placed = scene.exact_objects[obj]
+            out[k] = coal.distance(
+                robot.exact_geometries[element],
+                coal.Transform3s(poses[k, :3, :3], poses[k, :3, 3]),
+                geometry,
+                placed,
+                request,
+                coal.DistanceResult(),
+            )
         self._count(len(rows))
-        slab = self.clearance.scene_slab if scene else self.clearance.self_slab
-        return slab(posed, rows, dirs)
+        return out - EXACT_MARGIN
+
+    def self_exact(self, posed: Posed, rows: IntArray) -> FloatArray:
+        """Level 4 for robot pairs."""
+        if len(rows) == 0:
+            return np.zeros(0)
+        robot = self.robot
+        first, second = robot.pair_i[rows[:, 1]], robot.pair_j[rows[:, 1]]
+        poses_i, poses_j = posed.pose(rows[:, 0], first), posed.pose(rows[:, 0], second)
+        request = coal.DistanceRequest()
+        out = np.empty(len(rows))
+        geometries = robot.exact_geometries
+        for k, (i, j) in enumerate(zip(first.tolist(), second.tolist(), strict=True)):
+            out[k] = coal.distance(
+                geometries[i],
+                coal.Transform3s(poses_i[k, :3, :3], poses_i[k, :3, 3]),
+                geometries[j],
+                coal.Transform3s(poses_j[k, :3, :3], poses_j[k, :3, 3]),
+                request,
+                coal.DistanceResult(),
+            )
+        self._count(len(rows))
+        return out - EXACT_MARGIN
 
     def first_collision(
         self,
@@ -136,10 +158,9 @@ class _Poser:
         *,
         scene: bool,
         at: dict[int, int],
-        hulls: bool = False,
     ) -> None:
         robot = narrow.robot
-        self.objects = robot.objects(hulls=hulls)
+        self.objects = robot.objects()
         self.scene_objects = narrow.scene.objects
         self.rows = rows
         self.scene = scene

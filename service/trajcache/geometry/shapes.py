@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
+import coal
 import fcl
 import numpy as np
 from numpy.typing import NDArray
@@ -98,6 +99,28 @@ class Shape:
         bvh = fcl.BVHModel()
         bvh.beginModel(len(self.vertices), len(self.faces))
         bvh.addSubModel(self.vertices, self.faces)
+        bvh.endModel()
+        return bvh
+
+    def to_coal(self) -> coal.CollisionGeometry:
+        """Build the coal geometry for this shape (exact distances: `narrow.Narrow.exact`).
+
+        coal takes the same conventions as FCL: full box extents, cylinders and capsules along
+        local z with the length between their end faces or cap centres.
+        """
+        if self.kind is ShapeKind.BOX:
+            return coal.Box(*self.size)
+        if self.kind is ShapeKind.SPHERE:
+            return coal.Sphere(self.size[0])
+        if self.kind is ShapeKind.CYLINDER:
+            return coal.Cylinder(self.size[0], self.size[1])
+        if self.kind is ShapeKind.CAPSULE:
+            return coal.Capsule(self.size[0], self.size[1])
+        assert self.vertices is not None and self.faces is not None
+        bvh = coal.BVHModelOBBRSS()
+        bvh.beginModel(len(self.faces), len(self.vertices))
+        bvh.addVertices(np.asarray(self.vertices, dtype=float))
+        bvh.addTriangles(np.asarray(self.faces, dtype=np.int64))
         bvh.endModel()
         return bvh
 

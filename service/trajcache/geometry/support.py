@@ -26,7 +26,6 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import fcl
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import ConvexHull, QhullError
@@ -218,22 +217,6 @@ _ANCHOR_DIRECTIONS = np.array(
     ],
     dtype=float,
 )
-
-
-def hull_fcl(shape: Shape) -> fcl.CollisionGeometry:
-    """An FCL convex of a mesh's convex hull (the shape's own FCL geometry for a primitive, or
-    for a flat mesh): for nearest-point directions, where a mesh's triangles are slow to query."""
-    if shape.kind is not ShapeKind.MESH or shape.vertices is None:
-        return shape.to_fcl()
-    vertices = np.asarray(shape.vertices, dtype=float)
-    try:
-        hull = ConvexHull(vertices)
-    except QhullError:
-        return shape.to_fcl()
-    remap = np.full(len(vertices), -1, dtype=np.int64)
-    remap[hull.vertices] = np.arange(len(hull.vertices))
-    faces = np.column_stack([np.full(len(hull.simplices), 3), remap[hull.simplices]]).ravel()
-    return fcl.Convex(vertices[hull.vertices], len(hull.simplices), faces)
 
 
 def _hull_graph(vertices: FloatArray) -> tuple[IntArray, list[list[int]]]:
