@@ -18,8 +18,9 @@ plain check. A pair no level settles is conservative advancement's job (`advance
 ends in a certificate, a colliding state, or TOO_CLOSE.
 
 Every bound is a true bound (coal's exact distances less a margin for its tolerance; FCL
-supplies the collision test, never a distance), so a certified motion has no collision anywhere along it. A sample in collision always reaches
-FCL's collision test: there d = 0, the other end's d ≤ M, and no level certifies its segments.
+supplies the collision test, never a distance), so a certified motion has no collision anywhere
+along it. A sample in collision always reaches FCL's collision test: there d = 0, the other
+end's d ≤ M, and no level certifies its segments.
 """
 
 from __future__ import annotations
