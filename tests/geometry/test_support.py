@@ -122,3 +122,48 @@ def test_hill_climbing_finds_the_largest_projection_on_real_meshes(robot: str) -
         assert shape.vertices is not None
         want = (local[k] @ shape.vertices.T).max(axis=-1)
         np.testing.assert_allclose(got[k], want, rtol=0, atol=1e-12)
+
+
+def _mesh(*boxes: tuple[tuple[float, float, float], tuple[float, float, float]]) -> Shape:
+    """One mesh of the triangles of several boxes (extents, centre), overlaps left in."""
+    import trimesh
+
+    parts = []
+    for extents, centre in boxes:
+        pose = np.eye(4)
+        pose[:3, 3] = centre
+        parts.append(trimesh.creation.box(extents, pose))
+    mesh = trimesh.util.concatenate(parts)
+    return Shape(ShapeKind.MESH, vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces))
+
+
+def _points_of(shape: Shape, boxes: list[tuple[FloatArray, FloatArray]], count: int) -> FloatArray:
+    """Points on the surface of a mesh made by `_mesh` and inside its boxes (lo, hi)."""
+    import trimesh
+
+    assert shape.vertices is not None
+    mesh = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
+    surface = trimesh.sample.sample_surface(mesh, count, seed=3)[0]
+    rng = np.random.default_rng(3)
+    solid = [rng.uniform(lo, hi, size=(count, 3)) for lo, hi in boxes]
+    return np.vstack([surface, *solid])
+
+
+def test_a_mesh_cover_drops_the_cells_the_mesh_leaves_empty() -> None:
+    ell = _mesh(((0.3, 0.03, 0.03), (0.15, 0.015, 0.0)), ((0.03, 0.3, 0.03), (0.015, 0.15, 0.0)))
+    centres, radii = sphere_cover(ell)
+    assert len(centres) == 5  # of the 3 × 3 grid's 9 cells, the L crosses 5
+    boxes = [(np.array([0.0, 0.0, -0.015]), np.array([0.3, 0.03, 0.015])),
+             (np.array([0.0, 0.0, -0.015]), np.array([0.03, 0.3, 0.015]))]  # fmt: skip
+    points = _points_of(ell, boxes, 4000)
+    gap = np.linalg.norm(points[:, None] - centres[None], axis=-1) - radii[None]
+    assert np.all(gap.min(axis=1) <= 0.0)
+
+
+def test_a_mesh_cover_keeps_cells_inside_overlapping_parts() -> None:
+    # Two closed cubes, one just inside the other: the middle cell touches neither surface and
+    # lies inside both, where a ray's parity would call it outside.
+    nested = _mesh(((0.3, 0.3, 0.3), (0.0, 0.0, 0.0)), ((0.29, 0.29, 0.29), (0.0, 0.0, 0.0)))
+    centres, _ = sphere_cover(nested)
+    assert len(centres) == 27
+    assert np.min(np.linalg.norm(centres, axis=1)) < 1e-9

@@ -259,17 +259,65 @@ def sphere_cover(shape: Shape) -> tuple[FloatArray, FloatArray]:
         centres = np.column_stack([np.zeros(count), np.zeros(count), z])
         return centres, np.full(count, math.hypot(radius, slab / 2.0) + _EPS)
     if shape.kind is ShapeKind.BOX:
-        lo, hi = -np.asarray(shape.size) / 2.0, np.asarray(shape.size) / 2.0
-    else:
-        lo, hi = _mesh_box(shape)
-    return _box_cover(lo, hi)
+        centres, step = _grid(-np.asarray(shape.size) / 2.0, np.asarray(shape.size) / 2.0)
+        return centres, np.full(len(centres), float(np.linalg.norm(step)) / 2.0 + _EPS)
+    assert shape.vertices is not None and shape.faces is not None
+    centres, step = _grid(*_mesh_box(shape))
+    centres = centres[_cells_of_mesh(centres, step / 2.0, shape.vertices, shape.faces)]
+    return centres, np.full(len(centres), float(np.linalg.norm(step)) / 2.0 + _EPS)
 
 
-def _box_cover(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _grid(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Centres (C, 3) and the common size (3,) of the cells a box [lo, hi] is cut into."""
     size = hi - lo
     cell = max(float(size.max()) / _BOX_CELLS, 1e-9)
     counts = np.maximum(np.ceil(size / cell - 1e-9).astype(int), 1)
     step = size / counts
     axes = [lo[i] + step[i] * (np.arange(counts[i]) + 0.5) for i in range(3)]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    return grid, np.full(len(grid), float(np.linalg.norm(step)) / 2.0 + _EPS)
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3), step
+
+
+def _cells_of_mesh(
+    centres: FloatArray, half: FloatArray, vertices: FloatArray, faces: IntArray
+) -> NDArray[np.bool_]:
+    """Which grid cells (centres (C, 3), half extents (3,)) a mesh needs in its cover.
+
+    A cell is kept when a triangle may cross it: the triangle's box overlaps the cell and its
+    plane passes within the cell's reach (both are necessary for an overlap, so no crossed
+    cell is dropped). A cell no triangle crosses lies wholly inside or wholly outside the
+    mesh's solid; it is kept when its centre is inside, by the generalized winding number,
+    which counts overlapping closed parts right, where a ray's parity does not. What is left
+    covers every point of the mesh, surface and solid.
+    """
+    tri = np.asarray(vertices, dtype=float)[np.asarray(faces, dtype=np.int64)]  # (F, 3, 3)
+    reach = np.asarray(half, dtype=float) * (1.0 + 1e-9) + _EPS
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # (F, 3)
+    offset = np.einsum("fi,fi->f", normal, tri[:, 0])
+    radius = np.abs(normal) @ reach
+    low, high = tri.min(axis=1), tri.max(axis=1)
+    crossed = np.zeros(len(centres), dtype=bool)
+    for c, centre in enumerate(centres):
+        boxes = np.all((low <= centre + reach) & (high >= centre - reach), axis=1)
+        plane = np.abs(normal[boxes] @ centre - offset[boxes]) <= radius[boxes] * (1.0 + 1e-9)
+        crossed[c] = bool(plane.any())
+    keep = crossed.copy()
+    keep[~crossed] = np.abs(_winding_numbers(centres[~crossed], tri)) >= 0.5
+    return keep
+
+
+def _winding_numbers(points: FloatArray, tri: FloatArray) -> FloatArray:
+    """Generalized winding number of each point (P, 3) for triangles (F, 3, 3): the sum of
+    their signed solid angles over 4π (Van Oosterom and Strackee's formula)."""
+    out = np.zeros(len(points))
+    for k, point in enumerate(points):
+        a, b, c = (tri[:, i] - point for i in range(3))
+        la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
+        det = np.einsum("fi,fi->f", a, np.cross(b, c))
+        dots = (
+            la * lb * lc
+            + np.einsum("fi,fi->f", a, b) * lc
+            + np.einsum("fi,fi->f", b, c) * la
+            + np.einsum("fi,fi->f", c, a) * lb
+        )
+        out[k] = float(np.sum(2.0 * np.arctan2(det, dots)) / (4.0 * np.pi))
+    return out
