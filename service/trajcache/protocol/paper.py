@@ -299,7 +299,7 @@ def run_protocol(
 def parse_args(argv: list[str] | None = None, artifacts: Path = ARTIFACTS) -> argparse.Namespace:
     """Command-line options; JSON and chart go to `artifacts` unless given."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
-    parser.add_argument("--smoke", action="store_true", help="40 calls per run, doors 0° and 90°")
+    parser.add_argument("--smoke", action="store_true", help="24 calls per run, doors 0° and 90°")
     parser.add_argument("--seed", type=int, default=1, help="workload seed S (run 1)")
     parser.add_argument("--postgres", metavar="URL", help="PostgreSQL server (default: SQLite)")
     parser.add_argument("--calls", type=int, help="play only the first N calls of each run")
@@ -323,7 +323,7 @@ def main(argv: list[str] | None = None, artifacts: Path = ARTIFACTS) -> None:
     args = parse_args(argv, artifacts)
     protocol = Protocol(
         seed=args.seed,
-        calls=args.calls or (40 if args.smoke else None),
+        calls=args.calls or (24 if args.smoke else None),
         sweep=(0, 90) if args.smoke else SWEEP_DEG,
         rows=frozenset(args.rows.split(",")) if args.rows else None,
         postgres=args.postgres,
