@@ -49,6 +49,7 @@ from trajcache.workload.example_robots import ROBOTS, ExampleRobot
 NOISE = 0.02
 COLUMNS = ("problems", "success_rate", "plan_ms_median", "plan_ms_p95", "hit_rate",
            "hit_server_ms_median", "collisions", "self_collisions", "limit_violations")  # fmt: skip
+HIT_PARTS = ("validate", "lookup", "db")  # of a hit's server time
 SMOKE_ROBOTS, SMOKE_FAMILIES = ("panda", "ur5"), ("table", "shelf")
 
 
@@ -66,6 +67,7 @@ class Tally:
     replays: int = 0
     hits: int = 0
     hit_server_ms: list[float] = field(default_factory=list)
+    hit_parts_ms: dict[str, list[float]] = field(default_factory=dict)  # validate, lookup, db
     counts: Counter[str] = field(default_factory=Counter)  # paths, collisions, 4xx, …
     notes: Counter[str] = field(default_factory=Counter)  # 4xx messages, contact pairs, errors
 
@@ -91,6 +93,12 @@ def summary(tallies: list[Tally]) -> dict[str, Any]:
         "plan_ms_p95": _percentile(plan_ms, 95),
         "hit_rate": round(sum(t.hits for t in tallies) / replays, 3) if replays else None,
         "hit_server_ms_median": _percentile([v for t in tallies for v in t.hit_server_ms]),
+        **{
+            f"hit_{part}_ms_median": _percentile(
+                [v for t in tallies for v in t.hit_parts_ms.get(part, [])]
+            )
+            for part in HIT_PARTS
+        },
         "collisions": counts["collisions"],
         "self_collisions": counts["self_collisions"],
         "limit_violations": counts["limit_violations"],
@@ -217,7 +225,10 @@ class RobotRun:
             return
         if answer["source"] == "cache":
             self.tally.hits += 1
-            self.tally.hit_server_ms.append(float(answer["timings_ms"]["total"]))
+            timings = answer["timings_ms"]
+            self.tally.hit_server_ms.append(float(timings["total"]))
+            for part in HIT_PARTS:
+                self.tally.hit_parts_ms.setdefault(part, []).append(float(timings[part]))
         else:
             self.tally.counts["replays_planned"] += 1
         self.check(answer, start, goal)
