@@ -110,7 +110,7 @@ class Advancer:
             weak = lower <= need
         if np.any(weak):
             exact = self.narrow.scene_exact if left.scene else self.narrow.self_exact
-            lower[weak] = np.maximum(lower[weak], exact(posed, rows[weak]))
+            lower[weak] = np.maximum(lower[weak], exact(posed, rows[weak], need[weak]))
         hit = np.zeros(len(rows), dtype=bool)
         zero = lower <= 0.0
         if np.any(zero):

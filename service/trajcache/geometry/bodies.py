@@ -36,8 +36,15 @@ class RobotGeometry:
         self.motion: MotionBounds = motion_bounds(model)
         elements = model.elements
         self.geometries = [e.shape.to_fcl() for e in elements]
-        # coal's geometries, for exact distances (FCL's can be too large).
+        # coal's geometries, for exact distances (FCL's can be too large), and meshes' hulls.
         self.exact_geometries = [e.shape.to_coal() for e in elements]
+        self.hull_geometries = [
+            e.shape.to_coal_hull(g) for e, g in zip(elements, self.exact_geometries, strict=True)
+        ]
+        self.hull_differs = np.array(
+            [h is not g for h, g in zip(self.hull_geometries, self.exact_geometries, strict=True)],
+            dtype=bool,
+        )
         self.element_link = np.array([e.link for e in elements], dtype=np.int64)
         self.element_origin = np.array([e.origin for e in elements], dtype=float).reshape(-1, 4, 4)
         self.support = SupportTable.build([e.shape for e in elements])
@@ -179,10 +186,15 @@ class SceneGeometry:
             fcl.CollisionObject(o.shape.to_fcl(), fcl.Transform(o.pose[:3, :3], o.pose[:3, 3]))
             for o in scene.objects
         ]
-        self.exact_objects = [
-            (o.shape.to_coal(), coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]))
-            for o in scene.objects
+        self.exact_objects = [o.shape.to_coal() for o in scene.objects]
+        self.hull_objects = [
+            o.shape.to_coal_hull(g) for o, g in zip(scene.objects, self.exact_objects, strict=True)
         ]
+        self.hull_differs = np.array(
+            [h is not g for h, g in zip(self.hull_objects, self.exact_objects, strict=True)],
+            dtype=bool,
+        )
+        self.placements = [coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]) for o in scene.objects]
         count = len(scene.objects)
         self.rotation = np.array([o.pose[:3, :3] for o in scene.objects]).reshape(count, 3, 3)
         self.position = np.array([o.pose[:3, 3] for o in scene.objects]).reshape(count, 3)

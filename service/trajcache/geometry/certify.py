@@ -338,8 +338,10 @@ class SegmentCertifier:
         both = np.concatenate([group.rows, group.ends])
         unique, where = np.unique(both, axis=0, return_inverse=True)
         where = where.reshape(-1)
+        need = np.zeros(len(unique))  # an end's bound settles its segment above the motion
+        np.maximum.at(need, where, np.concatenate([group.motion, group.motion]))
         exact = self.narrow.scene_exact if group.scene else self.narrow.self_exact
-        bound = exact(posed, unique)
+        bound = exact(posed, unique, need)
         group.lower_a = np.maximum(group.lower_a, bound[where[:count]])
         group.lower_b = np.maximum(group.lower_b, bound[where[count:]])
         return group.open()

@@ -122,5 +122,7 @@ def _lower_bound(
     bound = np.maximum(clearance.self_slabs(posed, rows), 0.0)
     weak = bound <= need + _ROUNDING
     if np.any(weak):
-        bound[weak] = np.maximum(bound[weak], narrow.self_exact(posed, rows[weak]))
+        bound[weak] = np.maximum(
+            bound[weak], narrow.self_exact(posed, rows[weak], need + _ROUNDING)
+        )
     return bound

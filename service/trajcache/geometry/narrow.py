@@ -1,9 +1,10 @@
 """The narrow phase: exact distances for the last bound level, and the verdict.
 
 Two libraries answer here, one call per row. coal gives the exact distance between the two
-bodies, meshes as their triangles (not their hulls), which settles pairs near concave meshes
-where every cheaper level only bounds the distance to a hull or a box; it is level 4 of the
-bounds (`EXACT_MARGIN` less, for GJK's tolerance). python-fcl gives the verdict, its collision
+bodies: first with meshes as their convex hulls (cheap), then, where that is not enough, as
+their triangles, which settles pairs near concave meshes where every cheaper level only bounds
+the distance to a hull or a box. It is level 4 of the bounds (`EXACT_MARGIN` less, for GJK's
+tolerance). python-fcl gives the verdict, its collision
 test, so that a check agrees with a per-state FCL loop; FCL's distances are never used as bounds
 (python-fcl 0.7 overestimates some by centimetres), only as a heuristic for planners' clearance
 checks. Calls are counted per thread.
@@ -45,48 +46,65 @@ class Narrow:
     def _count(self, calls: int) -> None:
         self._counts.calls = self.calls + calls
 
-    def scene_exact(self, posed: Posed, rows: IntArray) -> FloatArray:
+    def scene_exact(
+        self, posed: Posed, rows: IntArray, need: FloatArray | float = np.inf
+    ) -> FloatArray:
         """Level 4 for scene rows: coal's distance between element and object, less
-        `EXACT_MARGIN` (≤ 0 where they touch)."""
+        `EXACT_MARGIN` (≤ 0 where they touch).
+
+        Meshes are measured as their convex hulls first (a lower bound, and several times
+        cheaper); where that is not above `need` (per row), as their triangles.
+        """
         if len(rows) == 0:
             return np.zeros(0)
         robot, scene = self.robot, self.scene
         poses = posed.pose(rows[:, 0], rows[:, 1])
-        request = coal.DistanceRequest()
+        element, obj = rows[:, 1], rows[:, 2]
+        placed = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses]
         out = np.empty(len(rows))
-        for k, (element, obj) in enumerate(rows[:, 1:3].tolist()):
-            geometry, placed = scene.exact_objects[obj]
+        request = coal.DistanceRequest()
+        lists = (robot.hull_geometries, scene.hull_objects)
+        for k, (e, m) in enumerate(zip(element.tolist(), obj.tolist(), strict=True)):
             out[k] = coal.distance(
-                robot.exact_geometries[element],
-                coal.Transform3s(poses[k, :3, :3], poses[k, :3, 3]),
-                geometry,
-                placed,
-                request,
+                lists[0][e], placed[k], lists[1][m], scene.placements[m], request,
                 coal.DistanceResult(),
-            )
-        self._count(len(rows))
+            )  # fmt: skip
+        refine = (robot.hull_differs[element] | scene.hull_differs[obj]) & (out <= need)
+        for k in np.flatnonzero(refine).tolist():
+            e, m = int(element[k]), int(obj[k])
+            out[k] = coal.distance(
+                robot.exact_geometries[e], placed[k], scene.exact_objects[m],
+                scene.placements[m], request, coal.DistanceResult(),
+            )  # fmt: skip
+        self._count(len(rows) + int(refine.sum()))
         return out - EXACT_MARGIN
 
-    def self_exact(self, posed: Posed, rows: IntArray) -> FloatArray:
-        """Level 4 for robot pairs."""
+    def self_exact(
+        self, posed: Posed, rows: IntArray, need: FloatArray | float = np.inf
+    ) -> FloatArray:
+        """Level 4 for robot pairs, as `scene_exact`."""
         if len(rows) == 0:
             return np.zeros(0)
         robot = self.robot
         first, second = robot.pair_i[rows[:, 1]], robot.pair_j[rows[:, 1]]
         poses_i, poses_j = posed.pose(rows[:, 0], first), posed.pose(rows[:, 0], second)
-        request = coal.DistanceRequest()
+        placed_i = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses_i]
+        placed_j = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses_j]
         out = np.empty(len(rows))
-        geometries = robot.exact_geometries
-        for k, (i, j) in enumerate(zip(first.tolist(), second.tolist(), strict=True)):
+        request = coal.DistanceRequest()
+        hulls, exact = robot.hull_geometries, robot.exact_geometries
+        pairs = list(zip(first.tolist(), second.tolist(), strict=True))
+        for k, (i, j) in enumerate(pairs):
             out[k] = coal.distance(
-                geometries[i],
-                coal.Transform3s(poses_i[k, :3, :3], poses_i[k, :3, 3]),
-                geometries[j],
-                coal.Transform3s(poses_j[k, :3, :3], poses_j[k, :3, 3]),
-                request,
-                coal.DistanceResult(),
+                hulls[i], placed_i[k], hulls[j], placed_j[k], request, coal.DistanceResult()
             )
-        self._count(len(rows))
+        refine = (robot.hull_differs[first] | robot.hull_differs[second]) & (out <= need)
+        for k in np.flatnonzero(refine).tolist():
+            i, j = pairs[k]
+            out[k] = coal.distance(
+                exact[i], placed_i[k], exact[j], placed_j[k], request, coal.DistanceResult()
+            )
+        self._count(len(rows) + int(refine.sum()))
         return out - EXACT_MARGIN
 
     def first_collision(

@@ -124,6 +124,18 @@ class Shape:
         bvh.endModel()
         return bvh
 
+    def to_coal_hull(self, exact: coal.CollisionGeometry) -> coal.CollisionGeometry:
+        """The convex hull of a mesh's coal geometry `exact` (from `to_coal`), whose distance
+        is a lower bound of the mesh's and several times cheaper; `exact` itself for a
+        primitive, or for a mesh without a 3-D hull (flat, or under four points)."""
+        if self.kind is not ShapeKind.MESH:
+            return exact
+        try:
+            exact.buildConvexHull(True, "Qt")
+        except ValueError:
+            return exact
+        return exact.convex
+
     def canonical(self) -> dict[str, object]:
         """A JSON-ready description used for content hashing."""
         out: dict[str, object] = {"kind": self.kind.value, "size": [round(v, 9) for v in self.size]}
