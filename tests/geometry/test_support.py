@@ -167,3 +167,12 @@ def test_a_mesh_cover_keeps_cells_inside_overlapping_parts() -> None:
     centres, _ = sphere_cover(nested)
     assert len(centres) == 27
     assert np.min(np.linalg.norm(centres, axis=1)) < 1e-9
+
+
+def test_only_meshes_well_below_their_hull_are_measured_by_their_triangles() -> None:
+    cube = _mesh(((0.2, 0.2, 0.2), (0.0, 0.0, 0.0)))
+    ell = _mesh(((0.3, 0.03, 0.03), (0.15, 0.015, 0.0)), ((0.03, 0.3, 0.03), (0.015, 0.15, 0.0)))
+    assert cube.hull_is_tight() and SHAPES["box"].hull_is_tight()
+    assert not ell.hull_is_tight()  # the L fills under a fifth of its hull
+    open_mesh = Shape(ShapeKind.MESH, vertices=TETRA.vertices, faces=TETRA.faces[:3])
+    assert not open_mesh.hull_is_tight()  # no volume to compare: measured as triangles

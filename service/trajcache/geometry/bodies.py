@@ -42,7 +42,12 @@ class RobotGeometry:
             e.shape.to_coal_hull(g) for e, g in zip(elements, self.exact_geometries, strict=True)
         ]
         self.hull_differs = np.array(
-            [h is not g for h, g in zip(self.hull_geometries, self.exact_geometries, strict=True)],
+            [
+                h is not g and not e.shape.hull_is_tight()
+                for e, h, g in zip(
+                    elements, self.hull_geometries, self.exact_geometries, strict=True
+                )
+            ],
             dtype=bool,
         )
         self.element_link = np.array([e.link for e in elements], dtype=np.int64)
@@ -191,7 +196,12 @@ class SceneGeometry:
             o.shape.to_coal_hull(g) for o, g in zip(scene.objects, self.exact_objects, strict=True)
         ]
         self.hull_differs = np.array(
-            [h is not g for h, g in zip(self.hull_objects, self.exact_objects, strict=True)],
+            [
+                h is not g and not o.shape.hull_is_tight()
+                for o, h, g in zip(
+                    scene.objects, self.hull_objects, self.exact_objects, strict=True
+                )
+            ],
             dtype=bool,
         )
         self.placements = [coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]) for o in scene.objects]
