@@ -50,6 +50,7 @@ NOISE = 0.02
 COLUMNS = ("problems", "success_rate", "plan_ms_median", "plan_ms_p95", "hit_rate",
            "hit_server_ms_median", "collisions", "self_collisions", "limit_violations")  # fmt: skip
 HIT_PARTS = ("validate", "lookup", "db")  # of a hit's server time
+PLAN_PARTS = ("plan", "validate", "db", "total")  # of a solved first request's server time
 SMOKE_ROBOTS, SMOKE_FAMILIES = ("panda", "ur5"), ("table", "shelf")
 
 
@@ -68,6 +69,7 @@ class Tally:
     hits: int = 0
     hit_server_ms: list[float] = field(default_factory=list)
     hit_parts_ms: dict[str, list[float]] = field(default_factory=dict)  # validate, lookup, db
+    plan_parts_ms: dict[str, list[float]] = field(default_factory=dict)  # of solved first asks
     counts: Counter[str] = field(default_factory=Counter)  # paths, collisions, 4xx, …
     notes: Counter[str] = field(default_factory=Counter)  # 4xx messages, contact pairs, errors
 
@@ -98,6 +100,12 @@ def summary(tallies: list[Tally]) -> dict[str, Any]:
                 [v for t in tallies for v in t.hit_parts_ms.get(part, [])]
             )
             for part in HIT_PARTS
+        },
+        **{
+            f"plan_{part}_ms_median": _percentile(
+                [v for t in tallies for v in t.plan_parts_ms.get(part, [])]
+            )
+            for part in PLAN_PARTS
         },
         "collisions": counts["collisions"],
         "self_collisions": counts["self_collisions"],
@@ -202,6 +210,8 @@ class RobotRun:
         self.tally.plan_ms.append(latency)
         if answer is not None and answer["status"] == "success":
             self.tally.solved += 1
+            for part, value in answer["timings_ms"].items():
+                self.tally.plan_parts_ms.setdefault(part, []).append(float(value))
             self.check(answer, problem.start, problem.goal)
         elif answer is not None:
             self.tally.notes[f"{answer['status']}: {answer['message'][:120]}"] += 1

@@ -14,8 +14,8 @@ import pytest
 import trimesh
 
 from trajcache.geometry.errors import MeshError, RobotModelError, UnsafePathError
-from trajcache.geometry.robot import BaseType
-from trajcache.geometry.shapes import ShapeKind
+from trajcache.geometry.robot import BaseType, CollisionElement
+from trajcache.geometry.shapes import Shape, ShapeKind
 from trajcache.geometry.urdf import load_robot_model, unpack_archive
 
 DATA = Path(__file__).parent / "data"
@@ -293,3 +293,19 @@ def test_adjacency_passes_through_links_without_geometry() -> None:
     )
     reasons = load_robot_model(urdf).pair_reasons
     assert reasons == {(0, 1): "adjacent", (1, 3): "adjacent"}  # l1–l3 through bare l2
+
+
+def test_a_mesh_element_is_centred_on_its_box_with_its_geometry_unchanged() -> None:
+    vertices = np.array([[1.0, 2.0, 0.0], [1.2, 2.0, 0.0], [1.0, 2.3, 0.0], [1.0, 2.0, 0.1]])
+    shape = Shape(ShapeKind.MESH, vertices=vertices, faces=np.array([[0, 1, 2], [0, 1, 3]]))
+    origin = np.eye(4)
+    origin[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    origin[:3, 3] = [0.5, 0.0, 0.2]
+    element = CollisionElement.placed(3, shape, origin)
+    assert element.shape.vertices is not None
+    placed = element.shape.vertices @ element.origin[:3, :3].T + element.origin[:3, 3]
+    np.testing.assert_allclose(placed, vertices @ origin[:3, :3].T + origin[:3, 3], atol=1e-12)
+    np.testing.assert_allclose(
+        element.shape.vertices.min(axis=0), -element.shape.vertices.max(axis=0), atol=1e-12
+    )
+    assert element.shape.bounding_radius() < 0.25 < shape.bounding_radius()

@@ -510,7 +510,7 @@ def _elements(robot: Any, links: list[str], resolver: _MeshResolver) -> list[Col
                 raise
             except GeometryError as exc:
                 raise RobotModelError(f"link {name!r}: {exc}") from exc
-            elements.append(CollisionElement(link=index, shape=shape, origin=origin))
+            elements.append(CollisionElement.placed(index, shape, origin))
     return elements
 
 

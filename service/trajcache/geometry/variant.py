@@ -115,7 +115,7 @@ def _build(
                 axis=np.array([1.0, 0.0, 0.0]),
             )
         )
-        elements.append(CollisionElement(link=child, shape=attached.object.shape, origin=np.eye(4)))
+        elements.append(CollisionElement.placed(child, attached.object.shape, np.eye(4)))
         for other in (attached.link, *attached.touch_links):
             if other in index and index[other] != child:
                 reasons[_pair(index[other], child)] = "scene"
