@@ -153,6 +153,7 @@ def _rows(
     scene_rows, self_rows = state_rows_kernel(
         checker.pose(state[None]).links,
         rg.kernel_robot,
+        rg.element_half,
         rg.support.kernel_args,
         rg.kernel_motion,
         checker.scene.kernel_scene,

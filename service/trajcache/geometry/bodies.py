@@ -53,8 +53,11 @@ class RobotGeometry:
         self.element_link = np.array([e.link for e in elements], dtype=np.int64)
         self.element_origin = np.array([e.origin for e in elements], dtype=float).reshape(-1, 4, 4)
         self.support = SupportTable.build([e.shape for e in elements])
-        # Level 1: a ball around each element's origin.
+        # Level 1: a ball around each element's origin, and its box's half extents.
         self.radius = np.array([e.shape.bounding_radius() for e in elements], dtype=float)
+        self.element_half = np.array(
+            [e.shape.half_extents() for e in elements], dtype=float
+        ).reshape(-1, 3)
         local_origin = self.element_origin[:, :3, 3]
         self.centre_coef = self.motion.coefficients(
             self.element_link, np.linalg.norm(local_origin, axis=1)

@@ -1,9 +1,9 @@
 """Batched collision checking of robot states against a scene and against the robot itself.
 
 A check bounds every (state, element, object) and (state, element pair) distance from below,
-compiled (`compiled.state_rows_kernel`: element balls, then support-function slabs with meshes
-as boxes, then as hulls; with `compiled=False` the numpy levels of `clearance.py`), and asks FCL
-only about the rows no bound clears.
+compiled (`compiled.state_rows_kernel`: world boxes, element balls, then support-function slabs
+with meshes as boxes, then as hulls; with `compiled=False` the numpy levels of `clearance.py`),
+and asks FCL only about the rows no bound clears.
 The verdict is FCL's own collision test for those rows, so it agrees with a per-state FCL loop.
 
 Clearance, for planners: with `pad` > 0 a row counts as AMBIGUOUS when no bound clears it by
@@ -139,6 +139,7 @@ class CollisionChecker:
             scene_rows, self_rows = state_rows_kernel(
                 posed.links,
                 rg.kernel_robot,
+                rg.element_half,
                 rg.support.kernel_args,
                 rg.kernel_motion,
                 self.scene.kernel_scene,

@@ -807,13 +807,15 @@ def self_open_kernel(links, step, robot, sup, motion, pairs, first_only):  # typ
 
 @numba.njit(cache=True, nogil=True)
 def state_rows_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    links, robot, sup_r, motion, scene, sup_s, allowed, pairs, element_pad, pair_pad
+    links, robot, half, sup_r, motion, scene, sup_s, allowed, pairs, element_pad, pair_pad
 ):
     """The rows of states on their own (no motion) whose lower bounds do not exceed the pads:
     scene rows (K, 3) (state, element, object) with bound ≤ element_pad[state, element], and
-    robot-pair rows (K', 2) (state, pair) with bound ≤ pair_pad[state, pair]. Levels as in
-    `scene_open_kernel`: the element's ball, then slabs with meshes as boxes, then as hulls.
-    Only these rows need FCL's collision test."""
+    robot-pair rows (K', 2) (state, pair) with bound ≤ pair_pad[state, pair]. Levels: the gap
+    between world boxes (each element's, the smaller of its ball's and its local box's, `half`
+    (E, 3) about its origin; an object's own), then as in `scene_open_kernel` the element's
+    ball, slabs with meshes as boxes, then as hulls. Only these rows need FCL's collision
+    test."""
     link_of, origin, radius = robot[0], robot[1], robot[2]
     axis_link, axis_local = motion[3], motion[4]
     rot_m, pos_m, lo_m, hi_m = scene[0], scene[1], scene[3], scene[4]
@@ -832,21 +834,31 @@ def state_rows_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     ball = np.empty(1)
     low = np.empty(1)
     level = np.empty(1, dtype=np.int64)
+    box_lo = np.empty((n_el, 3))
+    box_hi = np.empty((n_el, 3))
     for n in range(n_states):
+        for e in range(n_el):  # each element's world box: it lies within both boxes about it
+            for a in range(3):
+                r = (
+                    abs(poses[n, e, a, 0]) * half[e, 0]
+                    + abs(poses[n, e, a, 1]) * half[e, 1]
+                    + abs(poses[n, e, a, 2]) * half[e, 2]
+                )
+                r = min(r, radius[e])
+                box_lo[e, a] = poses[n, e, a, 3] - r
+                box_hi[e, a] = poses[n, e, a, 3] + r
         for e in range(n_el):
             pad = element_pad[n, e]
-            reach = radius[e] + pad
-            x, y, z = poses[n, e, 0, 3], poses[n, e, 1, 3], poses[n, e, 2, 3]
             for m in range(n_obj):
                 if allowed.shape[0] and allowed[e, m]:
                     continue
                 if (
-                    lo_m[m, 0] > x + reach
-                    or hi_m[m, 0] < x - reach
-                    or lo_m[m, 1] > y + reach
-                    or hi_m[m, 1] < y - reach
-                    or lo_m[m, 2] > z + reach
-                    or hi_m[m, 2] < z - reach
+                    lo_m[m, 0] - box_hi[e, 0] > pad
+                    or box_lo[e, 0] - hi_m[m, 0] > pad
+                    or lo_m[m, 1] - box_hi[e, 1] > pad
+                    or box_lo[e, 1] - hi_m[m, 1] > pad
+                    or lo_m[m, 2] - box_hi[e, 2] > pad
+                    or box_lo[e, 2] - hi_m[m, 2] > pad
                 ):
                     continue
                 ball[0], level[0] = -1.0, 0
@@ -866,6 +878,16 @@ def state_rows_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 n_scene += 1
         for p in range(pair_i.shape[0]):
             pad = pair_pad[n, p]
+            i, j = pair_i[p], pair_j[p]
+            if (
+                box_lo[j, 0] - box_hi[i, 0] > pad
+                or box_lo[i, 0] - box_hi[j, 0] > pad
+                or box_lo[j, 1] - box_hi[i, 1] > pad
+                or box_lo[i, 1] - box_hi[j, 1] > pad
+                or box_lo[j, 2] - box_hi[i, 2] > pad
+                or box_lo[i, 2] - box_hi[j, 2] > pad
+            ):
+                continue
             ball[0], level[0] = -1.0, 0
             settled = False
             for want in range(1, 4):
