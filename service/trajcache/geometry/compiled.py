@@ -325,6 +325,37 @@ def _pose_all(links, element_link, element_origin, axis_link, axis_local):  # ty
 
 
 @numba.njit(cache=True, nogil=True)
+def _world_boxes(poses, half, radius):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """World boxes (N, E, 3) low and high of every element at every sample: the smaller of the
+    boxes about its ball and about its local box (`half` (E, 3) about its origin)."""
+    n_states, n_el = poses.shape[0], poses.shape[1]
+    lo = np.empty((n_states, n_el, 3))
+    hi = np.empty((n_states, n_el, 3))
+    for n in range(n_states):
+        for e in range(n_el):
+            for a in range(3):
+                r = (
+                    abs(poses[n, e, a, 0]) * half[e, 0]
+                    + abs(poses[n, e, a, 1]) * half[e, 1]
+                    + abs(poses[n, e, a, 2]) * half[e, 2]
+                )
+                r = min(r, radius[e])
+                lo[n, e, a] = poses[n, e, a, 3] - r
+                hi[n, e, a] = poses[n, e, a, 3] + r
+    return lo, hi
+
+
+@numba.njit(cache=True, nogil=True)
+def _box_gap(lo_a, hi_a, lo_b, hi_b):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The widest gap between two boxes along an axis: a lower bound on the distance of
+    anything inside them (≤ 0 when they overlap)."""
+    gap = -np.inf
+    for a in range(3):
+        gap = max(gap, lo_b[a] - hi_a[a], lo_a[a] - hi_b[a])
+    return gap
+
+
+@numba.njit(cache=True, nogil=True)
 def _grow(rows, lows, count):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The output arrays with twice the room once `count` fills them."""
     if count < rows.shape[0]:
@@ -364,7 +395,7 @@ def _scene_bound(n, want, ball, low, level, poses, e, radius, sup_r, pose_m, sup
 
 @numba.njit(cache=True, nogil=True)
 def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    links, step, robot, sup_r, motion, scene, sup_s, allowed, first_only
+    links, step, robot, half, sup_r, motion, scene, sup_s, allowed, first_only
 ):
     """Rows (K, 3) (segment, element, object) that levels 1-3 leave open on the segments
     between consecutive samples of `links` (N, L, 4, 4) (segment k: sample k to k + 1, steps
@@ -386,6 +417,7 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     rotation, rot_index, after, axis_link, axis_local = motion
     rot_m, pos_m, half_m, lo_m, hi_m = scene
     poses, origins, dirs = _pose_all(links, link_of, origin, axis_link, axis_local)
+    box_lo, box_hi = _world_boxes(poses, half, radius)
     mo = (step, rotation, rot_index, after, origins, dirs)
     n_el, n_obj, dof = link_of.shape[0], rot_m.shape[0], step.shape[1]
     n_samples = links.shape[0]
@@ -469,6 +501,10 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 )
                 while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
                     ahead += 1
+                if ahead == at:  # the world boxes' gap, with the motion of any point
+                    d = _box_gap(box_lo[at, e], box_hi[at, e], lo_m[m], hi_m[m])
+                    while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
+                        ahead += 1
                 if ahead == at:
                     d = _scene_bound(
                         at, 3, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s, m,
@@ -484,6 +520,10 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 at += 1
                 settled = False
                 moving = whole_sum[hi] - whole_sum[lo]
+                box_a = _box_gap(box_lo[lo, e], box_hi[lo, e], lo_m[m], hi_m[m])
+                box_b = _box_gap(box_lo[hi, e], box_hi[hi, e], lo_m[m], hi_m[m])
+                if box_a + box_b > moving:
+                    continue
                 for want in range(1, 4):
                     da = _scene_bound(
                         lo, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
@@ -635,7 +675,7 @@ def _self_bound(n, want, ball, low, level, poses, i, j, radius, sup):  # type: i
 
 
 @numba.njit(cache=True, nogil=True)
-def self_open_kernel(links, step, robot, sup, motion, pairs, first_only):  # type: ignore[no-untyped-def]  # pragma: no cover
+def self_open_kernel(links, step, robot, half, sup, motion, pairs, first_only):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Rows (K, 2) (segment, pair) that levels 1-3 leave open, with (K, 3) lower bounds at both
     ends and the motion bound, runs of segments first (as `scene_open_kernel`); `pairs`: first
     and second elements (P,), the dofs that change the pair's distance (P, D) as 0/1, and the
@@ -645,6 +685,7 @@ def self_open_kernel(links, step, robot, sup, motion, pairs, first_only):  # typ
     rotation, rot_index, after, axis_link, axis_local = motion
     pair_i, pair_j, pair_mask, pair_centre, pair_whole = pairs
     poses, origins, dirs = _pose_all(links, link_of, origin, axis_link, axis_local)
+    box_lo, box_hi = _world_boxes(poses, half, radius)
     mo = (step, rotation, rot_index, after, origins, dirs)
     dof = step.shape[1]
     n_samples = links.shape[0]
@@ -681,6 +722,10 @@ def self_open_kernel(links, step, robot, sup, motion, pairs, first_only):  # typ
             d = _self_bound(at, 1, ball_low, low, level, poses, i, j, radius, sup)
             while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
                 ahead += 1
+            if ahead == at:  # the world boxes' gap, with the motion of any point
+                d = _box_gap(box_lo[at, i], box_hi[at, i], box_lo[at, j], box_hi[at, j])
+                while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
+                    ahead += 1
             if ahead == at:
                 d = _self_bound(at, 3, ball_low, low, level, poses, i, j, radius, sup)
                 while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
@@ -692,6 +737,10 @@ def self_open_kernel(links, step, robot, sup, motion, pairs, first_only):  # typ
             at += 1
             settled = False
             moving = whole_sum[hi] - whole_sum[lo]
+            box_a = _box_gap(box_lo[lo, i], box_hi[lo, i], box_lo[lo, j], box_hi[lo, j])
+            box_b = _box_gap(box_lo[hi, i], box_hi[hi, i], box_lo[hi, j], box_hi[hi, j])
+            if box_a + box_b > moving:
+                continue
             for want in range(1, 4):
                 da = _self_bound(lo, want, ball_low, low, level, poses, i, j, radius, sup)
                 db = _self_bound(hi, want, ball_low, low, level, poses, i, j, radius, sup)
@@ -834,32 +883,15 @@ def state_rows_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     ball = np.empty(1)
     low = np.empty(1)
     level = np.empty(1, dtype=np.int64)
-    box_lo = np.empty((n_el, 3))
-    box_hi = np.empty((n_el, 3))
+    boxes_lo, boxes_hi = _world_boxes(poses, half, radius)
     for n in range(n_states):
-        for e in range(n_el):  # each element's world box: it lies within both boxes about it
-            for a in range(3):
-                r = (
-                    abs(poses[n, e, a, 0]) * half[e, 0]
-                    + abs(poses[n, e, a, 1]) * half[e, 1]
-                    + abs(poses[n, e, a, 2]) * half[e, 2]
-                )
-                r = min(r, radius[e])
-                box_lo[e, a] = poses[n, e, a, 3] - r
-                box_hi[e, a] = poses[n, e, a, 3] + r
+        box_lo, box_hi = boxes_lo[n], boxes_hi[n]
         for e in range(n_el):
             pad = element_pad[n, e]
             for m in range(n_obj):
                 if allowed.shape[0] and allowed[e, m]:
                     continue
-                if (
-                    lo_m[m, 0] - box_hi[e, 0] > pad
-                    or box_lo[e, 0] - hi_m[m, 0] > pad
-                    or lo_m[m, 1] - box_hi[e, 1] > pad
-                    or box_lo[e, 1] - hi_m[m, 1] > pad
-                    or lo_m[m, 2] - box_hi[e, 2] > pad
-                    or box_lo[e, 2] - hi_m[m, 2] > pad
-                ):
+                if _box_gap(box_lo[e], box_hi[e], lo_m[m], hi_m[m]) > pad:
                     continue
                 ball[0], level[0] = -1.0, 0
                 settled = False
@@ -879,14 +911,7 @@ def state_rows_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
         for p in range(pair_i.shape[0]):
             pad = pair_pad[n, p]
             i, j = pair_i[p], pair_j[p]
-            if (
-                box_lo[j, 0] - box_hi[i, 0] > pad
-                or box_lo[i, 0] - box_hi[j, 0] > pad
-                or box_lo[j, 1] - box_hi[i, 1] > pad
-                or box_lo[i, 1] - box_hi[j, 1] > pad
-                or box_lo[j, 2] - box_hi[i, 2] > pad
-                or box_lo[i, 2] - box_hi[j, 2] > pad
-            ):
+            if _box_gap(box_lo[i], box_hi[i], box_lo[j], box_hi[j]) > pad:
                 continue
             ball[0], level[0] = -1.0, 0
             settled = False
