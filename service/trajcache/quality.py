@@ -19,11 +19,11 @@ from typing import Any
 import fcl
 import numpy as np
 
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.kinematics import link_motion_bounds
-from trajcache.geometry.robot import BaseType, RobotModel
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import Resolution, interpolate, segment_deltas
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.kinematics import link_motion_bounds
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.validation.validator import Resolution, interpolate, segment_deltas
 
 MAX_DISTANCE_QUERIES = 20_000  # FCL calls per clearance; beyond it the result is an upper bound
 

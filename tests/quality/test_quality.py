@@ -9,14 +9,14 @@ import fcl
 import numpy as np
 import pytest
 
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.kinematics import link_transforms
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.kinematics import link_transforms
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.restroom import restroom_scene
 from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import parse_scene
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import Resolution, interpolate
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.validator import Resolution, interpolate
 from trajcache.quality import (
     MAX_DISTANCE_QUERIES,
     Quality,

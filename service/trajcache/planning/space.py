@@ -17,14 +17,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.collision import COLLIDING, FREE, CollisionChecker
+from trajcache.geometry.collision.checker import COLLIDING, FREE, CollisionChecker
 from trajcache.geometry.errors import StateError
-from trajcache.geometry.kinematics import check_limits, check_states
-from trajcache.geometry.robot import BaseType, RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.segments import SegmentStatus
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import Resolution, TrajectoryValidator, interpolate
+from trajcache.geometry.model.kinematics import check_limits, check_states
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.segments import SegmentStatus
+from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
 from trajcache.planning.problem import PlannerStatus, PlanResult
 
 EMPTY_SCENE_MARGIN_M = 2.0  # base bounds around the query when the scene gives no extent

@@ -22,7 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.timing._jerk import jerk_limited
 from trajcache.timing._limits import KinematicLimits, TimingSettings, kinematic_limits
 from trajcache.timing._paths import (
