@@ -12,6 +12,7 @@ import pytest
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.space import path_length
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.restroom import restroom_scene
 from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
@@ -24,7 +25,6 @@ from trajcache.quality import (
     end_effector_link,
     link_origins,
     min_clearance,
-    path_length,
 )
 
 # A fixed-base arm with a fixed joint, a prismatic joint and a side branch (a camera link).

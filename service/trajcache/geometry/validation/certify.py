@@ -32,6 +32,7 @@ from trajcache.geometry.collision.bodies import Posed
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.collision.compiled import scene_open_kernel, self_open_kernel
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import segment_deltas
 from trajcache.geometry.validation.advance import Advancer
 from trajcache.geometry.validation.segments import Finding, OpenPairs, SegmentStatus
 
@@ -91,10 +92,7 @@ class SegmentCertifier:
 
     def _deltas(self, states: FloatArray) -> FloatArray:
         """Differences of consecutive states, the base angle the short way."""
-        delta = np.diff(states, axis=0)
-        if self.planar:
-            delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
-        return delta
+        return segment_deltas(states, planar=self.planar)
 
     def settled_by_bounds(self, states: FloatArray) -> bool:
         """True when the compiled levels alone certify every segment of `states` (N ≥ 2); they

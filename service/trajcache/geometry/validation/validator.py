@@ -36,6 +36,7 @@ from trajcache.geometry.collision.checker import CollisionChecker, Contact, Cont
 from trajcache.geometry.model.kinematics import check_states
 from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import segment_deltas, state_steps
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certify import SegmentCertifier
 from trajcache.geometry.validation.segments import Finding, SegmentStatus
@@ -79,18 +80,6 @@ class ValidationResult:
     def valid(self) -> bool:
         """True when the whole trajectory is safe."""
         return self.status is ValidationStatus.VALID
-
-
-def segment_deltas(states: FloatArray, *, planar: bool) -> FloatArray:
-    """Differences between consecutive states, with the base angle taking the short way."""
-    return _steps(states[:-1], states[1:], planar=planar)
-
-
-def _steps(starts: FloatArray, ends: FloatArray, *, planar: bool) -> FloatArray:
-    delta = ends - starts
-    if planar:
-        delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
-    return delta
 
 
 def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolution) -> FloatArray:
@@ -213,7 +202,7 @@ class TrajectoryValidator:
         state = chunk[found.segment]
         if found.at > 0.0:
             planar = self.model.base is BaseType.PLANAR
-            delta = _steps(state[None], chunk[found.segment + 1][None], planar=planar)[0]
+            delta = state_steps(state, chunk[found.segment + 1], planar=planar)
             state = state + found.at * delta
         if found.status is SegmentStatus.COLLISION:
             return _result(
