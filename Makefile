@@ -9,7 +9,7 @@ $(BIN)/trajcache: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".[dev]"
-	$(BIN)/python -c "from trajcache.geometry import kernels; kernels.warm()"  # numba's cache
+	$(BIN)/python -c "from trajcache.geometry.warm import warm; warm()"  # numba's cache
 	touch $(BIN)/trajcache
 
 setup: $(BIN)/trajcache

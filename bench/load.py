@@ -54,10 +54,10 @@ import numpy as np
 import sqlalchemy as sa
 
 from trajcache.core.config import Settings
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.reference.robot import reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, scene_to_payload
-from trajcache.geometry.validation import validator_for
+from trajcache.geometry.scene.scene import Scene, scene_to_payload
+from trajcache.geometry.validation.validator import validator_for
 from trajcache.protocol.caches import fresh_schema
 from trajcache.protocol.replay import RobotClient, register_reference_model
 from trajcache.protocol.service import running_service, server_cpu_seconds

@@ -16,9 +16,9 @@ from collections.abc import Callable
 import fcl
 import numpy as np
 
-from trajcache.geometry.kinematics import element_transforms, link_transforms
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
+from trajcache.geometry.model.kinematics import element_transforms, link_transforms
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.scene import Scene
 
 
 class NaiveChecker:

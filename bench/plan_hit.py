@@ -53,7 +53,7 @@ import httpx
 import numpy as np
 
 from trajcache.geometry.reference.robot import reference_model, reference_urdf
-from trajcache.geometry.scene import Scene, scene_to_payload
+from trajcache.geometry.scene.scene import Scene, scene_to_payload
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
 from trajcache.protocol.caches import fresh_schema

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.reference.robot import reference_model, reference_urdf
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, scene_to_payload
+from trajcache.geometry.scene.scene import Scene, scene_to_payload
 from trajcache.planning.ompl_planner import plan_ompl
 from trajcache.planning.problem import ModelSource, PlanningProblem, PlanResult, SceneSource
 from trajcache.planning.run import run_planning

@@ -35,7 +35,7 @@ from fastapi.testclient import TestClient
 from trajcache.core.config import Settings
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene import scene_to_payload
+from trajcache.geometry.scene.scene import scene_to_payload
 from trajcache.main import create_app
 from trajcache.services.context import ServiceContext
 from trajcache.workload.cleaning import cleaning_run

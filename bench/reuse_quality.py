@@ -33,9 +33,9 @@ import httpx
 import numpy as np
 
 from trajcache.core.config import Settings
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, scene_to_payload
+from trajcache.geometry.scene.scene import Scene, scene_to_payload
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
 from trajcache.protocol.service import running_service

@@ -56,10 +56,10 @@ from soak_geometry import (
 )
 from trajcache.cache.adapt import adapt_trajectory, base_is_still
 from trajcache.cache.metric import PLANAR_ARM_OFFSET, wrap_angle
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.reference.restroom import STALL_COUNT, restroom_scene
 from trajcache.geometry.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
-from trajcache.geometry.scene import Scene, apply_patch, object_to_payload, scene_to_payload
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene, apply_patch, object_to_payload, scene_to_payload
 from trajcache.protocol.dense import DenseChecker, reference_checker
 from trajcache.protocol.replay import RobotClient, cached_count
 from trajcache.protocol.service import running_service

@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 
 from trajcache.cache.metric import wrap_angle
-from trajcache.geometry.scene import Scene, scene_to_payload
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene, scene_to_payload
 from trajcache.protocol.dense import DenseChecker
 
 MIN_MARGIN = 0.03  # m: from an obstacle to the bounding spheres of the robot at the endpoints

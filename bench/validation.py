@@ -33,13 +33,13 @@ import numpy as np
 
 import validation_panda
 from naive_fcl import NaiveChecker, timed
-from trajcache.geometry import kernels
-from trajcache.geometry.collision import COLLIDING, CollisionChecker
+from trajcache.geometry.collision.checker import COLLIDING, CollisionChecker
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.validation import Resolution, TrajectoryValidator, interpolate
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
+from trajcache.geometry.warm import warm
 from trajcache.workload.cleaning import cleaning_run
 
 
@@ -197,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     n_traj, n_states, repeats = (4, 1000, 1) if args.smoke else (30, 10_000, 3)
     per_family = args.panda_problems or (1 if args.smoke else 10)
 
-    kernels.warm()  # as the service does at startup: no timed call loads a compiled kernel
+    warm()  # as the service does at startup: no timed call loads a compiled kernel
     rng = np.random.default_rng(args.seed)
     model = reference_model()
     scene = restroom_scene(doors=[30.0, 60.0, 90.0])

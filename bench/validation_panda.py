@@ -40,11 +40,11 @@ from naive_fcl import NaiveChecker, PairChecker, timed_runs
 from panda_paths import KINDS, dense_collides, paths_of
 from robot_description import describe
 from scene_families import FAMILIES, Problem, Workspace, generate_problem, workspace
-from trajcache.geometry.collision import ContactKind
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import parse_scene
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import (
+from trajcache.geometry.collision.checker import ContactKind
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
     ValidationResult,

@@ -64,6 +64,6 @@ def redis_url() -> str:
 def compiled_kernels() -> None:
     """The compiled kernels in numba's on-disk cache before any test starts a server (a server
     compiling them inside a request would time out)."""
-    from trajcache.geometry import kernels
+    from trajcache.geometry.warm import warm
 
-    kernels.warm()
+    warm()

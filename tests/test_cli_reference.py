@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from trajcache.cli import app
 from trajcache.geometry.reference.restroom import restroom_scene
 from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene import parse_scene, parse_scene_text
+from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
 
 runner = CliRunner()
 

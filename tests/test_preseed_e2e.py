@@ -28,7 +28,7 @@ from trajcache.cli import app as cli
 from trajcache.core.config import Settings
 from trajcache.db.models import Trajectory
 from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene import scene_to_payload
+from trajcache.geometry.scene.scene import scene_to_payload
 from trajcache.main import create_app
 from trajcache.workload.cleaning import cleaning_run
 

@@ -17,7 +17,7 @@ from trajcache.cli_openapi import TABLE_END, TABLE_START, config_table, with_con
 from trajcache.core.config import Settings
 from trajcache.geometry.reference.restroom import restroom_scene
 from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene import scene_to_payload
+from trajcache.geometry.scene.scene import scene_to_payload
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

@@ -26,12 +26,12 @@ import fcl
 import numpy as np
 from scipy.optimize import least_squares
 
-from trajcache.geometry.collision import FREE, CollisionChecker, robot_geometry
-from trajcache.geometry.kinematics import link_transforms
+from trajcache.geometry.collision.checker import FREE, CollisionChecker, robot_geometry
+from trajcache.geometry.model.kinematics import link_transforms
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.reference.restroom import STALL_COUNT, restroom_scene
 from trajcache.geometry.reference.robot import ARM_MOUNT_XYZ, reference_model
-from trajcache.geometry.scene import Scene, SceneObject, make_scene
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.workload.tasks import TASKS, Arm, WorkStation, work_stations
 
 SCENE_MIN, SCENE_GOOD = 0.05, 0.10  # required / wanted clearance to the envelope (m)

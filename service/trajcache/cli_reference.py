@@ -64,9 +64,9 @@ def scene(
 ) -> None:
     """Write the restroom scene for the given door and seat angles."""
     from trajcache.geometry.errors import SceneError
-    from trajcache.geometry.moveit import scene_to_moveit
     from trajcache.geometry.reference.restroom import restroom_scene
-    from trajcache.geometry.scene import scene_to_payload
+    from trajcache.geometry.scene.moveit import scene_to_moveit
+    from trajcache.geometry.scene.scene import scene_to_payload
 
     try:
         built = restroom_scene(

@@ -17,7 +17,7 @@ from trajcache.api.routes import health
 from trajcache.core.config import Settings, get_settings
 from trajcache.dashboard import mount_dashboard
 from trajcache.db import migrate as db_migrate
-from trajcache.geometry import kernels
+from trajcache.geometry.warm import warm
 from trajcache.metrics import install_metrics
 from trajcache.services.background import start_background
 from trajcache.services.context import ServiceContext
@@ -45,7 +45,7 @@ def create_app(settings: Settings | None = None, *, migrate: bool | None = None)
         # Few request threads (anyio's default is 40): more would only queue for the
         # interpreter lock, and switching between them costs CPU (bench/load.py shows it).
         to_thread.current_default_thread_limiter().total_tokens = settings.request_threads
-        await run_in_threadpool(kernels.warm)  # no request pays for compiling the kernels
+        await run_in_threadpool(warm)  # no request pays for compiling the kernels
         ctx = ServiceContext.create(settings)
         app.state.ctx = ctx
         if settings.worker_prestart:

@@ -19,11 +19,12 @@ from typing import Any
 import fcl
 import numpy as np
 
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.kinematics import link_motion_bounds
-from trajcache.geometry.robot import BaseType, RobotModel
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import Resolution, interpolate, segment_deltas
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.kinematics import link_motion_bounds
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import segment_deltas
+from trajcache.geometry.validation.validator import Resolution, interpolate
 
 MAX_DISTANCE_QUERIES = 20_000  # FCL calls per clearance; beyond it the result is an upper bound
 
@@ -56,14 +57,6 @@ class Quality:
             "min_clearance": self.min_clearance,
             "duration_s": self.duration_s,
         }
-
-
-def path_length(states: FloatArray, *, planar: bool) -> float:
-    """State-space length: Σ of Euclidean segment lengths, the base angle taking the short way."""
-    array = np.asarray(states, dtype=float)
-    if len(array) < 2:
-        return 0.0
-    return float(np.linalg.norm(segment_deltas(array, planar=planar), axis=1).sum())
 
 
 _EE_LINKS: weakref.WeakKeyDictionary[RobotModel, int] = weakref.WeakKeyDictionary()

@@ -18,7 +18,7 @@ from fastapi.testclient import TestClient
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
 from tests.conftest import REDIS_URL, require_service
 from trajcache.db.models import PlanEvent
-from trajcache.geometry.validation import validator_for
+from trajcache.geometry.validation.validator import validator_for
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 from trajcache.services.models import get_model

@@ -132,8 +132,8 @@ def test_held_joint_values_and_mimic_joints(app_client: TestClient) -> None:
 
 
 def test_the_mimic_finger_moves_with_its_leader() -> None:
-    from trajcache.geometry.kinematics import link_transforms
-    from trajcache.geometry.urdf import load_robot_model
+    from trajcache.geometry.model.kinematics import link_transforms
+    from trajcache.geometry.model.urdf import load_robot_model
 
     panda = ROBOTS["panda"]
     gaps = []
@@ -195,8 +195,8 @@ DIP_START, DIP_GOAL = (np.array(READY) + DIP).tolist(), (np.array(READY) - DIP).
 
 
 def _hand(link: str = "panda_hand") -> np.ndarray:
-    from trajcache.geometry.kinematics import link_transforms
-    from trajcache.geometry.urdf import load_robot_model
+    from trajcache.geometry.model.kinematics import link_transforms
+    from trajcache.geometry.model.urdf import load_robot_model
 
     panda = ROBOTS["panda"]
     model = load_robot_model(panda.urdf, files=panda.files(), srdf=panda.srdf, group="arm")

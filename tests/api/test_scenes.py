@@ -14,7 +14,7 @@ import yaml
 from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
-from trajcache.geometry.scene import make_scene
+from trajcache.geometry.scene.scene import make_scene
 from trajcache.services.robots import current_scene, patch_scene
 
 TABLE = {

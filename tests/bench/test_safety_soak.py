@@ -16,7 +16,7 @@ from soak_geometry import grazing_radius, judge, path_obstacle, sphere
 from trajcache.cache.adapt import adapt_trajectory
 from trajcache.cache.metric import PLANAR_ARM_OFFSET
 from trajcache.geometry.reference.restroom import restroom_scene
-from trajcache.geometry.scene import Scene, apply_patch
+from trajcache.geometry.scene.scene import Scene, apply_patch
 from trajcache.protocol.dense import DenseChecker, reference_checker
 from trajcache.workload.tasks import task_state, work_station
 

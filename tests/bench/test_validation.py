@@ -13,10 +13,14 @@ import pytest
 
 from dense_mesh import MeshChecker
 from naive_fcl import NaiveChecker, PairChecker
-from trajcache.geometry.collision import Contact, ContactKind
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import parse_scene
-from trajcache.geometry.validation import TrajectoryValidator, ValidationResult, ValidationStatus
+from trajcache.geometry.collision.checker import Contact, ContactKind
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.validator import (
+    TrajectoryValidator,
+    ValidationResult,
+    ValidationStatus,
+)
 from validation_panda import PandaTally, SceneCheckers, panda_model, rejection_reason
 
 SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "validation.py"

@@ -15,11 +15,11 @@ import pytest
 
 from tests.geometry.test_validation import SWING_URDF
 from trajcache.cache.memo import MemoScope, MemoUse, ValidationMemo, validate_with_memo
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, SceneObject
-from trajcache.geometry.shapes import Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import (
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.scene.scene import Scene, SceneObject
+from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
     ValidationResult,

@@ -14,7 +14,7 @@ import pytest
 from tests.client.conftest import LiveServer, make_app
 from trajcache.geometry.reference.restroom import restroom_scene
 from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene import scene_to_payload
+from trajcache.geometry.scene.scene import scene_to_payload
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "robot_loop.py"
 

@@ -86,7 +86,7 @@ def _wait_ready(base: str, proc: subprocess.Popen[bytes]) -> None:
 def _seed(client: httpx.Client, seeded: Seeded) -> None:
     """Register the reference robot; run a cleaning run on it, then another on a second robot."""
     from trajcache.geometry.reference.robot import reference_urdf
-    from trajcache.geometry.scene import scene_to_payload
+    from trajcache.geometry.scene.scene import scene_to_payload
     from trajcache.workload.cleaning import cleaning_run
 
     reply = client.post(

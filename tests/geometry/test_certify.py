@@ -8,15 +8,15 @@ import math
 import numpy as np
 import pytest
 
-from trajcache.geometry import validation
-from trajcache.geometry.collision import COLLIDING, ContactKind
+from trajcache.geometry.collision.checker import COLLIDING, ContactKind
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import BASE_SIZE, STOWED_ARM, reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, SceneObject, make_scene
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import (
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.geometry.validation import validator as validator_module
+from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
     ValidationStatus,
@@ -96,7 +96,7 @@ def test_a_turning_base_sweeps_a_thin_post_between_samples() -> None:
 
 
 def test_a_collision_where_two_chunks_meet_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(validation, "_CHUNK", 8)  # chunks share their end sample
+    monkeypatch.setattr(validator_module, "_CHUNK", 8)  # chunks share their end sample
     key = np.array([[0.0, 0.0], [1.0, 0.0]])
     samples = interpolate(key, _rod_and_plate(0.0), Resolution())
     for pair in (7, 8):  # the segment ending a chunk, the one starting the next

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from trajcache.geometry.collision import CollisionChecker
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, SceneObject, make_scene
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 
 BLOCK_URDF = """<robot name="block">
   <link name="root"/>

@@ -6,13 +6,19 @@ import fcl
 import numpy as np
 import pytest
 
-from trajcache.geometry.collision import AMBIGUOUS, COLLIDING, FREE, CollisionChecker, ContactKind
-from trajcache.geometry.kinematics import element_transforms, link_transforms
+from trajcache.geometry.collision.checker import (
+    AMBIGUOUS,
+    COLLIDING,
+    FREE,
+    CollisionChecker,
+    ContactKind,
+)
+from trajcache.geometry.model.kinematics import element_transforms, link_transforms
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, SceneObject, make_scene
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 
 
 class PerStateFCL:

@@ -11,13 +11,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from trajcache.geometry.collision import COLLIDING, CollisionChecker
-from trajcache.geometry.kinematics import link_transforms
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, SceneObject, make_scene
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import (
+from trajcache.geometry.collision.checker import COLLIDING, CollisionChecker
+from trajcache.geometry.model.kinematics import link_transforms
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
     ValidationStatus,
@@ -147,7 +147,7 @@ def _rows(
     checker: CollisionChecker, state: FloatArray, element_pad: FloatArray, pair_pad: FloatArray
 ) -> tuple[list[int], list[int]]:
     """The elements and pairs the compiled state levels leave to FCL at these pads."""
-    from trajcache.geometry.compiled import state_rows_kernel
+    from trajcache.geometry.collision.compiled import state_rows_kernel
 
     rg = checker.robot
     scene_rows, self_rows = state_rows_kernel(

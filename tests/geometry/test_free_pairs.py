@@ -6,13 +6,14 @@ import fcl
 import numpy as np
 import pytest
 
-from trajcache.geometry.bodies import Posed, RobotGeometry, robot_geometry
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.free_pairs import proven_free_pairs
+from trajcache.geometry.collision.bodies import Posed, RobotGeometry
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.collision.free_pairs import proven_free_pairs
+from trajcache.geometry.collision.shared import robot_geometry
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.robot import reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.urdf import load_robot_model
+from trajcache.geometry.scene.scene import Scene
 
 # A planar arm folding in the horizontal plane: l3 can swing back onto l1 unless j2 and j3 are
 # kept near straight; the pair (l1, l3) moves apart by j2 and j3 only.

@@ -10,16 +10,16 @@ import pytest
 from yourdfpy import URDF
 
 from trajcache.geometry.errors import StateError
-from trajcache.geometry.kinematics import (
+from trajcache.geometry.model.kinematics import (
     check_limits,
     check_states,
     element_transforms,
     link_motion_bounds,
     link_transforms,
 )
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.shapes import FloatArray, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
 
 ARM_PATH = Path(__file__).parent / "data" / "arm.urdf"
 ARM = ARM_PATH.read_text()

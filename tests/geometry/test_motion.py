@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trajcache.geometry.kinematics import link_transforms
-from trajcache.geometry.motion import MotionBounds, motion_bounds
+from trajcache.geometry.model.kinematics import link_transforms
+from trajcache.geometry.model.motion import MotionBounds, motion_bounds
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.robot import reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.urdf import load_robot_model
 
 ARM = (Path(__file__).parent / "data" / "arm.urdf").read_text()  # has a prismatic joint
 

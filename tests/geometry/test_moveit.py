@@ -12,9 +12,10 @@ import pytest
 import yaml
 
 from trajcache.geometry.errors import SceneError
-from trajcache.geometry.moveit import scene_to_moveit
-from trajcache.geometry.scene import parse_scene, parse_scene_text, scene_to_payload
-from trajcache.geometry.shapes import ShapeKind
+from trajcache.geometry.model.shapes import ShapeKind
+from trajcache.geometry.scene.moveit import scene_to_moveit
+from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
+from trajcache.geometry.scene.scene import scene_to_payload
 
 S2 = math.sqrt(0.5)
 

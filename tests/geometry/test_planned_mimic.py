@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trajcache.geometry.collision import CollisionChecker
+from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.errors import RobotModelError
-from trajcache.geometry.kinematics import link_transforms
-from trajcache.geometry.motion import motion_bounds
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import SceneObject, make_scene
-from trajcache.geometry.shapes import Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import TrajectoryValidator
+from trajcache.geometry.model.kinematics import link_transforms
+from trajcache.geometry.model.motion import motion_bounds
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.scene.scene import SceneObject, make_scene
+from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.workload.example_robots import ROBOTS
 
 ARM = [f"panda_joint{k}" for k in range(1, 8)]

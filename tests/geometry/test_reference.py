@@ -16,7 +16,7 @@ import pytest
 import yourdfpy
 
 from trajcache.geometry.errors import SceneError
-from trajcache.geometry.moveit import scene_to_moveit
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.reference.restroom import (
     RESTROOM_LAYOUT,
     STALL_FRONTS,
@@ -29,8 +29,9 @@ from trajcache.geometry.reference.robot import (
     STOWED_ARM,
     reference_urdf,
 )
-from trajcache.geometry.scene import Scene, parse_scene, scene_to_payload
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.scene.moveit import scene_to_moveit
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.scene.scene import Scene, scene_to_payload
 
 HALF_PI = math.pi / 2
 JOINT_TABLE = [  # REFERENCE.md: xyz, rpy, lower, upper
@@ -199,7 +200,7 @@ def test_door_sweep_clears_the_stations_even_when_jittered() -> None:
 
 
 def test_reference_model_loads() -> None:
-    pytest.importorskip("trajcache.geometry.urdf")
+    pytest.importorskip("trajcache.geometry.model.urdf")
     from trajcache.geometry.reference.robot import reference_model
 
     model = reference_model()

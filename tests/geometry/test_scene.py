@@ -11,14 +11,9 @@ import pytest
 import yaml
 
 from trajcache.geometry.errors import SceneError
-from trajcache.geometry.scene import (
-    apply_patch,
-    matrix_to_quaternion,
-    parse_scene,
-    parse_scene_text,
-    scene_to_payload,
-)
-from trajcache.geometry.shapes import ShapeKind
+from trajcache.geometry.model.shapes import ShapeKind
+from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
+from trajcache.geometry.scene.scene import apply_patch, matrix_to_quaternion, scene_to_payload
 
 S2 = math.sqrt(0.5)
 
@@ -203,7 +198,7 @@ def test_patch_errors() -> None:
 
 def test_matrix_to_quaternion_round_trip() -> None:
     rng = np.random.default_rng(3)
-    from trajcache.geometry.shapes import pose_matrix
+    from trajcache.geometry.model.shapes import pose_matrix
 
     for _ in range(50):
         q = rng.normal(size=4)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
-from trajcache.geometry.support import SupportTable, sphere_cover
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.model.support import SupportTable, sphere_cover
 
 TETRA = Shape(
     ShapeKind.MESH,
@@ -106,7 +106,7 @@ def test_the_compiled_mesh_support_is_the_largest_projection_of_its_hull() -> No
 
 @pytest.mark.parametrize("robot", ["kinova", "panda", "tiago"])
 def test_hill_climbing_finds_the_largest_projection_on_real_meshes(robot: str) -> None:
-    from trajcache.geometry.urdf import load_robot_model
+    from trajcache.geometry.model.urdf import load_robot_model
     from trajcache.workload.example_robots import ROBOTS
 
     example = ROBOTS[robot]

@@ -14,9 +14,9 @@ import pytest
 import trimesh
 
 from trajcache.geometry.errors import MeshError, RobotModelError, UnsafePathError
-from trajcache.geometry.robot import BaseType, CollisionElement
-from trajcache.geometry.shapes import Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model, unpack_archive
+from trajcache.geometry.model.robot import BaseType, CollisionElement
+from trajcache.geometry.model.shapes import Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model, unpack_archive
 
 DATA = Path(__file__).parent / "data"
 ARM = (DATA / "arm.urdf").read_text()

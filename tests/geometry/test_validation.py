@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from trajcache.geometry.errors import StateError
+from trajcache.geometry.model.shapes import Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
-from trajcache.geometry.scene import Scene, SceneObject
-from trajcache.geometry.shapes import Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import (
+from trajcache.geometry.scene.scene import Scene, SceneObject
+from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
     ValidationStatus,

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from tests.planning.test_ompl_planner import TWO_LINK_URDF
-from trajcache.geometry.scene import Scene, SceneObject, make_scene
-from trajcache.geometry.shapes import Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import (
+from trajcache.geometry.model.shapes import Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
     ValidationResult,
     ValidationStatus,

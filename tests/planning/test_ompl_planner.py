@@ -8,13 +8,13 @@ import time
 import numpy as np
 import pytest
 
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, SceneObject, make_scene
-from trajcache.geometry.shapes import Shape, ShapeKind
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import TrajectoryValidator
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning.ompl_planner import plan_ompl, planner_names
 from trajcache.planning.problem import PlannerStatus, PlanResult
 from trajcache.planning.space import (

@@ -13,8 +13,8 @@ import pytest
 from tests.planning.test_ompl_planner import DOWN, FORWARD
 from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
 from trajcache.geometry.reference.robot import reference_model, reference_urdf
-from trajcache.geometry.scene import scene_to_payload
-from trajcache.geometry.validation import Resolution, TrajectoryValidator
+from trajcache.geometry.scene.scene import scene_to_payload
+from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
 from trajcache.planning import ompl_planner, rris, run
 from trajcache.planning.problem import (
     ModelSource,

@@ -9,14 +9,15 @@ import fcl
 import numpy as np
 import pytest
 
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.kinematics import link_transforms
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.kinematics import link_transforms
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.space import path_length
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.reference.restroom import restroom_scene
 from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import parse_scene
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.validation import Resolution, interpolate
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.validator import Resolution, interpolate
 from trajcache.quality import (
     MAX_DISTANCE_QUERIES,
     Quality,
@@ -24,7 +25,6 @@ from trajcache.quality import (
     end_effector_link,
     link_origins,
     min_clearance,
-    path_length,
 )
 
 # A fixed-base arm with a fixed joint, a prismatic joint and a side branch (a camera link).

@@ -12,7 +12,7 @@ import sqlalchemy as sa
 from tests.api.conftest import TWO_JOINT_URDF
 from trajcache.core.config import Settings
 from trajcache.db import migrate
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.context import ServiceContext
 from trajcache.services.models import register_model
 from trajcache.services.trajectories import store_trajectory

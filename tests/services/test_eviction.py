@@ -16,7 +16,7 @@ from tests.api.conftest import TWO_JOINT_URDF
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import Trajectory, TrajectoryTombstone
-from trajcache.geometry.robot import BaseType
+from trajcache.geometry.model.robot import BaseType
 from trajcache.services.background import start_background
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError, NotFoundError

@@ -12,7 +12,7 @@ import sqlalchemy as sa
 
 from tests.services.hit_setup import context, count_statements, store, two_joint
 from trajcache.db.models import Trajectory
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.context import ServiceContext
 from trajcache.services.index_store import StatesCache
 from trajcache.services.robots import ROBOT_SCENE, put_robot

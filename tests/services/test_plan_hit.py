@@ -15,8 +15,9 @@ from tests.services.hit_setup import context, count_statements, store, two_joint
 from trajcache.cache.memo import MemoUse
 from trajcache.core.config import Settings
 from trajcache.db.models import PlanEvent, Trajectory
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import make_scene, parse_scene
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.scene.scene import make_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import NotFoundError
 from trajcache.services.planning import PlanAnswer, PlanRequest, PlanSource, memo_scope, plan

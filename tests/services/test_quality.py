@@ -13,9 +13,10 @@ from tests.services.hit_setup import count_statements
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import Trajectory
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.scene import parse_scene
-from trajcache.quality import ee_path_length, min_clearance, path_length
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.space import path_length
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.quality import ee_path_length, min_clearance
 from trajcache.services.context import ServiceContext
 from trajcache.services.models import ModelRegistry, get_model, register_model
 from trajcache.services.quality import QualityLevel, TimingRequest, answer_details

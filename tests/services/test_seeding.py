@@ -269,7 +269,7 @@ def test_door_sweep_workload_is_one_run_per_angle() -> None:
 
 
 def test_workload_needs_a_model_of_the_reference_shape() -> None:
-    from trajcache.geometry.urdf import load_robot_model
+    from trajcache.geometry.model.urdf import load_robot_model
 
     arm = load_robot_model(TWO_JOINT_URDF)
     with pytest.raises(InvalidInputError, match="reference robot"):
@@ -542,7 +542,7 @@ def test_planned_results_are_stored_as_sim_with_scene_and_env(db_url: str, tmp_p
         with context.session() as session:
             stored = session.scalars(sa.select(Trajectory)).all()
         assert [(t.source, t.env) for t in stored] == [("sim", {"door": 0.25})]
-        from trajcache.geometry.scene import parse_scene
+        from trajcache.geometry.scene.parse import parse_scene
 
         assert stored[0].scene_hash == parse_scene(scene).hash
     finally:

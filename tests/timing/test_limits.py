@@ -11,7 +11,7 @@ from pydantic import ValidationError
 
 from tests.timing.conftest import SETTINGS
 from trajcache.core.config import Settings
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.timing import kinematic_limits
 
 

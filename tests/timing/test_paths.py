@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.quality import motion_bound
 from trajcache.timing._paths import (
     PolylinePath,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tests.timing.conftest import arm_move
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.quality import motion_bound
 from trajcache.timing import (
     KinematicLimits,

@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from trajcache.geometry.collision import FREE, CollisionChecker
-from trajcache.geometry.kinematics import check_limits
+from trajcache.geometry.collision.checker import FREE, CollisionChecker
+from trajcache.geometry.model.kinematics import check_limits
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.reference.restroom import STALL_COUNT, restroom_scene
 from trajcache.geometry.reference.robot import reference_model
-from trajcache.geometry.robot import RobotModel
 from trajcache.workload import (
     PERTURBED_NOISE,
     TASKS,

@@ -7,8 +7,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.scene import Scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.quality import QualityLevel, TimingRequest, answer_details

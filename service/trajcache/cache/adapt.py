@@ -23,23 +23,17 @@ from trajcache.cache.metric import (
     TWO_PI,
     FloatArray,
     check_arm_offset,
-    wrap_angle,
 )
+from trajcache.geometry.model import space as state_space
+from trajcache.geometry.model.space import BASE_STILL_TOLERANCE
 
 __all__ = ["BASE_STILL_TOLERANCE", "adapt_trajectory", "base_is_still"]
 
-BASE_STILL_TOLERANCE = 1e-9
-
 
 def base_is_still(start: npt.ArrayLike, goal: npt.ArrayLike, *, arm_offset: int) -> bool:
-    """Whether a request keeps its base in place (always False for a fixed base)."""
-    if arm_offset != PLANAR_ARM_OFFSET:
-        return False
-    s = np.asarray(start, dtype=np.float64)
-    g = np.asarray(goal, dtype=np.float64)
-    dx, dy = np.abs(g[:2] - s[:2])
-    dtheta = abs(float(wrap_angle(g[THETA] - s[THETA])))
-    return bool(max(dx, dy, dtheta) <= BASE_STILL_TOLERANCE)
+    """Whether a request keeps its base in place (always False for a fixed base); the tolerance
+    is `BASE_STILL_TOLERANCE`."""
+    return state_space.base_is_still(start, goal, planar=arm_offset == PLANAR_ARM_OFFSET)
 
 
 def _nearest_turn(theta: float, reference: float) -> float:

@@ -30,8 +30,8 @@ from enum import Enum
 
 import numpy as np
 
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import ValidationResult, ValidationStatus
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.validation.validator import ValidationResult, ValidationStatus
 
 __all__ = ["MemoScope", "MemoUse", "ValidationMemo", "validate_with_memo"]
 

@@ -9,20 +9,13 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from trajcache.geometry.model.space import THETA, TWO_PI, wrap_angle
+
 FloatArray = npt.NDArray[np.float64]
 
-TWO_PI = 2.0 * np.pi
 PLANAR_ARM_OFFSET = 3
-THETA = 2  # index of the base heading in a planar state
 
-__all__ = ["FloatArray", "check_arm_offset", "state_distance", "wrap_angle"]
-
-
-def wrap_angle(a: npt.ArrayLike) -> FloatArray:
-    """Wrap angles (radians, any shape) to [−π, π)."""
-    wrapped = np.mod(np.asarray(a, dtype=np.float64) + np.pi, TWO_PI) - np.pi
-    # np.mod may round a tiny negative remainder up to exactly 2π, which would give +π.
-    return np.where(wrapped >= np.pi, wrapped - TWO_PI, wrapped)
+__all__ = ["THETA", "TWO_PI", "FloatArray", "check_arm_offset", "state_distance", "wrap_angle"]
 
 
 def check_arm_offset(arm_offset: int, dim: int | None = None) -> None:

@@ -24,7 +24,7 @@ from kombu.exceptions import EncodeError, OperationalError
 from redis.exceptions import RedisError
 
 from trajcache.core.config import Settings, get_settings
-from trajcache.geometry import kernels
+from trajcache.geometry.warm import warm
 from trajcache.jobs.pool import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
 from trajcache.jobs.threads import pin_one_thread
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
@@ -60,7 +60,7 @@ def _one_numeric_thread(**_: object) -> None:
 def _warm_kernels(**_: object) -> None:
     """Compile, or load, the geometry kernels once in the worker, before it forks its pool's
     processes: they start with the kernels ready."""
-    kernels.warm()
+    warm()
 
 
 @worker_process_init.connect(weak=False)

@@ -302,7 +302,7 @@ class LocalBackend:
         self._context = multiprocessing.get_context(start_method)
         if start_method == "forkserver":
             self._context.set_forkserver_preload(
-                ["trajcache.geometry.warm", "trajcache.planning.problem", task_fn.__module__]
+                ["trajcache.jobs.preload", "trajcache.planning.problem", task_fn.__module__]
             )
         self.task_fn = task_fn
         self.processes = processes

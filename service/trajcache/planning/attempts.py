@@ -27,9 +27,9 @@ from functools import partial
 
 import numpy as np
 
-from trajcache.geometry.collision import ContactKind
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import TrajectoryValidator
+from trajcache.geometry.collision.checker import ContactKind
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlannerStatus, PlanResult
 from trajcache.planning.repair import SegmentFn, remembered, repair_path

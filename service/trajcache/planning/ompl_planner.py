@@ -30,11 +30,11 @@ from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
 
-from trajcache.geometry.collision import FREE
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import Resolution, TrajectoryValidator
+from trajcache.geometry.collision.checker import FREE
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
 from trajcache.planning.attempts import plan_until_certified
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlannerStatus, PlanResult

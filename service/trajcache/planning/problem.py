@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from trajcache.geometry.validation import Resolution
+from trajcache.geometry.validation.validator import Resolution
 
 # Planner names a request may ask for: the paper's RRIS and the OMPL planners of ompl_planner.
 PLANNER_NAMES = ("rrtconnect", "rrt", "bitstar", "bit*", "prm", "kpiece", "rris")

@@ -29,10 +29,10 @@ from functools import partial
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import Resolution, TrajectoryValidator
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
 from trajcache.planning.attempts import plan_until_certified
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlanResult

@@ -13,10 +13,11 @@ import traceback
 from collections import OrderedDict
 from typing import Generic, TypeVar
 
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, parse_scene
-from trajcache.geometry.urdf import load_robot_model
-from trajcache.geometry.variant import model_in_scene
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.scene.variant import model_in_scene
 from trajcache.planning.ompl_planner import plan_ompl
 from trajcache.planning.problem import (
     ModelSource,

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.planning.deadline import Deadline
 
 SegmentFn = Callable[[FloatArray, FloatArray], bool]

@@ -17,14 +17,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.collision import COLLIDING, FREE, CollisionChecker
+from trajcache.geometry.collision.checker import COLLIDING, FREE, CollisionChecker
 from trajcache.geometry.errors import StateError
-from trajcache.geometry.kinematics import check_limits, check_states
-from trajcache.geometry.robot import BaseType, RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.segments import SegmentStatus
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import Resolution, TrajectoryValidator, interpolate
+from trajcache.geometry.model.kinematics import check_limits, check_states
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import base_is_still as _base_is_still
+from trajcache.geometry.model.space import path_length, state_steps, wrap_angle
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.segments import SegmentStatus
+from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
 from trajcache.planning.problem import PlannerStatus, PlanResult
 
 EMPTY_SCENE_MARGIN_M = 2.0  # base bounds around the query when the scene gives no extent
@@ -34,11 +36,6 @@ CERTIFIABLE_CLEARANCE_M = 1e-4
 # between samples (which certified validation would find) stay rare.
 SHORTCUT_CLEARANCE_M = 0.01
 _SPREAD_SAMPLES = 8  # samples a certified motion check looks at before certifying in full
-
-
-def wrap_angle(angle: FloatArray | float) -> FloatArray:
-    """Angles wrapped to [−π, π)."""
-    return np.asarray((np.asarray(angle) + math.pi) % (2.0 * math.pi) - math.pi, dtype=float)
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,10 +64,7 @@ class StateSpaceSpec:
 
     def difference(self, a: FloatArray, b: FloatArray) -> FloatArray:
         """b − a with the base angle taking the short way (works on batches too)."""
-        delta = np.asarray(b, dtype=float) - np.asarray(a, dtype=float)
-        if self.planar:
-            delta[..., 2] = wrap_angle(delta[..., 2])
-        return delta
+        return state_steps(a, b, planar=self.planar)
 
     def distance(self, a: FloatArray, b: FloatArray) -> float:
         """Euclidean distance in state space, base angle wrapped."""
@@ -93,10 +87,7 @@ class StateSpaceSpec:
 
     def path_length(self, path: Sequence[FloatArray] | FloatArray) -> float:
         """Sum of the distances between consecutive states."""
-        arr = np.asarray(path, dtype=float)
-        if len(arr) < 2:
-            return 0.0
-        return float(np.linalg.norm(self.difference(arr[:-1], arr[1:]), axis=1).sum())
+        return path_length(path, planar=self.planar)
 
     def clip(self, state: FloatArray) -> FloatArray:
         """The state pulled inside the bounds (θ wrapped rather than clipped)."""
@@ -347,12 +338,9 @@ class Query:
 
 
 def base_is_still(model: RobotModel, start: FloatArray, goal: FloatArray) -> bool:
-    """True when a planar base has the same pose at both ends (always False for a fixed base)."""
-    if model.base is not BaseType.PLANAR:
-        return False
-    delta = np.abs(np.asarray(goal[:3], dtype=float) - np.asarray(start[:3], dtype=float))
-    delta[2] = abs(float(wrap_angle(delta[2])))
-    return bool(np.all(delta <= 1e-6))
+    """True when a planar base has the same pose at both ends (always False for a fixed base);
+    the tolerance is `geometry.model.space.BASE_STILL_TOLERANCE`."""
+    return _base_is_still(start, goal, planar=model.base is BaseType.PLANAR)
 
 
 def prepare_query(

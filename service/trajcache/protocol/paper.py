@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from trajcache.geometry.scene import scene_to_payload
+from trajcache.geometry.scene.scene import scene_to_payload
 from trajcache.protocol.caches import Cache, caches, empty_cache, no_cache_options
 from trajcache.protocol.dense import DenseChecker, reference_checker
 from trajcache.protocol.replay import CallRecord, RobotClient, cached_count

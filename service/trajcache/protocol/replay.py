@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trajcache.geometry.reference.robot import REFERENCE_BASE, REFERENCE_NAME, reference_urdf
-from trajcache.geometry.scene import Scene, scene_to_payload
+from trajcache.geometry.scene.scene import Scene, scene_to_payload
 from trajcache.workload.cleaning import CleaningRun, PlanCall
 
 FloatArray = NDArray[np.float64]

@@ -40,7 +40,7 @@ from sqlalchemy.orm import InstrumentedAttribute, Session
 from trajcache.cache.index import TrajectoryIndex
 from trajcache.cache.metric import FloatArray
 from trajcache.db.models import Trajectory, TrajectoryTombstone, unpack_states
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.robot import RobotModel
 
 if TYPE_CHECKING:
     from typing import TypeAlias

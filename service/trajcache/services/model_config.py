@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from trajcache.geometry.robot import BASE_STATE_NAMES, RobotModel
+from trajcache.geometry.model.robot import BASE_STATE_NAMES, RobotModel
 from trajcache.services.errors import ConflictError, InvalidInputError
 
 JointLimits = float | Mapping[str, float]  # one value for every planning joint, or per joint

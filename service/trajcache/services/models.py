@@ -14,8 +14,8 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
 from trajcache.db import models as tables
-from trajcache.geometry.robot import BASE_STATE_NAMES, BaseType, RobotModel
-from trajcache.geometry.urdf import _MeshResolver, load_robot_model, unpack_archive
+from trajcache.geometry.model.robot import BASE_STATE_NAMES, BaseType, RobotModel
+from trajcache.geometry.model.urdf import _MeshResolver, load_robot_model, unpack_archive
 from trajcache.planning.problem import ModelSource
 from trajcache.services.errors import NotFoundError, PayloadTooLargeError
 from trajcache.services.model_config import (

@@ -51,16 +51,20 @@ from trajcache.cache.memo import MemoScope, MemoUse, validate_with_memo
 from trajcache.cache.ranking import RANKING_COLUMNS, facts_from_row, rank_matches
 from trajcache.db.models import PlanEvent, Trajectory, utcnow
 from trajcache.geometry.errors import CollisionStateError
-from trajcache.geometry.kinematics import (
+from trajcache.geometry.model.kinematics import (
     StateInput,
     check_limits,
     check_states,
     resolve_state,
 )
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, scene_to_payload
-from trajcache.geometry.validation import ValidationResult, ValidationSettings, validator_for
-from trajcache.geometry.variant import model_in_scene
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.scene import Scene, scene_to_payload
+from trajcache.geometry.scene.variant import model_in_scene
+from trajcache.geometry.validation.validator import (
+    ValidationResult,
+    ValidationSettings,
+    validator_for,
+)
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, SceneSource, fresh_seed
 from trajcache.services.context import ServiceContext

@@ -11,11 +11,12 @@ from typing import Any
 import numpy as np
 
 from trajcache.core.config import Settings
-from trajcache.geometry.robot import BaseType, RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.validation import TrajectoryValidator, validator_for
-from trajcache.quality import Quality, ee_path_length, min_clearance, motion_bound, path_length
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import path_length
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.validator import TrajectoryValidator, validator_for
+from trajcache.quality import Quality, ee_path_length, min_clearance, motion_bound
 from trajcache.services.context import ServiceContext
 from trajcache.timing import (
     PathShape,

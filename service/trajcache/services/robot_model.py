@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.context import ServiceContext
 from trajcache.services.models import get_model
 from trajcache.services.robots import get_robot

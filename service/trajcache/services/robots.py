@@ -15,9 +15,10 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from trajcache.db import models as tables
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, apply_patch, make_scene, parse_scene, scene_to_payload
-from trajcache.geometry.variant import model_in_scene
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.scene.scene import Scene, apply_patch, make_scene, scene_to_payload
+from trajcache.geometry.scene.variant import model_in_scene
 from trajcache.services.errors import (
     ConflictError,
     InvalidInputError,

@@ -14,7 +14,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from trajcache.core.config import Settings
 from trajcache.geometry.errors import GeometryError
 from trajcache.geometry.reference.restroom import STALL_COUNT, restroom_scene
-from trajcache.geometry.scene import Scene, apply_patch, parse_scene
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.scene.scene import Scene, apply_patch
 from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 
 if TYPE_CHECKING:

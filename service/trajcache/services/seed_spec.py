@@ -47,9 +47,9 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from trajcache.core.config import Settings
 from trajcache.geometry.errors import GeometryError
-from trajcache.geometry.kinematics import check_limits, check_states
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
+from trajcache.geometry.model.kinematics import check_limits, check_states
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.scene import Scene
 from trajcache.planning.problem import PLANNER_NAMES
 from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 from trajcache.services.seed_scenes import build_scenes

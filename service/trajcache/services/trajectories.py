@@ -17,9 +17,10 @@ from sqlalchemy.orm import Session, defer
 from trajcache.core.config import Settings, get_settings
 from trajcache.db import models as tables
 from trajcache.geometry.errors import GeometryError, StateError
-from trajcache.geometry.kinematics import check_limits, check_states
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene, parse_env, parse_scene
+from trajcache.geometry.model.kinematics import check_limits, check_states
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.scene.scene import Scene, parse_env
 from trajcache.services.errors import (
     ConflictError,
     InvalidInputError,

@@ -44,8 +44,8 @@ from trajcache.core.config import Settings
 from trajcache.db import models as tables
 from trajcache.db.models import trajectory_content_hash
 from trajcache.geometry.errors import GeometryError
-from trajcache.geometry.kinematics import check_limits, check_states
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.kinematics import check_limits, check_states
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.errors import InvalidInputError, NotFoundError, ServiceError
 from trajcache.services.models import ModelRegistry, get_model, register_model
 from trajcache.services.trajectories import SOURCES, store_trajectory

@@ -22,7 +22,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import wrap_angle
 from trajcache.timing._jerk import jerk_limited
 from trajcache.timing._limits import KinematicLimits, TimingSettings, kinematic_limits
 from trajcache.timing._paths import (
@@ -104,7 +105,7 @@ def time_trajectory(
         positions = certification_positions(candidate, motion_bound, CHORD_TOLERANCE_M)
         samples = candidate(positions)
         if planar:
-            samples[:, 2] = np.mod(samples[:, 2] + np.pi, 2 * np.pi) - np.pi
+            samples[:, 2] = wrap_angle(samples[:, 2])
         if certify_fn(samples):
             spline, revalidated = candidate, True
     if spline is not None:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.timing._limits import KinematicLimits
 from trajcache.timing._trajectory import TimingError
 

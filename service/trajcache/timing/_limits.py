@@ -8,8 +8,8 @@ from typing import Protocol
 
 import numpy as np
 
-from trajcache.geometry.robot import BaseType, RobotModel
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
 
 
 class TimingSettings(Protocol):

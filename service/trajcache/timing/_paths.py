@@ -20,7 +20,7 @@ from toppra.constraint import (
 from toppra.constraint.linear_constraint import LinearConstraint
 from toppra.interpolator import AbstractGeometricPath
 
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray
 
 _SAME = 1e-12  # key states closer than this (in s) are one waypoint
 

@@ -15,7 +15,7 @@ import numpy as np
 from toppra.algorithm import TOPPRA
 from toppra.algorithm.algorithm import ParameterizationReturnCode
 
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.timing._limits import KinematicLimits
 from trajcache.timing._paths import (
     AccelerationConstraint,

@@ -8,7 +8,7 @@ from enum import Enum
 
 import numpy as np
 
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray
 
 EvaluateFn = Callable[[FloatArray], tuple[FloatArray, FloatArray, FloatArray]]
 

@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from trajcache.cache.metric import wrap_angle
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.reference.restroom import STALL_COUNT, restroom_scene
 from trajcache.geometry.reference.robot import ARM_JOINTS
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
 from trajcache.workload.tasks import (
     OPEN_DOOR,
     ROUTES,

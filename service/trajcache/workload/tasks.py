@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.reference.restroom import restroom_layout
 from trajcache.geometry.reference.robot import STOWED_ARM
-from trajcache.geometry.shapes import FloatArray
 
 Arm = tuple[float, float, float, float, float, float, float]
 

@@ -16,8 +16,8 @@ from trajcache.api.moveit import (
     motion_plan_query,
 )
 from trajcache.core.config import Settings
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.urdf import load_robot_model
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.services.errors import InvalidInputError
 
 SETTINGS = Settings.model_construct()

@@ -33,10 +33,15 @@ from trajcache.api.moveit._messages import (
 from trajcache.api.quality import TimingOptions
 from trajcache.core.config import Settings
 from trajcache.geometry.errors import SceneError, StateError
-from trajcache.geometry.kinematics import HELD_TOLERANCE, check_limits, check_states, resolve_state
-from trajcache.geometry.robot import BASE_STATE_NAMES, BaseType, RobotModel
-from trajcache.geometry.scene import unit_quaternion
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.kinematics import (
+    HELD_TOLERANCE,
+    check_limits,
+    check_states,
+    resolve_state,
+)
+from trajcache.geometry.model.robot import BASE_STATE_NAMES, BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import unit_quaternion
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.planning import PlanRequest
 

@@ -16,7 +16,7 @@ from typing import Any
 from trajcache.api.moveit._codes import MoveItErrorCode, answer_code
 from trajcache.api.moveit._messages import MotionPlanRequestIn
 from trajcache.api.moveit._request import MotionPlanQuery
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.planning import PlanAnswer
 
 SOURCE = "trajcache"

@@ -29,8 +29,8 @@ from trajcache.api.schemas import (
     SkippedPairOut,
 )
 from trajcache.core.config import Settings
-from trajcache.geometry.bodies import robot_geometry
-from trajcache.geometry.robot import RobotModel
+from trajcache.geometry.collision.shared import robot_geometry
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.quality import end_effector_link
 from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 from trajcache.services.models import (

@@ -17,7 +17,7 @@ from trajcache.api.quality import JointTrajectory, TimingOptions, TrajectoryQual
 from trajcache.api.responses import COMMON, errors
 from trajcache.core.config import Settings
 from trajcache.geometry.errors import GeometryError
-from trajcache.geometry.kinematics import StateInput
+from trajcache.geometry.model.kinematics import StateInput
 from trajcache.metrics import record_plan
 from trajcache.planning.problem import PLANNER_NAMES
 from trajcache.services.planning import PlanAnswer, PlanRequest, plan

@@ -22,7 +22,8 @@ from trajcache.api.schemas import (
 )
 from trajcache.db import models as tables
 from trajcache.geometry.errors import SceneError
-from trajcache.geometry.scene import Scene, parse_scene, parse_scene_text
+from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
+from trajcache.geometry.scene.scene import Scene
 from trajcache.services.models import get_model
 from trajcache.services.robots import (
     get_robot,

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from trajcache.geometry.errors import SceneError
-from trajcache.geometry.scene import Scene, SceneObject, make_scene
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 
 ROOM_SIZE = (6.0, 4.0)
 WALL_HEIGHT = 2.5

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from trajcache.geometry.robot import RobotModel
+    from trajcache.geometry.model.robot import RobotModel
 
 REFERENCE_BASE = "planar"
 REFERENCE_NAME = "xarm7-mobile"
@@ -162,6 +162,6 @@ def reference_urdf() -> str:
 @functools.lru_cache(maxsize=1)
 def reference_model() -> RobotModel:
     """The reference robot loaded as a planar-base RobotModel (cached)."""
-    from trajcache.geometry.urdf import load_robot_model
+    from trajcache.geometry.model.urdf import load_robot_model
 
     return load_robot_model(reference_urdf(), base=REFERENCE_BASE, name=REFERENCE_NAME)

@@ -32,9 +32,9 @@ import weakref
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.kinematics import prismatic_extent
-from trajcache.geometry.robot import BaseType, RobotModel
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.kinematics import prismatic_extent
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]

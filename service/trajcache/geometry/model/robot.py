@@ -9,7 +9,7 @@ from enum import Enum
 
 import numpy as np
 
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 
 BASE_STATE_NAMES = ("base_x", "base_y", "base_theta")
 

@@ -2,14 +2,14 @@
 
 For one segment and one pair (an element and a scene object, or two robot elements), let d_a and
 d_b be lower bounds on the pair's distance at the two samples and M a bound on how far any point
-of the pair moves relative to the other over the segment (`motion.py`). At a fraction t of the
+of the pair moves relative to the other over the segment (`model/motion.py`). At a fraction t of the
 segment the distance is at least max(d_a − t·M, d_b − (1 − t)·M) ≥ (d_a + d_b − M) / 2, so
 
     d_a + d_b > M  certifies the pair on the whole segment.
 
-Pairs are settled level by level, dense and cheap first (`clearance.py`): element balls with the
-motion of their centre; slabs with the motion of the whole element (its centre's, plus its ball
-radius times the turn of the dofs that move it); every ball of the sphere covers with its own
+Pairs are settled level by level, dense and cheap first (`collision/clearance.py`): element balls
+with the motion of their centre; slabs with the motion of the whole element (its centre's, plus its
+ball radius times the turn of the dofs that move it); every ball of the sphere covers with its own
 motion; the exact distance (coal, meshes as their triangles). The dense first level uses the
 configuration-independent motion bound (one matrix product); the configuration-dependent one
 is computed for the pairs it leaves. Before going further, FCL's collision test runs where a
@@ -28,12 +28,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.advance import Advancer
-from trajcache.geometry.bodies import Posed
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.compiled import scene_open_kernel, self_open_kernel
-from trajcache.geometry.segments import Finding, OpenPairs, SegmentStatus
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.bodies import Posed
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.collision.compiled import scene_open_kernel, self_open_kernel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import segment_deltas
+from trajcache.geometry.validation.advance import Advancer
+from trajcache.geometry.validation.segments import Finding, OpenPairs, SegmentStatus
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
@@ -91,10 +92,7 @@ class SegmentCertifier:
 
     def _deltas(self, states: FloatArray) -> FloatArray:
         """Differences of consecutive states, the base angle the short way."""
-        delta = np.diff(states, axis=0)
-        if self.planar:
-            delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
-        return delta
+        return segment_deltas(states, planar=self.planar)
 
     def settled_by_bounds(self, states: FloatArray) -> bool:
         """True when the compiled levels alone certify every segment of `states` (N ≥ 2); they
@@ -106,8 +104,9 @@ class SegmentCertifier:
     def _compiled_levels(
         self, posed: Posed, step: FloatArray, *, first_only: bool = False
     ) -> list[OpenPairs]:
-        """Levels 1 to 3 on every segment at once, compiled (`compiled.py`): what they leave
-        open, scene pairs then robot pairs (with `first_only`, at most the first one found)."""
+        """Levels 1 to 3 on every segment at once, compiled (`collision/compiled.py`): what they
+        leave open, scene pairs then robot pairs (with `first_only`, at most the first one
+        found)."""
         rg = self.robot
         step = np.ascontiguousarray(step, dtype=float)
         rows, lows = scene_open_kernel(

@@ -19,20 +19,15 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.bodies import (
-    Posed,
-    RobotGeometry,
-    SceneGeometry,
-    robot_geometry,
-    scene_geometry,
-)
-from trajcache.geometry.clearance import Clearance
-from trajcache.geometry.compiled import state_rows_kernel
-from trajcache.geometry.kinematics import check_states
-from trajcache.geometry.narrow import Narrow
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.bodies import Posed, RobotGeometry, SceneGeometry
+from trajcache.geometry.collision.clearance import Clearance
+from trajcache.geometry.collision.compiled import state_rows_kernel
+from trajcache.geometry.collision.narrow import Narrow
+from trajcache.geometry.collision.shared import robot_geometry, scene_geometry
+from trajcache.geometry.model.kinematics import check_states
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
 
 __all__ = [
     "AMBIGUOUS",

@@ -33,9 +33,9 @@ from trajcache.geometry.errors import (
     RobotModelError,
     UnsafePathError,
 )
-from trajcache.geometry.robot import BaseType, CollisionElement, KinematicJoint, RobotModel
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
-from trajcache.geometry.srdf import Srdf, group_joints, parse_srdf
+from trajcache.geometry.model.robot import BaseType, CollisionElement, KinematicJoint, RobotModel
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.model.srdf import Srdf, group_joints, parse_srdf
 
 MiB = 1024 * 1024
 DEFAULT_JOINT_VELOCITY = 3.14

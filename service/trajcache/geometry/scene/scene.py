@@ -1,7 +1,7 @@
 """Scenes: collision objects in the world frame plus named environment values.
 
 Native payload: `{"objects": [{"id", "type", "size", "pose": {"position", "orientation"}}],
-"env": {...}}`; a MoveIt `PlanningScene` is accepted too (see `trajcache.geometry.moveit`).
+"env": {...}}`; `parse.py` also accepts a MoveIt `PlanningScene` (`moveit.py`).
 
 A scene may also carry what the robot team says about contact in it, which is part of its hash:
 - `allowed_collisions`: pairs of names whose contact is allowed, as a MoveIt allowed collision
@@ -25,14 +25,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import yaml
 
 from trajcache.geometry.errors import SceneError
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind, pose_matrix
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind, pose_matrix
 
 MAX_OBJECTS = 10_000
 MAX_MESH_VERTICES = 200_000
-MAX_SCENE_TEXT_BYTES = 16 * 1024 * 1024
 QUATERNION_NORM_TOLERANCE = 0.1
 _SIZE_LENGTHS = {ShapeKind.BOX: 3, ShapeKind.SPHERE: 1, ShapeKind.CYLINDER: 2, ShapeKind.CAPSULE: 2}
 _OBJECT_KEYS = frozenset({"id", "type", "size", "pose", "vertices", "faces"})
@@ -308,17 +306,9 @@ def make_scene(
 # --- public parsing, serialization and patching ---------------------------------------------
 
 
-def parse_scene(payload: Mapping[str, Any]) -> Scene:
-    """Parse a native scene or a MoveIt PlanningScene (whole, `{"world": ...}` or bare list)."""
-    if not isinstance(payload, Mapping):
-        raise SceneError("a scene must be a mapping")
-    env = parse_env(payload.get("env"))
-    if "objects" not in payload and any(
-        key in payload for key in ("world", "collision_objects", "robot_state")
-    ):
-        from trajcache.geometry.moveit import parse_planning_scene
-
-        return parse_planning_scene(payload, env)
+def parse_native_scene(payload: Mapping[str, Any], env: dict[str, float]) -> Scene:
+    """Parse a native scene payload, its `env` already parsed (`parse.parse_scene` takes either
+    format)."""
     unknown = sorted(str(k) for k in payload if k not in _SCENE_KEYS | _IGNORED_TOP_KEYS)
     if unknown:
         raise SceneError(f"unknown scene field(s) {', '.join(unknown)}")
@@ -382,31 +372,6 @@ def parse_attached(value: Any) -> list[AttachedObject]:
         touch = _names(raw.get("touch_links"), f"{where}.touch_links")
         out.append(AttachedObject(link, obj, tuple(touch)))
     return out
-
-
-class _NoAliasLoader(yaml.SafeLoader):
-    """Safe YAML loader that refuses aliases (no billion-laughs expansion)."""
-
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        if self.check_event(yaml.AliasEvent):
-            raise SceneError("YAML aliases (*ref) are not allowed in scenes")
-        return super().compose_node(parent, index)
-
-
-def parse_scene_text(text: str) -> Scene:
-    """Parse a scene from JSON or YAML text."""
-    if len(text) > MAX_SCENE_TEXT_BYTES:
-        raise SceneError(f"scene text exceeds {MAX_SCENE_TEXT_BYTES} bytes")
-    try:
-        data = json.loads(text)
-    except ValueError:
-        try:
-            data = yaml.load(text, Loader=_NoAliasLoader)
-        except yaml.YAMLError as exc:
-            raise SceneError(f"scene is neither valid JSON nor YAML: {exc}") from None
-    if not isinstance(data, Mapping):
-        raise SceneError("a scene document must be a mapping at the top level")
-    return parse_scene(data)
 
 
 def object_to_payload(obj: SceneObject) -> dict[str, Any]:

@@ -30,8 +30,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import ConvexHull, QhullError
 
-from trajcache.geometry.kernels import hull_support_climb
-from trajcache.geometry.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.collision.kernels import hull_support_climb
+from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 
 IntArray = NDArray[np.int64]
 

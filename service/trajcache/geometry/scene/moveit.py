@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 from trajcache.geometry.errors import SceneError
-from trajcache.geometry.scene import (
+from trajcache.geometry.model.shapes import FloatArray, ShapeKind
+from trajcache.geometry.scene.scene import (
     MAX_OBJECTS,
     AttachedObject,
     Scene,
@@ -34,7 +35,6 @@ from trajcache.geometry.scene import (
     number_list,
     parse_pose,
 )
-from trajcache.geometry.shapes import FloatArray, ShapeKind
 
 WORLD_FRAMES = frozenset({"", "world", "map", "odom"})
 # shape_msgs/SolidPrimitive type constants

@@ -5,13 +5,13 @@ orientation) and 0.035 rad (each joint) and checks every sample. A thin obstacle
 between two samples. Certified mode closes that gap.
 
 The bound. Along the straight segment between two consecutive samples, every point of the robot
-moves at most a computed distance (`motion.py`: for each dof, the change times the point's
+moves at most a computed distance (`model/motion.py`: for each dof, the change times the point's
 largest distance from that dof's axis over the segment, from the configurations at both ends).
 For an element and a scene object (or two robot elements, counting only the dofs that move one
 of them and not the other) with distance lower bounds d_a, d_b at the two samples and motion
 bound M, the distance anywhere on the segment is at least (d_a + d_b − M)/2, so d_a + d_b > M
 certifies the segment for that pair (`certify.py`). The lower bounds are sound at every level
-(`clearance.py`: element balls, sphere covers, support-function slabs; FCL only supplies a
+(`collision/clearance.py`: element balls, sphere covers, support-function slabs; FCL only supplies a
 direction and the final collision test, never a distance).
 
 Near-contact motions are not thrown away for being near: a pair no bound certifies is resolved
@@ -32,13 +32,14 @@ from typing import Protocol
 
 import numpy as np
 
-from trajcache.geometry.certify import SegmentCertifier
-from trajcache.geometry.collision import CollisionChecker, Contact, ContactKind
-from trajcache.geometry.kinematics import check_states
-from trajcache.geometry.robot import BaseType, RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.segments import Finding, SegmentStatus
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.checker import CollisionChecker, Contact, ContactKind
+from trajcache.geometry.model.kinematics import check_states
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import segment_deltas, state_steps
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.certify import SegmentCertifier
+from trajcache.geometry.validation.segments import Finding, SegmentStatus
 
 _CHUNK = 256
 _SPREAD = 9  # samples checked first, spread along the trajectory
@@ -79,18 +80,6 @@ class ValidationResult:
     def valid(self) -> bool:
         """True when the whole trajectory is safe."""
         return self.status is ValidationStatus.VALID
-
-
-def segment_deltas(states: FloatArray, *, planar: bool) -> FloatArray:
-    """Differences between consecutive states, with the base angle taking the short way."""
-    return _steps(states[:-1], states[1:], planar=planar)
-
-
-def _steps(starts: FloatArray, ends: FloatArray, *, planar: bool) -> FloatArray:
-    delta = ends - starts
-    if planar:
-        delta[:, 2] = (delta[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
-    return delta
 
 
 def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolution) -> FloatArray:
@@ -213,7 +202,7 @@ class TrajectoryValidator:
         state = chunk[found.segment]
         if found.at > 0.0:
             planar = self.model.base is BaseType.PLANAR
-            delta = _steps(state[None], chunk[found.segment + 1][None], planar=planar)[0]
+            delta = state_steps(state, chunk[found.segment + 1], planar=planar)
             state = state + found.at * delta
         if found.status is SegmentStatus.COLLISION:
             return _result(

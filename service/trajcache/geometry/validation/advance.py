@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.bodies import Posed
-from trajcache.geometry.collision import CollisionChecker
-from trajcache.geometry.segments import Finding, OpenPairs, SegmentStatus
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.bodies import Posed
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.validation.segments import Finding, OpenPairs, SegmentStatus
 
 BoolArray = NDArray[np.bool_]
 

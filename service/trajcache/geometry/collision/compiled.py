@@ -1,16 +1,16 @@
 """The certification levels compiled: every segment, pair and cover ball in one call per batch.
 
-`certify.py` settles pairs level by level in numpy (element balls, support-function slabs, the
-sphere covers and the slabs they suggest); the same levels, with the same bounds, run here as
-numba kernels with no Python per segment, pair or ball. What they leave open, the few pairs no
-level settles, goes on to the same FCL-directed slab and conservative advancement as before.
+`validation/certify.py` settles pairs level by level in numpy (element balls, support-function
+slabs, the sphere covers and the slabs they suggest); the same levels, with the same bounds, run
+here as numba kernels with no Python per segment, pair or ball. What they leave open, the few pairs
+no level settles, goes on to the same FCL-directed slab and conservative advancement as before.
 
 Per segment k (samples a, b) and pair, with lower bounds d_a, d_b at the ends and a bound M on
 how far any point of the pair moves relative to the other over the segment, d_a + d_b > M
-certifies the pair on the segment (`certify.py`). The levels, cheapest first:
+certifies the pair on the segment (`validation/certify.py`). The levels, cheapest first:
 
 1. the element's ball around its origin, the motion of that origin (configuration-independent
-   coefficients; `motion.py`);
+   coefficients; `model/motion.py`);
 2. slabs along the box's and the element's face normals and toward the nearest box point (for a
    robot pair: the line between the elements, across both their z axes, both elements' face
    normals), meshes first as their bounding boxes, then as their hulls along the three best of
@@ -32,8 +32,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.kernels import hull_climb
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.kernels import hull_climb
+from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 

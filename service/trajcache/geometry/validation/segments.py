@@ -8,8 +8,8 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.collision import Contact
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.checker import Contact
+from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]

@@ -3,9 +3,9 @@
 The distance between two elements of the robot depends only on the dofs that move exactly one of
 them (`RobotGeometry.pair_mask`): the dofs above both move them as one rigid body. When those are
 few, the whole box of their values within the limits can be covered by cells, each certified
-the way segments are (`certify.py`): a lower bound d(c) on the distance at the cell's centre c,
-and the configuration-independent bound M·h on how far any point of the pair moves relative to
-the other from c to any state of the cell (h the cell's half widths), give
+the way segments are (`validation/certify.py`): a lower bound d(c) on the distance at the cell's
+centre c, and the configuration-independent bound M·h on how far any point of the pair moves
+relative to the other from c to any state of the cell (h the cell's half widths), give
 
     d(q) ≥ d(c) − Σ_r h_r · M_r > 0  for every q in the cell, when d(c) > Σ_r h_r · M_r.
 
@@ -29,11 +29,11 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.bodies import Posed, RobotGeometry, SceneGeometry
-from trajcache.geometry.clearance import Clearance
-from trajcache.geometry.narrow import Narrow
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.bodies import Posed, RobotGeometry, SceneGeometry
+from trajcache.geometry.collision.clearance import Clearance
+from trajcache.geometry.collision.narrow import Narrow
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
 
 BoolArray = NDArray[np.bool_]
 

@@ -1,15 +1,14 @@
 """Collision bodies: a model's elements and a scene's objects as FCL objects and bound tables.
 
-Both are built once (per model, per scene version) and shared read-only between threads; only
-the robot's FCL objects, whose transforms a check mutates, are per thread. `Posed` holds a batch
-of states posed by forward kinematics, everything the distance bounds need.
+Both are built once (per model, per scene version: `shared.py`) and shared read-only between
+threads; only the robot's FCL objects, whose transforms a check mutates, are per thread. `Posed`
+holds a batch of states posed by forward kinematics, everything the distance bounds need.
 """
 
 from __future__ import annotations
 
 import functools
 import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import coal
@@ -17,15 +16,14 @@ import fcl
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.kinematics import forward_kinematics
-from trajcache.geometry.motion import MotionBounds, motion_bounds
-from trajcache.geometry.robot import RobotModel
-from trajcache.geometry.scene import Scene
-from trajcache.geometry.shapes import FloatArray
-from trajcache.geometry.support import SupportTable, sphere_cover
+from trajcache.geometry.model.kinematics import forward_kinematics
+from trajcache.geometry.model.motion import MotionBounds, motion_bounds
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.support import SupportTable, sphere_cover
+from trajcache.geometry.scene.scene import Scene
 
 IntArray = NDArray[np.int64]
-_CACHE_SIZE = 64
 
 
 class RobotGeometry:
@@ -285,56 +283,3 @@ class Posed:
         frame = self.links[sample, robot.element_link[element]]  # (K, 4, 4)
         local = robot.sphere_local[element, :width]  # (K, S, 3)
         return np.asarray(local @ frame[:, :3, :3].transpose(0, 2, 1) + frame[:, None, :3, 3])
-
-
-class _LRU:
-    """A small thread-safe LRU map used for per-model and per-scene geometry."""
-
-    def __init__(self, size: int) -> None:
-        self._size = size
-        self._items: OrderedDict[str, object] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, key: str) -> object | None:
-        with self._lock:
-            item = self._items.get(key)
-            if item is not None:
-                self._items.move_to_end(key)
-            return item
-
-    def put(self, key: str, value: object) -> None:
-        with self._lock:
-            self._items[key] = value
-            self._items.move_to_end(key)
-            while len(self._items) > self._size:
-                self._items.popitem(last=False)
-
-
-_robots = _LRU(_CACHE_SIZE)
-_scenes = _LRU(_CACHE_SIZE)
-
-
-def robot_geometry(model: RobotModel) -> RobotGeometry:
-    """The shared RobotGeometry of a model (cached by model id)."""
-    cached = _robots.get(model.model_id)
-    if isinstance(cached, RobotGeometry) and cached.model is model:
-        return cached
-    built = RobotGeometry(model)
-    # Imported here: the proof poses this geometry through clearance and narrow phase, which
-    # import this module.
-    from trajcache.geometry.free_pairs import proven_free_pairs
-
-    built.drop_pairs(proven_free_pairs(built))
-    _robots.put(model.model_id, built)
-    return built
-
-
-def scene_geometry(scene: Scene) -> SceneGeometry:
-    """The shared SceneGeometry of a scene version (cached by content hash)."""
-    key = scene.hash or f"id:{id(scene)}"
-    cached = _scenes.get(key)
-    if isinstance(cached, SceneGeometry):
-        return cached
-    built = SceneGeometry(scene)
-    _scenes.put(key, built)
-    return built

@@ -5,7 +5,7 @@ is a true lower bound (it never exceeds the distance), so any of them may prove 
 
 1. balls: one ball around each element's origin against each object's oriented box (or the other
    element's ball), dense over every state, element and object in one numpy pass;
-2. slabs: the support-function bound of `support.py` along a few directions (the face normals
+2. slabs: the support-function bound of `model/support.py` along a few directions (the face normals
    of the object's box and of the element, and the way from the element to its nearest box
    point; for robot pairs the line between the elements, the normal of both their z axes and
    both elements' face normals);
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.bodies import Posed, RobotGeometry, SceneGeometry
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.bodies import Posed, RobotGeometry, SceneGeometry
+from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]

@@ -9,10 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from trajcache.geometry.compiled import forward_kinematics_kernel
+from trajcache.geometry.collision.compiled import forward_kinematics_kernel
 from trajcache.geometry.errors import StateError
-from trajcache.geometry.robot import BaseType, KinematicJoint, RobotModel
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.model.robot import BaseType, KinematicJoint, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 

@@ -19,8 +19,8 @@ import fcl
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.bodies import Posed, RobotGeometry, SceneGeometry
-from trajcache.geometry.shapes import FloatArray
+from trajcache.geometry.collision.bodies import Posed, RobotGeometry, SceneGeometry
+from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]

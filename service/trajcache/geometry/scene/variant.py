@@ -26,8 +26,8 @@ from dataclasses import replace
 import numpy as np
 
 from trajcache.geometry.errors import SceneError, StateError
-from trajcache.geometry.robot import CollisionElement, KinematicJoint, RobotModel
-from trajcache.geometry.scene import Scene
+from trajcache.geometry.model.robot import CollisionElement, KinematicJoint, RobotModel
+from trajcache.geometry.scene.scene import Scene
 
 _CACHE_SIZE = 256
 _variants: OrderedDict[tuple[str, str], RobotModel] = OrderedDict()

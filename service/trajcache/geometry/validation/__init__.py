@@ -1,0 +1,1 @@
+"""Validation of trajectories: segment certification, advancement and the validator."""
