@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from trajcache.geometry.model.kinematics import forward_kinematics
 from trajcache.geometry.model.motion import MotionBounds, motion_bounds
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.shapes import FloatArray, Shape
 from trajcache.geometry.model.support import SupportTable, sphere_cover
 from trajcache.geometry.scene.scene import Scene
 
@@ -34,20 +34,7 @@ class RobotGeometry:
         self.motion: MotionBounds = motion_bounds(model)
         elements = model.elements
         self.geometries = [e.shape.to_fcl() for e in elements]
-        # coal's geometries, for exact distances (FCL's can be too large), and meshes' hulls.
-        self.exact_geometries = [e.shape.to_coal() for e in elements]
-        self.hull_geometries = [
-            e.shape.to_coal_hull(g) for e, g in zip(elements, self.exact_geometries, strict=True)
-        ]
-        self.hull_differs = np.array(
-            [
-                h is not g and not e.shape.hull_is_tight()
-                for e, h, g in zip(
-                    elements, self.hull_geometries, self.exact_geometries, strict=True
-                )
-            ],
-            dtype=bool,
-        )
+        self.exact = ExactBodies.of([e.shape for e in elements])
         self.element_link = np.array([e.link for e in elements], dtype=np.int64)
         self.element_origin = np.array([e.origin for e in elements], dtype=float).reshape(-1, 4, 4)
         self.support = SupportTable.build([e.shape for e in elements])
@@ -182,6 +169,28 @@ class RobotGeometry:
         return objs
 
 
+@dataclass(frozen=True)
+class ExactBodies:
+    """coal's geometries of some shapes, for exact distances (`narrow.py`; FCL's can be too
+    large): each shape's own (a mesh as its triangles), its convex hull (the shape itself for a
+    primitive), and whether a mesh falls short of its hull enough to measure its triangles."""
+
+    exact: list[coal.CollisionGeometry]
+    hull: list[coal.CollisionGeometry]
+    differs: NDArray[np.bool_]
+
+    @classmethod
+    def of(cls, shapes: list[Shape]) -> ExactBodies:
+        """The coal geometries of `shapes`."""
+        exact = [s.to_coal() for s in shapes]
+        hull = [s.to_coal_hull(g) for s, g in zip(shapes, exact, strict=True)]
+        differs = [
+            h is not g and not s.hull_is_tight()
+            for s, h, g in zip(shapes, hull, exact, strict=True)
+        ]
+        return cls(exact, hull, np.array(differs, dtype=bool))
+
+
 class SceneGeometry:
     """FCL and coal objects, oriented bounding boxes and support tables of one scene version."""
 
@@ -192,20 +201,6 @@ class SceneGeometry:
             fcl.CollisionObject(o.shape.to_fcl(), fcl.Transform(o.pose[:3, :3], o.pose[:3, 3]))
             for o in scene.objects
         ]
-        self.exact_objects = [o.shape.to_coal() for o in scene.objects]
-        self.hull_objects = [
-            o.shape.to_coal_hull(g) for o, g in zip(scene.objects, self.exact_objects, strict=True)
-        ]
-        self.hull_differs = np.array(
-            [
-                h is not g and not o.shape.hull_is_tight()
-                for o, h, g in zip(
-                    scene.objects, self.hull_objects, self.exact_objects, strict=True
-                )
-            ],
-            dtype=bool,
-        )
-        self.placements = [coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]) for o in scene.objects]
         count = len(scene.objects)
         self.rotation = np.array([o.pose[:3, :3] for o in scene.objects]).reshape(count, 3, 3)
         self.position = np.array([o.pose[:3, 3] for o in scene.objects]).reshape(count, 3)
@@ -216,10 +211,17 @@ class SceneGeometry:
         self.offset = np.einsum("mj,mji->mi", self.position, self.rotation)
         reach = np.einsum("mij,mj->mi", np.abs(self.rotation), self.half)
         self.aabb_lo, self.aabb_hi = self.position - reach, self.position + reach
+        self.placements = [coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]) for o in scene.objects]
         self.kernel_scene = tuple(
             np.ascontiguousarray(a, dtype=float)
             for a in (self.rotation, self.position, self.half, self.aabb_lo, self.aabb_hi)
         )
+
+    @functools.cached_property
+    def exact(self) -> ExactBodies:
+        """coal's geometries of the objects, built on first use: most scene versions are
+        settled by the cheaper levels and never need them."""
+        return ExactBodies.of([o.shape for o in self.scene.objects])
 
 
 @dataclass

@@ -19,7 +19,7 @@ import fcl
 import numpy as np
 from numpy.typing import NDArray
 
-from trajcache.geometry.collision.bodies import Posed, RobotGeometry, SceneGeometry
+from trajcache.geometry.collision.bodies import ExactBodies, Posed, RobotGeometry, SceneGeometry
 from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
@@ -53,31 +53,18 @@ class Narrow:
         `EXACT_MARGIN` (≤ 0 where they touch).
 
         Meshes are measured as their convex hulls first (a lower bound, and several times
-        cheaper); where that is not above `need` (per row), as their triangles.
+        cheaper); where that is not above `need` (per row) or not positive, as their triangles.
         """
         if len(rows) == 0:
             return np.zeros(0)
-        robot, scene = self.robot, self.scene
         poses = posed.pose(rows[:, 0], rows[:, 1])
-        element, obj = rows[:, 1], rows[:, 2]
         placed = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses]
-        out = np.empty(len(rows))
-        request = coal.DistanceRequest()
-        lists = (robot.hull_geometries, scene.hull_objects)
-        for k, (e, m) in enumerate(zip(element.tolist(), obj.tolist(), strict=True)):
-            out[k] = coal.distance(
-                lists[0][e], placed[k], lists[1][m], scene.placements[m], request,
-                coal.DistanceResult(),
-            )  # fmt: skip
-        refine = (robot.hull_differs[element] | scene.hull_differs[obj]) & (out <= need)
-        for k in np.flatnonzero(refine).tolist():
-            e, m = int(element[k]), int(obj[k])
-            out[k] = coal.distance(
-                robot.exact_geometries[e], placed[k], scene.exact_objects[m],
-                scene.placements[m], request, coal.DistanceResult(),
-            )  # fmt: skip
-        self._count(len(rows) + int(refine.sum()))
-        return out - EXACT_MARGIN
+        scene = self.scene
+        return self._exact(
+            (self.robot.exact, rows[:, 1], placed),
+            (scene.exact, rows[:, 2], [scene.placements[m] for m in rows[:, 2].tolist()]),
+            need,
+        )
 
     def self_exact(
         self, posed: Posed, rows: IntArray, need: FloatArray | float = np.inf
@@ -87,24 +74,40 @@ class Narrow:
             return np.zeros(0)
         robot = self.robot
         first, second = robot.pair_i[rows[:, 1]], robot.pair_j[rows[:, 1]]
-        poses_i, poses_j = posed.pose(rows[:, 0], first), posed.pose(rows[:, 0], second)
-        placed_i = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses_i]
-        placed_j = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses_j]
-        out = np.empty(len(rows))
+        sides = []
+        for element in (first, second):
+            poses = posed.pose(rows[:, 0], element)
+            sides.append(
+                (robot.exact, element, [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses])
+            )
+        return self._exact(sides[0], sides[1], need)
+
+    def _exact(
+        self,
+        first: tuple[ExactBodies, IntArray, list[coal.Transform3s]],
+        second: tuple[ExactBodies, IntArray, list[coal.Transform3s]],
+        need: FloatArray | float,
+    ) -> FloatArray:
+        """coal's distances, row by row, of bodies `first` and `second` (their geometries, the
+        index of each row's body and its placement), hulls first, less `EXACT_MARGIN`."""
+        (bodies_a, index_a, placed_a), (bodies_b, index_b, placed_b) = first, second
+        pairs = list(zip(index_a.tolist(), index_b.tolist(), strict=True))
         request = coal.DistanceRequest()
-        hulls, exact = robot.hull_geometries, robot.exact_geometries
-        pairs = list(zip(first.tolist(), second.tolist(), strict=True))
-        for k, (i, j) in enumerate(pairs):
+        out = np.empty(len(pairs))
+        for k, (a, b) in enumerate(pairs):
             out[k] = coal.distance(
-                hulls[i], placed_i[k], hulls[j], placed_j[k], request, coal.DistanceResult()
-            )
-        refine = (robot.hull_differs[first] | robot.hull_differs[second]) & (out <= need)
+                bodies_a.hull[a], placed_a[k], bodies_b.hull[b], placed_b[k], request,
+                coal.DistanceResult(),
+            )  # fmt: skip
+        differs = bodies_a.differs[index_a] | bodies_b.differs[index_b]
+        refine = differs & (out <= np.maximum(need, 0.0))
         for k in np.flatnonzero(refine).tolist():
-            i, j = pairs[k]
+            a, b = pairs[k]
             out[k] = coal.distance(
-                exact[i], placed_i[k], exact[j], placed_j[k], request, coal.DistanceResult()
-            )
-        self._count(len(rows) + int(refine.sum()))
+                bodies_a.exact[a], placed_a[k], bodies_b.exact[b], placed_b[k], request,
+                coal.DistanceResult(),
+            )  # fmt: skip
+        self._count(len(pairs) + int(refine.sum()))
         return out - EXACT_MARGIN
 
     def first_collision(
