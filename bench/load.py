@@ -49,19 +49,20 @@ from contextlib import ExitStack
 from dataclasses import dataclass, field
 from typing import Any
 
-import httpx
 import numpy as np
 import sqlalchemy as sa
 
+from harness.caches import fresh_schema
+from harness.replay import RobotClient, register_reference_model
+from harness.service import running_service, server_cpu_seconds
 from trajcache.core.config import Settings
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.geometry.reference.robot import reference_model
-from trajcache.geometry.scene.scene import Scene, scene_to_payload
-from trajcache.geometry.validation.validator import validator_for
-from trajcache.protocol.caches import fresh_schema
-from trajcache.protocol.replay import RobotClient, register_reference_model
-from trajcache.protocol.service import running_service, server_cpu_seconds
-from trajcache.workload.cleaning import CleaningRun, PlanCall, cleaning_run
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.validator import build_validator
+from trajcache.reference.cleaning import CleaningRun, PlanCall, cleaning_run
+from trajcache.reference.robot import reference_model
+from trajcache_client import NO_RETRY, APIError, Client
 
 POSTGRES_URL = os.environ.get(
     "TRAJCACHE_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
@@ -198,7 +199,7 @@ class MissMaker:
     def _free(self, scene: Scene, state: np.ndarray) -> bool:
         checker = self._checkers.get(scene.hash)
         if checker is None:
-            checker = validator_for(self.model, scene, self._settings).checker
+            checker = build_validator(self.model, scene, self._settings).checker
             self._checkers[scene.hash] = checker
         return not checker.state_contacts(state)
 
@@ -386,7 +387,7 @@ def warm_cache(bases: list[str], model_id: str, run: CleaningRun, calls: int | N
     failures: list[str] = []
 
     def play(k: int) -> None:
-        with httpx.Client(base_url=bases[k % len(bases)], timeout=120) as client:
+        with Client(bases[k % len(bases)], timeout=120, retry=NO_RETRY) as client:
             robot = RobotClient(client, f"warm-{k}", model_id, "sim")
             try:
                 for call in halves[k]:
@@ -406,10 +407,18 @@ def warm_cache(bases: list[str], model_id: str, run: CleaningRun, calls: int | N
 
 def register_robots(base: str, model_id: str, count: int) -> None:
     """Create robots load-0 … load-(count-1)."""
-    with httpx.Client(base_url=base, timeout=60) as client:
+    with Client(base, timeout=60, retry=NO_RETRY) as client:
         for k in range(count):
-            reply = client.put(f"/v1/robots/load-{k}", json={"model_id": model_id, "kind": "sim"})
-            reply.raise_for_status()
+            client.put_robot(f"load-{k}", model_id, kind="sim")
+
+
+def _served(client: Client, trajectory_id: int) -> bool:
+    """Whether the service of `client` answers GET /v1/trajectories/{trajectory_id} with 200."""
+    try:
+        client.get_trajectory(trajectory_id)
+    except APIError:
+        return False
+    return True
 
 
 def lost_trajectories(url: str, bases: list[str], plans: list[Outcome]) -> tuple[int, int]:
@@ -429,11 +438,11 @@ def lost_trajectories(url: str, bases: list[str], plans: list[Outcome]) -> tuple
     finally:
         engine.dispose()
     missing += len(set(ids) - stored)
-    clients = [httpx.Client(base_url=b, timeout=30) for b in bases]
+    clients = [Client(b, timeout=30, retry=NO_RETRY) for b in bases]
     try:
         for tid, replica in sorted(p for p in planned if p[0] is not None):
             other = clients[(replica + 1) % len(clients)]
-            if tid in stored and other.get(f"/v1/trajectories/{tid}").status_code != 200:
+            if tid is not None and tid in stored and not _served(other, tid):
                 missing += 1
     finally:
         for client in clients:
@@ -492,7 +501,7 @@ def main() -> None:
             stack.enter_context(running_service(url, workers=args.workers, env=env))
             for _ in range(args.replicas)
         ]
-        with httpx.Client(base_url=bases[0], timeout=60) as client:
+        with Client(bases[0], timeout=60, retry=NO_RETRY) as client:
             model_id = register_reference_model(client)
         warmed = warm_cache(bases, model_id, cleaning_run(args.seed), calls)
         register_robots(bases[0], model_id, robots_n)

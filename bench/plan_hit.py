@@ -15,12 +15,12 @@ PostgreSQL server given with --database-url) and drives it with the reference wo
   after the first call that follows a scene change).
 - Sequential: one keep-alive connection per client library sends each query once, in run order,
   the two taking turns: a lean client (the standard library's http.client, as any compiled
-  robot-side HTTP client is at least as lean) and httpx (which the Python client package uses;
-  it spends about 0.4 ms more CPU per request on the client side). No request repeats, so every
-  answer is validated against the scene (the validation memo only helps where a cached interior
-  recurs exactly). Latency percentiles are over the answers served from the cache; misses are
-  counted, not timed. `p50_ms` and `p99_ms` are the lean client's, `httpx_p50_ms` and
-  `httpx_p99_ms` the other's.
+  robot-side HTTP client is at least as lean) and the Python client package (trajcache_client,
+  over httpx; it spends about 0.4 ms more CPU per request on the client side). No request
+  repeats, so every answer is validated against the scene (the validation memo only helps
+  where a cached interior recurs exactly). Latency percentiles are over the answers served
+  from the cache; misses are counted, not timed. `p50_ms` and `p99_ms` are the lean client's,
+  `httpx_p50_ms` and `httpx_p99_ms` the Python client's.
 - Repeat: the same sequential requests once more. Exact repeats are answered from the validation
   memo without collision checks: the most the memo can give, not what a robot sees.
 - Concurrent: 16 clients, each sending its own share of further fresh queries; plans per second
@@ -39,6 +39,7 @@ unlike latency, it hardly moves when other programs load the machine.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import http.client
 import json
 import statistics
@@ -52,13 +53,15 @@ from typing import Any
 import httpx
 import numpy as np
 
-from trajcache.geometry.reference.robot import reference_model, reference_urdf
-from trajcache.geometry.scene.scene import Scene, scene_to_payload
+from harness.caches import fresh_schema
+from harness.service import running_service, server_cpu_seconds
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.geometry.scene.scene import Scene
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
-from trajcache.protocol.caches import fresh_schema
-from trajcache.protocol.service import running_service, server_cpu_seconds
-from trajcache.workload.cleaning import CleaningRun, cleaning_run
+from trajcache.reference.cleaning import CleaningRun, cleaning_run
+from trajcache.reference.robot import reference_model, reference_urdf
+from trajcache_client import NO_RETRY, APIError, Client
 
 CONCURRENCY = 16
 QUERY_DOORS_START = (4.0, 11.0, 17.0)  # degrees per stall; run 1 draws its own
@@ -97,7 +100,32 @@ class Sample:
         return sum(v for k, v in self.server_timing.items() if k not in PLAN_PARTS | {"serialize"})
 
 
-def fill_cache(client: httpx.Client, model_id: str, run: CleaningRun, calls: int) -> int:
+class ServerTimingTransport(httpx.HTTPTransport):
+    """The HTTP transport, keeping the Server-Timing header of the last answer."""
+
+    last = ""
+
+    def handle_request(self, request: httpx.Request) -> httpx.Response:
+        """Send `request`; note its answer's Server-Timing header."""
+        response = super().handle_request(request)
+        self.last = response.headers.get("server-timing", "")
+        return response
+
+
+class TimedClient(Client):
+    """The Python client, not retrying, noting each answer's Server-Timing header."""
+
+    def __init__(self, base: str, timeout_s: float) -> None:
+        self.timing = ServerTimingTransport()
+        super().__init__(base, timeout=timeout_s, retry=NO_RETRY, transport=self.timing)
+
+
+def api_client(base: str, timeout_s: float) -> TimedClient:
+    """A client of the service for the benchmark."""
+    return TimedClient(base, timeout_s)
+
+
+def fill_cache(client: Client, model_id: str, run: CleaningRun, calls: int) -> int:
     """Plan the first `calls` calls of `run` in its scenes and store them; return how many."""
     model = reference_model()
     source = ModelSource(
@@ -119,17 +147,13 @@ def fill_cache(client: httpx.Client, model_id: str, run: CleaningRun, calls: int
         result = run_planning(problem)
         if not result.solved or result.path is None:
             continue
-        reply = client.post(
-            "/v1/trajectories",
-            json={
-                "model_id": model_id,
-                "states": result.path.tolist(),
-                "source": "sim",
-                "scene_hash": scene.hash,
-                "env": dict(scene.env),
-            },
+        client.store_trajectory(
+            model_id,
+            result.path.tolist(),
+            source="sim",
+            scene_hash=scene.hash,
+            env=dict(scene.env),
         )
-        reply.raise_for_status()
         stored += 1
     return stored
 
@@ -137,7 +161,7 @@ def fill_cache(client: httpx.Client, model_id: str, run: CleaningRun, calls: int
 class Robots:
     """One robot per distinct scene, created (and its scene uploaded) on first use."""
 
-    def __init__(self, client: httpx.Client, model_id: str) -> None:
+    def __init__(self, client: Client, model_id: str) -> None:
         self.client, self.model_id = client, model_id
         self.by_hash: dict[str, str] = {}
 
@@ -146,9 +170,9 @@ class Robots:
         robot_id = self.by_hash.get(scene.hash)
         if robot_id is None:
             robot_id = f"bench-{len(self.by_hash)}"
-            self.client.put(f"/v1/robots/{robot_id}", json={"model_id": self.model_id})
-            reply = self.client.put(f"/v1/robots/{robot_id}/scene", json=scene_to_payload(scene))
-            reply.raise_for_status()
+            with contextlib.suppress(APIError):  # as before: a refusal shows at the scene
+                self.client.put_robot(robot_id, self.model_id)
+            self.client.put_scene(robot_id, scene_to_payload(scene))
             self.by_hash[scene.hash] = robot_id
         return robot_id
 
@@ -177,14 +201,17 @@ def _timed(query: Query) -> Query:
     return Query(query.robot_id, {**query.body, "options": options})
 
 
-def send(client: httpx.Client, query: Query) -> Sample:
-    """Send one plan request with httpx and time it."""
+def send(client: TimedClient, query: Query) -> Sample:
+    """Send one plan request with the Python client and time it."""
+    body = query.body
     began = time.perf_counter()
-    reply = client.post(f"/v1/robots/{query.robot_id}/plan", json=query.body)
+    try:
+        answer = client.plan(query.robot_id, body["start"], body["goal"], body["options"])
+    except APIError as exc:
+        raise RuntimeError(f"plan answered {exc.status_code}: {exc.detail[:300]}") from exc
     latency = (time.perf_counter() - began) * 1e3
-    if reply.status_code != 200:
-        raise RuntimeError(f"plan answered {reply.status_code}: {reply.text[:300]}")
-    return _sample(latency, reply.json(), reply.headers.get("server-timing", ""))
+    timing = _server_timing(client.timing.last)
+    return Sample(latency, answer.source == "cache", answer.timings_ms, timing)
 
 
 def send_lean(conn: http.client.HTTPConnection, query: Query) -> Sample:
@@ -223,19 +250,19 @@ def _server_timing(header: str) -> dict[str, float]:
 
 
 def run_sequential(base: str, queries: list[Query]) -> list[Sample]:
-    """Each query once, one httpx client, in order."""
-    with httpx.Client(base_url=base, timeout=30) as client:
+    """Each query once, one Python client, in order."""
+    with api_client(base, 30) as client:
         return [send(client, q) for q in queries]
 
 
 def run_both(base: str, queries: list[Query]) -> tuple[list[Sample], list[Sample]]:
-    """Each query once, in order, the lean client and httpx taking turns: (lean, httpx)."""
+    """Each query once, in order, the lean and the Python client taking turns: (lean, python)."""
     url = httpx.URL(base)
     lean: list[Sample] = []
     other: list[Sample] = []
     conn = http.client.HTTPConnection(url.host, url.port, timeout=30)
     try:
-        with httpx.Client(base_url=base, timeout=30) as client:
+        with api_client(base, 30) as client:
             for k, query in enumerate(queries):
                 if k % 2 == 0:
                     lean.append(send_lean(conn, query))
@@ -247,12 +274,12 @@ def run_both(base: str, queries: list[Query]) -> tuple[list[Sample], list[Sample
 
 
 def http_floor(base: str, n: int = 200) -> tuple[float, float]:
-    """Median latency (ms) of GET /healthz, transport and framework only: (lean, httpx)."""
+    """Median latency (ms) of GET /healthz, transport and framework only: (lean, python)."""
     url = httpx.URL(base)
     conn = http.client.HTTPConnection(url.host, url.port, timeout=30)
     lean, other = [], []
     try:
-        with httpx.Client(base_url=base, timeout=30) as client:
+        with api_client(base, 30) as client:
             for _ in range(n):
                 began = time.perf_counter()
                 conn.request("GET", "/healthz")
@@ -260,7 +287,7 @@ def http_floor(base: str, n: int = 200) -> tuple[float, float]:
                 json.loads(reply.read())
                 lean.append((time.perf_counter() - began) * 1e3)
                 began = time.perf_counter()
-                client.get("/healthz").raise_for_status()
+                client.health()
                 other.append((time.perf_counter() - began) * 1e3)
     finally:
         conn.close()
@@ -274,7 +301,7 @@ def run_concurrent(base: str, queries: list[Query]) -> tuple[float, int]:
     errors: list[str] = []
 
     def worker(k: int) -> None:
-        with httpx.Client(base_url=base, timeout=60) as client:
+        with api_client(base, 60) as client:
             try:
                 hits[k] = sum(send(client, q).hit for q in shares[k])
             except Exception as exc:  # reported below
@@ -345,13 +372,9 @@ def main() -> None:
     per_run = len(fill_run.calls[:calls])
 
     with database(args.database_url) as url, running_service(url, workers=args.workers) as base:
-        with httpx.Client(base_url=base, timeout=60) as client:
-            reply = client.post(
-                "/v1/robot-models",
-                json={"urdf": reference_urdf(), "base": "planar", "name": "xarm7-mobile"},
-            )
-            reply.raise_for_status()
-            model_id = reply.json()["model_id"]
+        with api_client(base, 60) as client:
+            model = client.register_model(reference_urdf(), base="planar", name="xarm7-mobile")
+            model_id = model.model_id
             stored = fill_cache(client, model_id, fill_run, per_run)
             robots = Robots(client, model_id)
             runs = -(-(sequential + concurrent) // per_run) + 1
@@ -382,8 +405,8 @@ def main() -> None:
         ("cache hits", fresh["hits"] + fresh_httpx["hits"]),
         ("client p50 ms (http.client)", fresh.get("p50")),
         ("client p99 ms (http.client)", fresh.get("p99")),
-        ("client p50 ms (httpx)", fresh_httpx.get("p50")),
-        ("client p99 ms (httpx)", fresh_httpx.get("p99")),
+        ("client p50 ms (trajcache_client)", fresh_httpx.get("p50")),
+        ("client p99 ms (trajcache_client)", fresh_httpx.get("p99")),
         ("server db p50 ms", fresh.get("db")),
         ("server lookup p50 ms", fresh.get("lookup")),
         ("server validate p50 ms", fresh.get("validate")),
@@ -393,7 +416,7 @@ def main() -> None:
         ("server serialize p50 ms", fresh.get("serialize")),
         ("http p50 ms (http.client)", fresh.get("http")),
         ("http floor: GET /healthz p50 ms", floor),
-        ("http floor: GET /healthz p50 ms (httpx)", floor_httpx),
+        ("http floor: GET /healthz p50 ms (trajcache_client)", floor_httpx),
         ("server CPU per plan, sequential ms", cpu_seq),
         ("repeat: client p50 ms", repeat.get("p50")),
         ("repeat: client p99 ms", repeat.get("p99")),

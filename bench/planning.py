@@ -32,13 +32,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.geometry.reference.robot import reference_model, reference_urdf
-from trajcache.geometry.scene.scene import Scene, scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.geometry.scene.scene import Scene
 from trajcache.planning.ompl_planner import plan_ompl
 from trajcache.planning.problem import ModelSource, PlanningProblem, PlanResult, SceneSource
 from trajcache.planning.run import run_planning
 from trajcache.planning.space import MotionChecker, state_space_spec
-from trajcache.workload.cleaning import CleaningRun, cleaning_run, door_sweep_run
+from trajcache.reference.cleaning import CleaningRun, cleaning_run, door_sweep_run
+from trajcache.reference.robot import reference_model, reference_urdf
 
 BUDGET_S = 2.0
 SWEEP_DOORS_DEG = (0.0, 45.0, 90.0)

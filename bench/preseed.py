@@ -1,7 +1,9 @@
 """Pre-seeding through the API: the door sweep as seed jobs, then a "real robot" on a new scene.
 
 The service is the real app (lifespan, migrations, background seed scheduler) on a fresh SQLite
-file with the local planner pool (`--workers` processes), driven in-process over ASGI.
+file with the local planner pool (`--workers` processes), driven in-process over ASGI through
+the Python client (trajcache_client); the cache size and plan-event sums are read from the
+service's database.
 
 1. Seed (REFERENCE.md, benchmark row 4): one seed job per door angle 0°, 10°, … 90°, each the
    reference door-sweep run at that angle (`POST /v1/seed-jobs` with workload `door_sweep`),
@@ -26,19 +28,24 @@ import argparse
 import json
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import httpx
 import sqlalchemy as sa
 from fastapi.testclient import TestClient
 
 from trajcache.core.config import Settings
 from trajcache.db.models import PlanEvent, Trajectory
-from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene.scene import scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.main import create_app
+from trajcache.reference.cleaning import cleaning_run
+from trajcache.reference.robot import reference_urdf
 from trajcache.services.context import ServiceContext
-from trajcache.workload.cleaning import cleaning_run
+from trajcache_client import NO_RETRY, APIError, Client
 
 HEADER = (
     f"{'row':<28}{'calls':>6}{'hits':>6}{'plan':>6}{'fail':>6}{'cache':>7}"
@@ -46,18 +53,33 @@ HEADER = (
 )
 
 
-def _ctx(client: TestClient) -> ServiceContext:
-    ctx: ServiceContext = client.app.state.ctx  # type: ignore[attr-defined]
-    return ctx
+class InProcessTransport(httpx.BaseTransport):
+    """Sends each request through a running TestClient: the app in process, lifespan included."""
+
+    def __init__(self, app: TestClient) -> None:
+        self.app = app
+
+    def handle_request(self, request: httpx.Request) -> httpx.Response:
+        """The app's answer to `request`, read whole."""
+        answer = self.app.send(request)
+        return httpx.Response(answer.status_code, headers=answer.headers, content=answer.content)
 
 
-def _cache_size(client: TestClient) -> int:
-    with _ctx(client).session() as session:
+@dataclass(frozen=True)
+class Service:
+    """The app in process: a client of its API, and its context for the database counts."""
+
+    api: Client
+    ctx: ServiceContext
+
+
+def _cache_size(service: Service) -> int:
+    with service.ctx.session() as session:
         return int(session.scalar(sa.select(sa.func.count()).select_from(Trajectory)) or 0)
 
 
-def _event_sums(client: TestClient, robot_id: str) -> dict[str, float]:
-    ctx = _ctx(client)
+def _event_sums(service: Service, robot_id: str) -> dict[str, float]:
+    ctx = service.ctx
     ctx.records.flush()
     with ctx.session() as session:
         row = session.execute(
@@ -80,37 +102,33 @@ def _print(row: dict[str, Any]) -> None:
     )
 
 
-def seed_row(client: TestClient, model_id: str, door: float, seed: int, limit: int | None) -> dict:
+def seed_row(service: Service, model_id: str, door: float, seed: int, limit: int | None) -> dict:
     """One seed job: the door-sweep run at `door` degrees."""
     workload: dict[str, Any] = {"name": "door_sweep", "seed": seed, "doors_deg": [door]}
     if limit is not None:
         workload["limit"] = limit
     began = time.perf_counter()
-    job = client.post("/v1/seed-jobs", json={"model_id": model_id, "workload": workload})
-    job.raise_for_status()
-    job_id = job.json()["job_id"]
-    while True:
-        state = client.get(f"/v1/seed-jobs/{job_id}").json()
-        if state["state"] not in ("queued", "running"):
-            break
+    job = service.api.create_seed_job({"workload": workload}, model_id=model_id)
+    while job.active:
         time.sleep(0.2)
+        job = service.api.get_seed_job(job.job_id)
     wall = time.perf_counter() - began
     return {
-        "row": f"seed job {job_id}: doors {door:g}°",
-        "calls": state["total"],
-        "hits": state["hits"],
-        "planned": state["planned"],
-        "failed": state["failed"],
-        "cache": _cache_size(client),
+        "row": f"seed job {job.job_id}: doors {door:g}°",
+        "calls": job.total,
+        "hits": job.hits,
+        "planned": job.planned,
+        "failed": job.failed,
+        "cache": _cache_size(service),
         "wall_s": wall,
-        **_event_sums(client, f"seed-job-{job_id}"),
+        **_event_sums(service, f"seed-job-{job.job_id}"),
     }
 
 
-def real_row(client: TestClient, model_id: str, robot: str, seed: int, limit: int | None) -> dict:
+def real_row(service: Service, model_id: str, robot: str, seed: int, limit: int | None) -> dict:
     """The perturbed cleaning run by a `real` robot, every call through the plan endpoint."""
-    put = client.put(f"/v1/robots/{robot}", json={"model_id": model_id, "kind": "real"})
-    put.raise_for_status()
+    client = service.api
+    client.put_robot(robot, model_id, kind="real")
     run = cleaning_run(seed, perturbed=True)
     calls = run.calls[:limit]
     counts = {"hits": 0, "planned": 0, "failed": 0}
@@ -119,42 +137,48 @@ def real_row(client: TestClient, model_id: str, robot: str, seed: int, limit: in
     for call in calls:
         scene = run.scene_for(call)
         if scene.hash != current:
-            client.put(f"/v1/robots/{robot}/scene", json=scene_to_payload(scene)).raise_for_status()
+            client.put_scene(robot, scene_to_payload(scene))
             current = scene.hash
-        body = {"start": call.start.tolist(), "goal": call.goal.tolist()}
-        answer = client.post(f"/v1/robots/{robot}/plan", json=body).json()
-        if answer.get("status") != "success":
+        try:
+            answer = client.plan(robot, call.start.tolist(), call.goal.tolist())
+        except APIError:
+            counts["failed"] += 1
+            continue
+        if answer.status != "success":
             counts["failed"] += 1
         else:
-            counts["hits" if answer["source"] == "cache" else "planned"] += 1
+            counts["hits" if answer.source == "cache" else "planned"] += 1
     wall = time.perf_counter() - began
     return {
         "row": robot,
         "calls": len(calls),
         **counts,
-        "cache": _cache_size(client),
+        "cache": _cache_size(service),
         "wall_s": wall,
-        **_event_sums(client, robot),
+        **_event_sums(service, robot),
     }
 
 
-def _app(url: str, workers: int) -> TestClient:
+@contextmanager
+def _app(url: str, workers: int) -> Iterator[Service]:
+    """The app on the database `url`, running until the block ends."""
     settings = Settings(database_url=url, worker_processes=workers, seed_heartbeat_s=0.5)
-    return TestClient(create_app(settings))
+    with TestClient(create_app(settings)) as app:
+        transport = InProcessTransport(app)
+        with Client(str(app.base_url), retry=NO_RETRY, transport=transport) as api:
+            yield Service(api, app.app.state.ctx)  # type: ignore[attr-defined]
 
 
-def _warm(client: TestClient) -> None:
+def _warm(service: Service) -> None:
     """Wait until the planner workers are up (a cold start would time out the first plans)."""
-    pool = _ctx(client).planner_pool()
+    pool = service.ctx.planner_pool()
     wait_ready = getattr(getattr(pool, "backend", None), "wait_ready", None)
     if callable(wait_ready):
         wait_ready(300.0)
 
 
-def _register(client: TestClient) -> str:
-    model = client.post("/v1/robot-models", json={"urdf": reference_urdf(), "base": "planar"})
-    model.raise_for_status()
-    return str(model.json()["model_id"])
+def _register(service: Service) -> str:
+    return service.api.register_model(reference_urdf(), base="planar").model_id
 
 
 def main() -> None:

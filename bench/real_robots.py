@@ -1,7 +1,7 @@
 """The live service on real robot descriptions: registration, planning, cache hits, dense checks.
 
 Starts `trajcache serve` (uvicorn on loopback, a temporary SQLite database) and, for each robot
-of `example-robot-data` (trajcache.workload.example_robots; --robots to choose):
+of `example-robot-data` (trajcache.reference.example_robots; --robots to choose):
 
 - Registers it as shipped: URDF, SRDF, a zip of its meshes, and its SRDF group or its listed
   planning joints (--without-srdf: URDF and planning joints only, and the dense check then
@@ -27,7 +27,6 @@ robots and per robot. Exits 1 when a returned path collides or the service answe
 from __future__ import annotations
 
 import argparse
-import base64
 import io
 import json
 import sys
@@ -37,14 +36,14 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-import httpx
 import numpy as np
 
 from dense_mesh import FloatArray, MeshChecker
+from harness.service import running_service
 from robot_description import describe
 from scene_families import FAMILIES, Problem, Workspace, generate_problem, workspace
-from trajcache.protocol.service import running_service
-from trajcache.workload.example_robots import ROBOTS, ExampleRobot
+from trajcache.reference.example_robots import ROBOTS, ExampleRobot
+from trajcache_client import NO_RETRY, APIError, Client, PlanResult
 
 NOISE = 0.02
 COLUMNS = ("problems", "success_rate", "plan_ms_median", "plan_ms_p95", "hit_rate",
@@ -122,30 +121,30 @@ def summary(tallies: list[Tally]) -> dict[str, Any]:
     }
 
 
-def mesh_archive(robot: ExampleRobot) -> str:
-    """The robot's mesh files as a base64 zip, by their path below robots/."""
+def mesh_archive(robot: ExampleRobot) -> bytes:
+    """The robot's mesh files as a zip, by their path below robots/."""
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
         for path, data in robot.files().items():
             archive.writestr(path, data)
-    return base64.b64encode(buffer.getvalue()).decode()
+    return buffer.getvalue()
 
 
 def registration(
     robot: ExampleRobot, planning_joints: list[str], with_srdf: bool
 ) -> dict[str, Any]:
-    """The POST /v1/robot-models body: the robot as shipped."""
-    body: dict[str, Any] = {"urdf": robot.urdf, "base": robot.base, "name": robot.name,
-                            "archive_base64": mesh_archive(robot)}  # fmt: skip
+    """The keyword arguments of `Client.register_model`: the robot as shipped."""
+    fields: dict[str, Any] = {"base": robot.base, "name": robot.name,
+                              "archive": mesh_archive(robot)}  # fmt: skip
     if with_srdf and robot.srdf is not None:
-        body["srdf"] = robot.srdf
+        fields["srdf"] = robot.srdf
     if with_srdf and robot.group is not None:
-        body["group"] = robot.group
+        fields["group"] = robot.group
     elif robot.joint_names is not None or not with_srdf:
-        body["joint_names"] = planning_joints
+        fields["joint_names"] = planning_joints
     if robot.joint_values:
-        body["joint_values"] = robot.joint_values
-    return body
+        fields["joint_values"] = robot.joint_values
+    return fields
 
 
 def _limits(values: list[float | None], unbounded: float) -> FloatArray:
@@ -156,29 +155,29 @@ class RobotRun:
     """One registered robot: its problems planned, replayed and checked through the service."""
 
     def __init__(
-        self, client: httpx.Client, tally: Tally, model_id: str, checker: MeshChecker, ws: Workspace
+        self, client: Client, tally: Tally, model_id: str, checker: MeshChecker, ws: Workspace
     ) -> None:
         self.client, self.tally, self.model_id = client, tally, model_id
         self.checker, self.ws = checker, ws
 
     def ask(
         self, robot_id: str, start: FloatArray, goal: FloatArray, options: dict[str, Any]
-    ) -> tuple[float, dict[str, Any] | None]:
-        """POST a plan request; its latency (ms) and its answer, None for a 4xx or 5xx."""
-        body = {"start": start.tolist(), "goal": goal.tolist(), "options": options}
+    ) -> tuple[float, PlanResult | None]:
+        """Send a plan request; its latency (ms) and its answer, None for a 4xx or 5xx."""
         began = time.perf_counter()
-        reply = self.client.post(f"/v1/robots/{robot_id}/plan", json=body)
-        latency = (time.perf_counter() - began) * 1e3
-        if reply.status_code == 200:
-            return latency, reply.json()
-        kind = "http_5xx" if reply.status_code >= 500 else "http_4xx"
-        self.tally.counts[kind] += 1
-        self.tally.notes[f"{reply.status_code}: {reply.text[:160]}"] += 1
-        return latency, None
+        try:
+            answer = self.client.plan(robot_id, start.tolist(), goal.tolist(), options)
+        except APIError as exc:
+            latency = (time.perf_counter() - began) * 1e3
+            kind = "http_5xx" if exc.status_code >= 500 else "http_4xx"
+            self.tally.counts[kind] += 1
+            self.tally.notes[f"{exc.status_code}: {exc.detail[:160]}"] += 1
+            return latency, None
+        return (time.perf_counter() - began) * 1e3, answer
 
-    def check(self, answer: dict[str, Any], start: FloatArray, goal: FloatArray) -> None:
+    def check(self, answer: PlanResult, start: FloatArray, goal: FloatArray) -> None:
         """Dense-check a returned path in the scene the checker holds."""
-        states = np.asarray(answer["states"], dtype=float)
+        states = np.asarray(answer.states, dtype=float)
         verdict = self.checker.check_path(states)
         counts = self.tally.counts
         counts["paths"] += 1
@@ -192,29 +191,24 @@ class RobotRun:
         counts["endpoint_errors"] += bool(ends.max() > 1e-6)
         for pair, n in (verdict.scene_pairs + verdict.self_pairs).items():
             self.tally.notes[
-                f"contact {pair} ({answer['source']}, depth ≤ {verdict.max_depth * 1e3:.1f} mm)"
+                f"contact {pair} ({answer.source}, depth ≤ {verdict.max_depth * 1e3:.1f} mm)"
             ] += n
 
     def plan(self, problem: Problem, options: dict[str, Any]) -> None:
         """Create the problem's robot, upload its scene and plan it."""
         robot_id = f"{self.tally.robot}-{problem.family}-{problem.index}"
-        self.client.put(
-            f"/v1/robots/{robot_id}", json={"model_id": self.model_id}
-        ).raise_for_status()
-        reply = self.client.put(
-            f"/v1/robots/{robot_id}/scene", json={"objects": list(problem.objects)}
-        )
-        reply.raise_for_status()
+        self.client.put_robot(robot_id, self.model_id)
+        self.client.put_scene(robot_id, {"objects": list(problem.objects)})
         self.checker.set_scene(problem.objects)
         latency, answer = self.ask(robot_id, problem.start, problem.goal, options)
         self.tally.plan_ms.append(latency)
-        if answer is not None and answer["status"] == "success":
+        if answer is not None and answer.status == "success":
             self.tally.solved += 1
-            for part, value in answer["timings_ms"].items():
+            for part, value in answer.timings_ms.items():
                 self.tally.plan_parts_ms.setdefault(part, []).append(float(value))
             self.check(answer, problem.start, problem.goal)
         elif answer is not None:
-            self.tally.notes[f"{answer['status']}: {answer['message'][:120]}"] += 1
+            self.tally.notes[f"{answer.status}: {answer.message[:120]}"] += 1
 
     def replay(self, problem: Problem, options: dict[str, Any], rng: np.random.Generator) -> None:
         """Ask the problem again with noisy start and goal, both free."""
@@ -228,14 +222,14 @@ class RobotRun:
         _, answer = self.ask(robot_id, start, goal, options)
         if answer is None:
             return
-        for rejected in answer.get("rejected") or []:  # why a cached path did not serve
-            self.tally.notes[f"replay: candidate {rejected['reason'][:100]}"] += 1
-        if answer["status"] != "success":
+        for rejected in answer.rejected:  # why a cached path did not serve
+            self.tally.notes[f"replay: candidate {rejected.reason[:100]}"] += 1
+        if answer.status != "success":
             self.tally.counts["replays_failed"] += 1
             return
-        if answer["source"] == "cache":
+        if answer.source == "cache":
             self.tally.hits += 1
-            timings = answer["timings_ms"]
+            timings = answer.timings_ms
             self.tally.hit_server_ms.append(float(timings["total"]))
             for part in HIT_PARTS:
                 self.tally.hit_parts_ms.setdefault(part, []).append(float(timings[part]))
@@ -254,28 +248,27 @@ class RobotRun:
         return None
 
 
-def run_robot(client: httpx.Client, robot: ExampleRobot, args: argparse.Namespace) -> Tally:
+def run_robot(client: Client, robot: ExampleRobot, args: argparse.Namespace) -> Tally:
     """Register one robot, plan and replay its problems; its tally."""
     tally = Tally(robot.name)
     local = describe(robot, srdf=not args.without_srdf)
-    reply = client.post(
-        "/v1/robot-models", json=registration(robot, list(local.joint_names), not args.without_srdf)
-    )
-    if reply.status_code not in (200, 201):
-        tally.message = f"{reply.status_code}: {reply.text[:300]}"
-        tally.counts["http_5xx" if reply.status_code >= 500 else "http_4xx"] += 1
+    fields = registration(robot, list(local.joint_names), not args.without_srdf)
+    try:
+        model_id = client.register_model(robot.urdf, **fields).model_id
+    except APIError as exc:
+        tally.message = f"{exc.status_code}: {exc.detail[:300]}"
+        tally.counts["http_5xx" if exc.status_code >= 500 else "http_4xx"] += 1
         return tally
     tally.registered = True
-    model_id = reply.json()["model_id"]
-    detail = client.get(f"/v1/robot-models/{model_id}").json()
-    joints = detail["joint_names"]
+    detail = client.get_model(model_id)
+    joints = detail.joint_names
     if list(local.joint_names) != joints:
         tally.notes[f"planning joints: service {joints}, local {list(local.joint_names)}"] += 1
-    held = detail.get("held_joints") or robot.joint_values
+    held = detail.held_joints or robot.joint_values
     checker = MeshChecker(
         describe(robot, joint_names=joints, held=held, srdf=not args.without_srdf)
     )
-    lower, upper = _limits(detail["lower"], -np.inf), _limits(detail["upper"], np.inf)
+    lower, upper = _limits(detail.lower, -np.inf), _limits(detail.upper, np.inf)
     ws = workspace(checker, args.seed, lower, upper)
     run = RobotRun(client, tally, model_id, checker, ws)
     options = {"fallback": True, "budget_s": args.budget}
@@ -347,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
     args.budget = args.budget or (2.0 if args.smoke else 5.0)
     began = time.perf_counter()
     tallies = []
-    with running_service() as base, httpx.Client(base_url=base, timeout=120) as client:
+    with running_service() as base, Client(base, timeout=120, retry=NO_RETRY) as client:
         for name in names:
             tallies.append(run_robot(client, ROBOTS[name], args))
     wall_s = time.perf_counter() - began

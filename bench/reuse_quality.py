@@ -29,20 +29,21 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-import httpx
 import numpy as np
 
+from harness.service import running_service
 from trajcache.core.config import Settings
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.geometry.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
-from trajcache.geometry.scene.scene import Scene, scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.geometry.scene.scene import Scene
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
-from trajcache.protocol.service import running_service
-from trajcache.quality import Quality
-from trajcache.services.quality import TimingRequest, time_states, trajectory_quality
+from trajcache.reference.cleaning import CleaningRun, PlanCall, cleaning_run
+from trajcache.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
+from trajcache.services.plan.quality import TimingRequest, time_states, trajectory_quality
 from trajcache.timing import TimingError
-from trajcache.workload.cleaning import CleaningRun, PlanCall, cleaning_run
+from trajcache.trajectory_metrics import Quality
+from trajcache_client import NO_RETRY, APIError, Client, PlanResult
 
 ROBOT = "bench-reuse"
 FAILURES: list[str] = []  # why fresh plans failed
@@ -74,8 +75,18 @@ def percentile(values: list[float], q: float) -> float:
     return float(np.percentile(np.asarray(values), q)) if values else float("nan")
 
 
+def _plan(
+    client: Client, start: list[float], goal: list[float], options: dict[str, Any]
+) -> PlanResult | None:
+    """The answer to a plan request of the benchmark's robot; None for an error answer."""
+    try:
+        return client.plan(ROBOT, start, goal, options)
+    except APIError:  # an error answer: neither a hit nor planned
+        return None
+
+
 def run_calls(
-    client: httpx.Client, run_index: int, run: CleaningRun, calls: list[PlanCall]
+    client: Client, run_index: int, run: CleaningRun, calls: list[PlanCall]
 ) -> tuple[list[Hit], int, int]:
     """Send a run's calls (uploading each scene change); return the hits, planner and other."""
     hits: list[Hit] = []
@@ -85,18 +96,16 @@ def run_calls(
     for call in calls:
         scene = run.scene_for(call)
         if scene.hash != current:
-            reply = client.put(f"/v1/robots/{ROBOT}/scene", json=scene_to_payload(scene))
-            reply.raise_for_status()
+            client.put_scene(ROBOT, scene_to_payload(scene))
             current = scene.hash
-        body = client.post(
-            f"/v1/robots/{ROBOT}/plan",
-            json={"start": call.start.tolist(), "goal": call.goal.tolist(), "options": options},
-        ).json()
-        if body.get("source") == "cache":
-            timing_ms = float(body["timings_ms"].get("timing", 0.0))
-            states = np.asarray(body["states"], dtype=float)
-            hits.append(Hit(run_index, call, scene, states, body["quality"], None, timing_ms))
-        elif body.get("source") == "planner":
+        answer = _plan(client, call.start.tolist(), call.goal.tolist(), options)
+        if answer is not None and answer.source == "cache":
+            assert answer.quality is not None  # every request asks for full quality
+            timing_ms = float(answer.timings_ms.get("timing", 0.0))
+            states = np.asarray(answer.states, dtype=float)
+            quality = answer.quality.model_dump()
+            hits.append(Hit(run_index, call, scene, states, quality, None, timing_ms))
+        elif answer is not None and answer.source == "planner":
             planned += 1
         else:
             other += 1
@@ -163,29 +172,25 @@ def timing_cost_ms(
     return costs, failures
 
 
-def replay_latency(
-    client: httpx.Client, hits: list[Hit], rounds: int
-) -> tuple[list[float], list[float]]:
+def replay_latency(client: Client, hits: list[Hit], rounds: int) -> tuple[list[float], list[float]]:
     """Client latency (ms) of the hits replayed without and with timing, interleaved."""
     plain: list[float] = []
     timed: list[float] = []
     current = None
     for hit in hits:
         if hit.scene.hash != current:
-            client.put(f"/v1/robots/{ROBOT}/scene", json=scene_to_payload(hit.scene))
+            client.put_scene(ROBOT, scene_to_payload(hit.scene))
             current = hit.scene.hash
-        query = {"start": hit.call.start.tolist(), "goal": hit.call.goal.tolist()}
+        start, goal = hit.call.start.tolist(), hit.call.goal.tolist()
         for _ in range(rounds):
             for options, sink in (
                 ({"fallback": False}, plain),
                 ({"fallback": False, "timing": {"method": "toppra"}}, timed),
             ):
                 began = time.perf_counter()
-                body = client.post(
-                    f"/v1/robots/{ROBOT}/plan", json={**query, "options": options}
-                ).json()
+                answer = _plan(client, start, goal, options)
                 elapsed = (time.perf_counter() - began) * 1e3
-                if body.get("source") == "cache":
+                if answer is not None and answer.source == "cache":
                     sink.append(elapsed)
     return plain, timed
 
@@ -210,14 +215,12 @@ def main() -> None:
 
     with (
         running_service(args.database_url) as base,
-        httpx.Client(base_url=base, timeout=60) as client,
+        Client(base, timeout=60, retry=NO_RETRY) as client,
     ):
-        reply = client.post(
-            "/v1/robot-models",
-            json={"urdf": reference_urdf(), "base": REFERENCE_BASE, "name": "xarm7-mobile"},
+        registered = client.register_model(
+            reference_urdf(), base=REFERENCE_BASE, name="xarm7-mobile"
         )
-        reply.raise_for_status()
-        client.put(f"/v1/robots/{ROBOT}", json={"model_id": reply.json()["model_id"]})
+        client.put_robot(ROBOT, registered.model_id)
         hits: list[Hit] = []
         counts = []
         for index, run in enumerate(runs, start=1):

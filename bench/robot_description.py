@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from trajcache.workload.example_robots import ExampleRobot, robots_dir
+from trajcache.reference.example_robots import ExampleRobot, robots_dir
 
 MOVABLE = frozenset({"revolute", "continuous", "prismatic"})
 

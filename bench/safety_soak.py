@@ -24,7 +24,7 @@ robot in the restroom (REFERENCE.md).
   scene. Half of these spheres are removed right after their request.
 
 Every trajectory returned (hits and planned) is checked by the independent dense check
-(trajcache.protocol.dense: plain FCL, steps 4× finer than the paper's, no padding) in the scene in
+(harness.dense: plain FCL, steps 4× finer than the paper's, no padding) in the scene in
 force at its call. `unsafe` counts answers it finds in collision or out of joint limits, or that do
 not run from the request's start to its goal; --dump writes each one's scene and request as JSON.
 Exits 1 when unsafe > 0 or the service answered 5xx.
@@ -45,9 +45,11 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
-import httpx
 import numpy as np
 
+from harness.dense import DenseChecker, reference_checker
+from harness.replay import RobotClient, cached_count
+from harness.service import running_service
 from soak_geometry import (
     grazing_radius,
     judge,
@@ -57,14 +59,13 @@ from soak_geometry import (
 from trajcache.cache.adapt import adapt_trajectory, base_is_still
 from trajcache.cache.metric import PLANAR_ARM_OFFSET, wrap_angle
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.reference.restroom import STALL_COUNT, restroom_scene
-from trajcache.geometry.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
-from trajcache.geometry.scene.scene import Scene, apply_patch, object_to_payload, scene_to_payload
-from trajcache.protocol.dense import DenseChecker, reference_checker
-from trajcache.protocol.replay import RobotClient, cached_count
-from trajcache.protocol.service import running_service
-from trajcache.workload.cleaning import PlanCall, cleaning_run
-from trajcache.workload.tasks import STOW, TASKS, work_stations
+from trajcache.geometry.scene.payload import apply_patch, object_to_payload, scene_to_payload
+from trajcache.geometry.scene.scene import Scene
+from trajcache.reference.cleaning import PlanCall, cleaning_run
+from trajcache.reference.restroom import STALL_COUNT, restroom_scene
+from trajcache.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
+from trajcache.reference.tasks import STOW, TASKS, work_stations
+from trajcache_client import NO_RETRY, APIError, Client
 
 SMOKE_PLANS, SMOKE_WARM = 50, 40
 OPTIONS: dict[str, Any] = {"fallback": True}  # warm-up and blocked requests
@@ -89,7 +90,7 @@ MAX_EXTRAS = 10  # added objects (clutter and path obstacles) kept at once
 class SoakRobot(RobotClient):
     """The soak's robot: its scene is changed by patches, applied here and at the service."""
 
-    def __init__(self, client: httpx.Client, robot_id: str, model_id: str, scene: Scene) -> None:
+    def __init__(self, client: Client, robot_id: str, model_id: str, scene: Scene) -> None:
         super().__init__(client, robot_id, model_id, "real")
         self.show(scene)
         self.scene = scene
@@ -98,26 +99,27 @@ class SoakRobot(RobotClient):
     def patch(self, patch: dict[str, Any], kind: str) -> None:
         """Apply `patch` locally and at the service; both must hold the same scene."""
         scene = apply_patch(self.scene, patch)
-        reply = self.client.patch(f"/v1/robots/{self.robot_id}/scene", json=patch)
-        reply.raise_for_status()
-        if reply.json()["hash"] != scene.hash:
-            raise RuntimeError(f"the service holds scene {reply.json()['hash']}, not {scene.hash}")
+        reply = self.client.patch_scene(
+            self.robot_id,
+            upsert=patch.get("upsert", ()),
+            remove=patch.get("remove", ()),
+            env=patch.get("env"),
+        )
+        if reply.hash != scene.hash:
+            raise RuntimeError(f"the service holds scene {reply.hash}, not {scene.hash}")
         self.scene, self.scene_hash = scene, scene.hash
         self.changes[kind] += 1
 
     def ask(
         self, start: FloatArray, goal: FloatArray, options: dict[str, Any]
     ) -> tuple[int, dict[str, Any]]:
-        """POST a plan request; the HTTP status and the JSON answer (4xx/5xx included)."""
-        body = {"start": [float(v) for v in start], "goal": [float(v) for v in goal]}
-        reply = self.client.post(
-            f"/v1/robots/{self.robot_id}/plan", json={**body, "options": options}
-        )
+        """Ask for a plan; the HTTP status and the answer as JSON (4xx/5xx: their detail)."""
+        start_values, goal_values = [float(v) for v in start], [float(v) for v in goal]
         try:
-            answer = reply.json()
-        except ValueError:
-            answer = {"detail": reply.text[:300]}
-        return reply.status_code, answer
+            answer = self.client.plan(self.robot_id, start_values, goal_values, options)
+        except APIError as exc:
+            return exc.status_code, {"detail": exc.detail[:300]}
+        return 200, answer.model_dump(mode="json")
 
 
 @dataclass
@@ -276,21 +278,19 @@ class Soak:
         return Request("task", start, goal, options=self._variant())
 
     def _candidates(self) -> list[int]:
-        reply = self.robot.client.get(
-            "/v1/trajectories", params={"model_id": self.model_id, "limit": 1000}
-        )
-        reply.raise_for_status()
-        ids = [int(item["trajectory_id"]) for item in reply.json()["items"]]
+        page = self.robot.client.list_trajectories(model_id=self.model_id, limit=1000)
+        ids = [item.trajectory_id for item in page.items]
         picks = [ids[int(i)] for i in self.rng.permutation(len(ids))[:6]]
         return ([self.last_id] if self.last_id is not None else []) + picks
 
     def _blocked(self) -> Request | None:
         """Put a sphere into the path of a cached trajectory; the request its endpoints make."""
         for tid in self._candidates():
-            reply = self.robot.client.get(f"/v1/trajectories/{tid}")
-            if reply.status_code != 200:  # deleted meanwhile
+            try:
+                trajectory = self.robot.client.get_trajectory(tid)
+            except APIError:  # deleted meanwhile
                 continue
-            stored = np.asarray(reply.json()["states"], dtype=float)
+            stored = np.asarray(trajectory.states, dtype=float)
             reverse = bool(self.rng.random() < 0.25)
             first, last = (stored[-1], stored[0]) if reverse else (stored[0], stored[-1])
             base_noise = self.rng.uniform(-0.01, 0.01, 3)
@@ -401,13 +401,9 @@ def soak(plans: int, warm_calls: int | None, seed: int) -> dict[str, Any]:
     """Run the soak against a fresh service; its figures."""
     began = time.perf_counter()
     checker = reference_checker()
-    with running_service() as base, httpx.Client(base_url=base, timeout=120) as client:
-        reply = client.post(
-            "/v1/robot-models",
-            json={"urdf": reference_urdf(), "base": REFERENCE_BASE, "name": "soak"},
-        )
-        reply.raise_for_status()
-        model_id = str(reply.json()["model_id"])
+    with running_service() as base, Client(base, timeout=120, retry=NO_RETRY) as client:
+        model = client.register_model(reference_urdf(), base=REFERENCE_BASE, name="soak")
+        model_id = model.model_id
         warm = RobotClient(client, "soak-warm", model_id, "sim")
         warm_run = cleaning_run(seed)
         records = warm.play(warm_run, OPTIONS, warm_calls)

@@ -8,10 +8,11 @@ from typing import Any
 
 import numpy as np
 
+from harness.dense import DenseChecker
 from trajcache.cache.metric import wrap_angle
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.scene.scene import Scene, scene_to_payload
-from trajcache.protocol.dense import DenseChecker
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.geometry.scene.scene import Scene
 
 MIN_MARGIN = 0.03  # m: from an obstacle to the bounding spheres of the robot at the endpoints
 

@@ -32,9 +32,13 @@ from sqlalchemy.orm import Session
 from trajcache.db import migrate
 from trajcache.db.models import PlanEvent, RobotModel, Trajectory, pack_states, utcnow
 from trajcache.db.session import make_engine
-from trajcache.services.event_rows import epoch_seconds
-from trajcache.services.plan_events import list_plan_events, top_trajectories, trajectory_usage
-from trajcache.services.stats import plan_stats
+from trajcache.services.stats.event_rows import epoch_seconds
+from trajcache.services.stats.events import (
+    list_plan_events,
+    top_trajectories,
+    trajectory_usage,
+)
+from trajcache.services.stats.window import plan_stats
 
 COLUMNS = (
     "created_at, robot_id, model_id, status, source, trajectory_id, candidates_tried, "

@@ -35,12 +35,12 @@ import validation_panda
 from naive_fcl import NaiveChecker, timed
 from trajcache.geometry.collision.checker import COLLIDING, CollisionChecker
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
-from trajcache.geometry.reference.robot import reference_model
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
 from trajcache.geometry.warm import warm
-from trajcache.workload.cleaning import cleaning_run
+from trajcache.reference.cleaning import cleaning_run
+from trajcache.reference.restroom import restroom_layout, restroom_scene
+from trajcache.reference.robot import reference_model
 
 
 def random_states(model: RobotModel, rng: np.random.Generator, count: int) -> np.ndarray:

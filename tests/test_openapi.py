@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from trajcache.cli import app as cli
-from trajcache.cli_openapi import openapi_document, openapi_text
+from trajcache.cli.docs import openapi_document, openapi_text
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCUMENT = ROOT / "openapi" / "openapi.json"

@@ -1,4 +1,7 @@
-"""The distribution ships the service and the client, each with its `py.typed` marker."""
+"""The distribution ships the service and the client, each with its `py.typed` marker.
+
+`trajcache demo` runs from an installed package: its modules are in the wheel, and importing
+them needs neither the benchmark harness (`bench/`, not installed) nor matplotlib."""
 
 from __future__ import annotations
 
@@ -34,6 +37,23 @@ def test_the_wheel_holds_both_packages_typed(tmp_path: Path) -> None:
     names = set(zipfile.ZipFile(wheel).namelist())
     for package in ("trajcache", "trajcache_client"):
         assert f"{package}/__init__.py" in names and f"{package}/py.typed" in names
-    assert "trajcache_client/_client.py" in names and "trajcache/api/schemas.py" in names
+    assert "trajcache_client/_client.py" in names and "trajcache/api/schemas/models.py" in names
+    for module in ("cli/__main__", "cli/launch", "cli/demo", "cli/demo_play", "reference/robot"):
+        assert f"trajcache/{module}.py" in names, module
+    assert not [n for n in names if n.startswith(("trajcache/protocol/", "harness/", "bench/"))]
     entry_points = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
     assert "trajcache = trajcache.cli:app" in zipfile.ZipFile(wheel).read(entry_points).decode()
+
+
+def test_the_demo_needs_neither_the_bench_harness_nor_matplotlib(tmp_path: Path) -> None:
+    code = (
+        "import sys; import trajcache.cli.demo, trajcache.cli.demo_play, trajcache.cli.launch; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('harness', 'matplotlib')))"
+    )
+    path = [p for p in sys.path if Path(p).resolve() != ROOT / "bench"]
+    env = {"PYTHONPATH": ":".join(p for p in path if p)}
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "[]"

@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import time
 import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -24,13 +23,14 @@ from fastapi.testclient import TestClient
 from typer.testing import CliRunner
 
 from tests.conftest import POSTGRES_URL, require_service
+from tests.waiting import wait_until
 from trajcache.cli import app as cli
 from trajcache.core.config import Settings
 from trajcache.db.models import Trajectory
-from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene.scene import scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.main import create_app
-from trajcache.workload.cleaning import cleaning_run
+from trajcache.reference.cleaning import cleaning_run
+from trajcache.reference.robot import reference_urdf
 
 pytestmark = [pytest.mark.postgres, pytest.mark.slow]
 
@@ -89,13 +89,14 @@ def seed_in_simulation(url: str) -> tuple[str, dict[str, Any]]:
         )
         assert job.status_code == 202, job.text
         job_id = job.json()["job_id"]
-        deadline = time.monotonic() + 600
-        while True:
-            state = sim.get(f"/v1/seed-jobs/{job_id}").json()
-            if state["state"] not in ("queued", "running"):
-                return model_id, state
-            assert time.monotonic() < deadline, state
-            time.sleep(0.2)
+        seen: list[dict[str, Any]] = [{}]
+
+        def finished() -> bool:
+            seen[0] = sim.get(f"/v1/seed-jobs/{job_id}").json()
+            return seen[0]["state"] not in ("queued", "running")
+
+        assert wait_until(finished, timeout_s=600, interval_s=0.2), seen[0]
+        return model_id, seen[0]
 
 
 def run_real_robot(pipeline: Pipeline) -> None:

@@ -13,11 +13,11 @@ from typer.testing import CliRunner
 
 from tests.client.conftest import LiveServer, make_app
 from trajcache.cli import app as cli_app
-from trajcache.cli_openapi import TABLE_END, TABLE_START, config_table, with_config_table
+from trajcache.cli.docs import TABLE_END, TABLE_START, config_table, with_config_table
 from trajcache.core.config import Settings
-from trajcache.geometry.reference.restroom import restroom_scene
-from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene.scene import scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.reference.restroom import restroom_scene
+from trajcache.reference.robot import reference_urdf
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -141,13 +141,28 @@ def test_the_first_plan_with_curl_works_as_written(first_plan_dir: Path) -> None
     assert plan["trajectory_id"] == 1
 
 
-def test_the_first_plan_with_the_client_works_as_written(
+def _run(code: str, url: str) -> None:
+    exec(compile(code.replace("http://127.0.0.1:8000", url), "README", "exec"), {})
+
+
+def test_the_python_client_examples_work_as_written(
     first_plan_dir: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    (code,) = [b for b in _blocks("python") if "trajcache_client" in b]
+    first_plan, blocking, asyncio_ = [b for b in _blocks("python") if "trajcache_client" in b]
+    assert "register_model" in first_plan and "AsyncClient" in asyncio_
     monkeypatch.chdir(first_plan_dir)
     app = make_app(f"sqlite:///{first_plan_dir / 'readme.db'}", worker_processes=1)
     with LiveServer(app) as server:
-        exec(compile(code.replace("http://127.0.0.1:8000", server.url), "README", "exec"), {})
-    there, back = capsys.readouterr().out.splitlines()
-    assert there.startswith("success planner 1 ") and back.startswith("success cache 1 ")
+        _run(first_plan, server.url)
+        there, back = capsys.readouterr().out.splitlines()
+        assert there.startswith("success planner 1 ") and back.startswith("success cache 1 ")
+        assert app.state.ctx.records.flush(timeout=30)  # the plan events are written
+        _run(blocking, server.url)
+        totals, *events = capsys.readouterr().out.splitlines()
+        assert totals == "2 1 0.5"
+        assert [e.split()[:3] for e in events] == [
+            ["success", "cache", "1"],
+            ["success", "planner", "1"],
+        ]
+        _run(asyncio_, server.url)
+        assert capsys.readouterr().out.splitlines() == ["success cache 1"] * 2

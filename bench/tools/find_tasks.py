@@ -6,7 +6,7 @@ random starts (seeded); every solution whose tip is within tolerance is scored b
 to an *envelope* scene (the restroom with every stall door at 0°, 2°, … 90° and every seat at
 0°, 45° and 90° all at once, so one check covers every door and seat angle) at every station of
 its kind, by its self-clearance, and by how far it is from the stowed arm. The best one, rounded
-to 3 decimals, is re-checked and printed as the constants for `trajcache/workload/tasks.py`.
+to 3 decimals, is re-checked and printed as the constants for `trajcache/reference/tasks.py`.
 `--verify` checks the constants in tasks.py instead: clearance, and a Monte-Carlo run of noisy
 states (base ±3 cm, ±0.03 rad, joints ±0.03 rad) in jittered scenes.
 
@@ -29,10 +29,10 @@ from scipy.optimize import least_squares
 from trajcache.geometry.collision.checker import FREE, CollisionChecker, robot_geometry
 from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.reference.restroom import STALL_COUNT, restroom_scene
-from trajcache.geometry.reference.robot import ARM_MOUNT_XYZ, reference_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
-from trajcache.workload.tasks import TASKS, Arm, WorkStation, work_stations
+from trajcache.reference.restroom import STALL_COUNT, restroom_scene
+from trajcache.reference.robot import ARM_MOUNT_XYZ, reference_model
+from trajcache.reference.tasks import TASKS, Arm, WorkStation, work_stations
 
 SCENE_MIN, SCENE_GOOD = 0.05, 0.10  # required / wanted clearance to the envelope (m)
 SELF_MIN, SELF_GOOD = 0.03, 0.05  # the link5–link7 pair sits at 0.036 by construction

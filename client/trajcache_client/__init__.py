@@ -6,6 +6,14 @@ with Client("http://127.0.0.1:8000") as tc:
     answer = tc.plan("r1", start, goal)
 """
 
+from trajcache_client._admin_models import (
+    ImportResult,
+    ModelPrune,
+    PruneResult,
+    RejectedLine,
+    SeedJob,
+    SeedJobError,
+)
 from trajcache_client._async_client import AsyncClient
 from trajcache_client._base import DEFAULT_BASE_URL, DEFAULT_RETRY, DEFAULT_TIMEOUT
 from trajcache_client._client import Client
@@ -31,6 +39,7 @@ from trajcache_client._models import (
     JointTrajectoryPoint,
     ModelFile,
     Page,
+    PlanEvent,
     PlanOptions,
     PlanResult,
     Rejection,
@@ -47,8 +56,19 @@ from trajcache_client._models import (
     TrajectoryQuality,
     TrajectorySummary,
 )
+from trajcache_client._moveit_models import MotionPlanResponse
 from trajcache_client._operations import Operation
 from trajcache_client._retry import NO_RETRY, Retry
+from trajcache_client._stats_models import (
+    Latency,
+    Metrics,
+    ModelBasis,
+    PlanEventPage,
+    Stats,
+    StatsBucket,
+    StatsGroup,
+    TopTrajectory,
+)
 from trajcache_client._version import __version__
 
 __all__ = [
@@ -63,15 +83,25 @@ __all__ = [
     "Client",
     "ConflictError",
     "Health",
+    "ImportResult",
     "JointTrajectory",
     "JointTrajectoryPoint",
+    "Latency",
+    "Metrics",
+    "ModelBasis",
     "ModelFile",
+    "ModelPrune",
+    "MotionPlanResponse",
     "NotFoundError",
     "Operation",
     "Page",
     "PayloadTooLargeError",
+    "PlanEvent",
+    "PlanEventPage",
     "PlanOptions",
     "PlanResult",
+    "PruneResult",
+    "RejectedLine",
     "Rejection",
     "Retry",
     "Robot",
@@ -80,9 +110,15 @@ __all__ = [
     "RobotModelSummary",
     "Scene",
     "SceneVersion",
+    "SeedJob",
+    "SeedJobError",
     "ServerError",
     "SkippedPair",
+    "Stats",
+    "StatsBucket",
+    "StatsGroup",
     "TimingOptions",
+    "TopTrajectory",
     "TrajcacheError",
     "Trajectory",
     "TrajectoryCreated",

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any, TypeVar
 
 import httpx
 
+from trajcache_client import _admin_operations as admin_ops
 from trajcache_client import _operations as ops
+from trajcache_client._admin_client import AdminMethods
 from trajcache_client._base import DEFAULT_BASE_URL, DEFAULT_RETRY, DEFAULT_TIMEOUT, BaseClient
+from trajcache_client._exceptions import error_for
 from trajcache_client._models import (
     Health,
     Page,
@@ -28,13 +31,14 @@ from trajcache_client._models import (
     TrajectoryCreated,
     TrajectorySummary,
 )
+from trajcache_client._moveit_models import MotionPlanResponse
 from trajcache_client._operations import JointLimits, Operation, StateLike, StateValues
 from trajcache_client._retry import Retry
 
 T = TypeVar("T")
 
 
-class Client(BaseClient):
+class Client(AdminMethods, BaseClient):
     """A blocking trajcache client; use it as a context manager or call `close()`.
 
     `transport` replaces the network, e.g. `httpx.MockTransport(handler)` in tests.
@@ -70,10 +74,14 @@ class Client(BaseClient):
 
     def call(self, op: Operation[T]) -> T:
         """Send `op`, retrying as the policy allows, and return its answer or raise."""
+        return self._result(op, self._send(op))
+
+    def _send(self, op: Operation[Any], *, stream: bool = False) -> httpx.Response:
+        """The answer to `op` once the retry policy lets it stand (streamed: still unread)."""
         retry = 0
         while True:
             try:
-                response = self._http.send(self._request(self._http, op))
+                response = self._http.send(self._request(self._http, op), stream=stream)
             except httpx.TransportError as exc:
                 wait = self._wait_after_error(op, retry, exc)
                 if wait is None:
@@ -81,9 +89,39 @@ class Client(BaseClient):
             else:
                 wait = self._wait_after_answer(op, retry, response)
                 if wait is None:
-                    return self._result(op, response)
+                    return response
+                response.close()
             time.sleep(wait)
             retry += 1
+
+    def iter_export_cache(
+        self,
+        *,
+        model_ids: Iterable[str] = (),
+        sources: Iterable[str] = (),
+        newer_than_s: float | None = None,
+        older_than_s: float | None = None,
+        models: bool = True,
+        chunk_size: int | None = None,
+    ) -> Iterator[bytes]:
+        """The cache as JSON Lines, chunk by chunk as it arrives (sent on the first read)."""
+        op = admin_ops.export_cache(
+            model_ids=model_ids,
+            sources=sources,
+            newer_than_s=newer_than_s,
+            older_than_s=older_than_s,
+            models=models,
+        )
+        response = self._send(op, stream=True)
+        try:
+            if not response.is_success:
+                response.read()
+                raise error_for(response)
+            yield from response.iter_bytes(chunk_size)
+        except httpx.TransportError as exc:
+            raise self._transport_error(op, exc) from exc
+        finally:
+            response.close()
 
     # --- robot models -----------------------------------------------------------------------
 
@@ -188,7 +226,7 @@ class Client(BaseClient):
         is values in `state_names` order, a {joint: value} map, or a named state's name."""
         return self.call(ops.plan(robot_id, start, goal, options))
 
-    def motion_plan(self, robot_id: str, request: Mapping[str, Any] | str) -> dict[str, Any]:
+    def motion_plan(self, robot_id: str, request: Mapping[str, Any] | str) -> MotionPlanResponse:
         """Plan with MoveIt's messages: a MotionPlanRequest (a mapping as JSON, text as YAML) →
         its MotionPlanResponse, whose `error_code` says whether it succeeded."""
         return self.call(ops.motion_plan(robot_id, request))

@@ -13,6 +13,8 @@ BaseType = Literal["fixed", "planar"]
 Source = Literal["real", "sim", "import", "planner"]
 RobotKind = Literal["real", "sim"]
 SkipReason = Literal["adjacent", "rigid", "proven", "srdf"]
+PlanStatus = Literal["success", "miss", "failure", "error"]
+PlanSource = Literal["cache", "planner"]
 
 
 class _Answer(BaseModel):
@@ -48,6 +50,7 @@ class _ModelSemantics(_Answer):
     skipped_pairs: list[SkippedPair] = Field(default_factory=list)
     held_joints: dict[str, float] = Field(default_factory=dict)  # joint -> its held value
     named_states: dict[str, list[float]] = Field(default_factory=dict)  # planning joint values
+    warnings: list[str] = Field(default_factory=list)  # what of the SRDF was not applied
 
 
 class RobotModel(_ModelSemantics):
@@ -117,9 +120,11 @@ class SceneVersion(_Answer):
     warnings: list[str] = Field(default_factory=list)
 
 
-class Scene(SceneVersion):
+class Scene(_Answer):
     """A robot's current scene in native form, with the contact it allows and attached objects."""
 
+    version: int
+    hash: str
     objects: list[dict[str, Any]]
     env: dict[str, float]
     allowed_collisions: list[list[str]] = Field(default_factory=list)
@@ -152,8 +157,8 @@ class JointTrajectory(_Answer):
 
     joint_names: list[str]
     points: list[JointTrajectoryPoint]
-    method: str
-    path: str
+    method: Literal["toppra", "jerk_limited"] | str
+    path: Literal["spline", "linear"] | str
     duration_s: float
 
 
@@ -197,8 +202,8 @@ class PlanResult(_Answer):
     the budget) or "error" (the planner could not run); `source` is "cache" or "planner".
     """
 
-    status: str
-    source: str | None
+    status: PlanStatus | str
+    source: PlanSource | str | None
     trajectory_id: int | None
     states: list[list[float]] | None
     candidates_tried: int
@@ -239,16 +244,40 @@ class TrajectorySummary(_Answer):
     last_used_at: datetime | None
     planning_time_ms: float | None
     length: float | None
+    ee_length: float | None = None
+    min_clearance: float | None = None
+    duration_s: float | None = None
     created_at: datetime
 
 
+class PlanEvent(_Answer):
+    """One plan request: who asked, how it ended, and where the time went (ms)."""
+
+    event_id: int
+    created_at: datetime
+    robot_id: str
+    model_id: str
+    scene_hash: str | None
+    status: str
+    source: str | None
+    trajectory_id: int | None
+    candidates_tried: int
+    lookup_ms: float
+    validate_ms: float
+    plan_ms: float
+    total_ms: float
+    error: str | None
+    seed: int | None = None
+
+
 class Trajectory(TrajectorySummary):
-    """A stored trajectory with its key states."""
+    """A stored trajectory with its key states and its most recent plan events."""
 
     states: list[list[float]]
+    usage_history: list[PlanEvent] = Field(default_factory=list)
 
 
 class Health(_Answer):
     """Liveness (`ok`) or readiness (`ready`)."""
 
-    status: str
+    status: Literal["ok", "ready"] | str

@@ -10,7 +10,7 @@ import json
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypeVar, cast
 from urllib.parse import quote
 
 import httpx
@@ -33,6 +33,7 @@ from trajcache_client._models import (
     TrajectoryCreated,
     TrajectorySummary,
 )
+from trajcache_client._moveit_models import MotionPlanResponse
 
 T = TypeVar("T")
 M = TypeVar("M", bound=pydantic.BaseModel)
@@ -92,6 +93,10 @@ def _json_object(response: httpx.Response) -> dict[str, Any]:
             response=response,
         )
     return body
+
+
+def _motion_plan_response(response: httpx.Response) -> MotionPlanResponse:
+    return cast(MotionPlanResponse, _json_object(response))
 
 
 def _no_content(response: httpx.Response) -> None:
@@ -294,7 +299,7 @@ def plan(
     )
 
 
-def motion_plan(robot_id: str, request: Mapping[str, Any] | str) -> Operation[dict[str, Any]]:
+def motion_plan(robot_id: str, request: Mapping[str, Any] | str) -> Operation[MotionPlanResponse]:
     """POST /v1/robots/{robot_id}/motion-plan: a MoveIt MotionPlanRequest (a mapping as JSON,
     text as YAML) → its MotionPlanResponse; retried like `plan`, waiting for its planning time."""
     if isinstance(request, Mapping):
@@ -306,7 +311,7 @@ def motion_plan(robot_id: str, request: Mapping[str, Any] | str) -> Operation[di
     return Operation(
         "POST",
         f"/v1/robots/{_segment(robot_id)}/motion-plan",
-        _json_object,
+        _motion_plan_response,
         idempotent=False,
         content=content,
         headers={"content-type": media_type},

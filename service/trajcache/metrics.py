@@ -19,7 +19,7 @@ from __future__ import annotations
 import logging
 import os
 import threading
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Callable, Iterator, Mapping
 from contextlib import asynccontextmanager
 from typing import TYPE_CHECKING, Any
 
@@ -44,7 +44,6 @@ from trajcache.metrics_dir import MULTIPROC_ENV
 
 if TYPE_CHECKING:
     from trajcache.services.context import ServiceContext
-    from trajcache.services.planning import PlanAnswer
 
 _log = logging.getLogger(__name__)
 SAMPLE_INTERVAL_S = 1.0
@@ -100,11 +99,9 @@ _POOL_COUNTERS = {
 }
 
 
-def record_plan(answer: PlanAnswer) -> None:
-    """Count one answered plan request and observe the time of each of its steps."""
-    status = answer.status.value
-    source = answer.source.value if answer.source is not None else "none"
-    timings = answer.timings_ms
+def record_plan(*, status: str, source: str | None, timings: Mapping[str, float]) -> None:
+    """Count one answered plan request and observe the time (ms) of each of its steps."""
+    source = source or "none"
     PLAN_REQUESTS.labels(source=source, status=status).inc()
     LOOKUP_SECONDS.observe(timings.get("lookup", 0.0) / 1e3)
     VALIDATE_SECONDS.observe(timings.get("validate", 0.0) / 1e3)

@@ -4,50 +4,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
-from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
+from tests.robots import TWO_JOINT_URDF
 from trajcache.core.config import Settings
 from trajcache.main import create_app
+from trajcache.reference import robot as reference_robot
 from trajcache.services.context import ServiceContext
 
-# A fixed-base arm with two revolute joints; link geometry keeps the allowed-pair sampling quick.
-TWO_JOINT_URDF = """<?xml version="1.0"?>
-<robot name="two_joint">
-  <link name="base">
-    <collision><origin xyz="0 0 0.05"/><geometry><box size="0.2 0.2 0.1"/></geometry></collision>
-  </link>
-  <link name="upper">
-    <collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.03" length="0.3"/>
-    </geometry></collision>
-  </link>
-  <link name="fore">
-    <collision><origin xyz="0 0 0.1"/><geometry><cylinder radius="0.02" length="0.2"/>
-    </geometry></collision>
-  </link>
-  <joint name="shoulder" type="revolute">
-    <parent link="base"/><child link="upper"/><origin xyz="0 0 0.1"/><axis xyz="0 1 0"/>
-    <limit lower="-2.0" upper="2.0" effort="1" velocity="1"/>
-  </joint>
-  <joint name="elbow" type="revolute">
-    <parent link="upper"/><child link="fore"/><origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
-    <limit lower="-1.5" upper="1.5" effort="1" velocity="1"/>
-  </joint>
-</robot>
-"""
-
 ClientFactory = Callable[..., TestClient]
-
-
-@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
-def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
-    """An empty database: a SQLite file, or a fresh PostgreSQL schema."""
-    if request.param == "sqlite":
-        return f"sqlite:///{tmp_path / 'api.db'}"
-    return str(request.getfixturevalue("postgres_url"))
 
 
 @pytest.fixture
@@ -84,9 +52,8 @@ def two_joint_urdf() -> str:
 
 @pytest.fixture
 def reference_urdf() -> str:
-    """URDF text of the reference robot (skipped if that module is not there)."""
-    robot = pytest.importorskip("trajcache.geometry.reference.robot")
-    return str(robot.reference_urdf())
+    """URDF text of the reference robot."""
+    return reference_robot.reference_urdf()
 
 
 def register(client: TestClient, urdf: str = TWO_JOINT_URDF, **fields: Any) -> dict[str, Any]:

@@ -14,7 +14,7 @@ from fastapi.testclient import TestClient
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
 from trajcache.core.config import Settings
 from trajcache.main import create_app
-from trajcache.services.keys import create_key
+from trajcache.services.catalog.keys import create_key
 
 QUIET = {"worker_backend": "none"}
 
@@ -99,7 +99,7 @@ def test_two_replicas_prune_at_once(database_url: str) -> None:
         for client in (a, b):  # each replica's index dropped the evicted ones
             ctx = ctx_of(client)
             with ctx.session() as session:
-                from trajcache.services.models import get_model
+                from trajcache.services.catalog.models import get_model
 
                 model = get_model(session=session, registry=ctx.models, model_id=model_id)
                 index = ctx.indexes.index(session, model)
@@ -154,6 +154,63 @@ def test_export_then_import_into_another_database(
     )
     assert_detail(target.post("/v1/admin/import", content=b"\x1f\x8bnot gzip"), 422, "gzip")
     assert_detail(target.post("/v1/admin/import", content=b"\xff\xfe"), 422, "UTF-8")
+
+
+def exported_export(tmp_path: Path) -> bytes:
+    """An export of one model and three trajectories, from a database of its own."""
+    settings = Settings(database_url=f"sqlite:///{tmp_path / 'src.db'}", **QUIET)  # type: ignore[arg-type]
+    with TestClient(create_app(settings)) as source:
+        store(source, register(source)["model_id"], 3)
+        return source.get("/v1/admin/export").content
+
+
+def assert_nothing_imported(client: TestClient) -> None:
+    assert client.get("/v1/trajectories").json()["total"] == 0
+    assert client.get("/v1/robot-models").json()["total"] == 0
+
+
+def test_a_line_that_is_not_json_refuses_the_whole_import(
+    client_factory: ClientFactory, tmp_path: Path
+) -> None:
+    header, model, trajectory = exported_export(tmp_path).splitlines()[:3]
+    good = json.loads(trajectory)
+    lines = [header, model]
+    for k in range(497):  # lines 3-499; one transaction, whatever the batch size once was
+        record = {**good, "states": [[0.0, 0.0], [0.001 * (k + 1), 0.5]], "content_hash": None}
+        lines.append(json.dumps(record).encode())
+    body = b"\n".join([*lines, b'{"type": "trajectory", "model_id": '])
+    target = client_factory(**QUIET)
+    assert_detail(target.post("/v1/admin/import", content=body), 422, "line 500: not JSON")
+    assert_nothing_imported(target)
+    response = target.post("/v1/admin/import", content=b"\n".join(lines))
+    assert response.json()["inserted"] == 497, response.text
+
+
+def test_import_refuses_corrupt_truncated_or_empty_bodies(
+    client_factory: ClientFactory, tmp_path: Path
+) -> None:
+    exported = exported_export(tmp_path)
+    packed = gzip.compress(exported)
+    target = client_factory(**QUIET)
+
+    def refused(body: bytes, *needles: str) -> None:
+        assert_detail(target.post("/v1/admin/import", content=body), 422, *needles)
+        assert_nothing_imported(target)
+
+    half = len(packed) // 2
+    refused(packed[:half], f"gzip stream truncated after {half} bytes")
+    refused(packed[:-4], f"gzip stream truncated after {len(packed) - 4} bytes")
+    refused(packed + b"trailing", "not valid gzip", f"byte {len(packed) + 1}")
+    refused(packed[:-8] + bytes(8), "not valid gzip", "incorrect data check")
+    refused(exported + b"\xff\xfe\n", "line 6: not UTF-8 text (byte 1 of the line)")
+    refused(b"", "empty body: nothing to import")
+    refused(b"\n \r\n", "empty body: nothing to import")
+    refused(gzip.compress(b""), "empty body: nothing to import")
+
+    lines = exported.splitlines(keepends=True)
+    members = gzip.compress(b"".join(lines[:3])) + gzip.compress(b"".join(lines[3:]))
+    whole = target.post("/v1/admin/import", content=members)  # as `cat a.gz b.gz` writes
+    assert (whole.status_code, whole.json()["inserted"]) == (200, 3), whole.text
 
 
 def test_import_body_is_bounded(client_factory: ClientFactory) -> None:

@@ -7,11 +7,11 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
-from typer.testing import CliRunner
 
-from tests.api.conftest import TWO_JOINT_URDF, ClientFactory, assert_detail, ctx_of, register
+from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
+from tests.robots import TWO_JOINT_URDF
 from trajcache.api.auth import POLICY, is_loopback
-from trajcache.services.keys import Role, create_key, revoke_key
+from trajcache.services.catalog.keys import Role, create_key, revoke_key
 
 
 def _key(client: TestClient, role: str, robots: list[str] | None = None) -> str:
@@ -96,6 +96,14 @@ def test_seeder_registers_models_but_cannot_plan_or_delete(
     assert_detail(client.delete("/v1/trajectories/1", headers=seeder), 403, "admin only")
 
 
+def test_a_403_names_the_path_as_requested(secured: tuple[TestClient, dict[str, str]]) -> None:
+    client, keys = secured
+    reply = client.get("/v1/stats", headers=_h(keys["seeder"]))
+    assert_detail(reply, 403, "a seeder key may not GET /v1/stats (admin only)")
+    reply = client.put("/v1/robots/r1", json={"model_id": "x" * 64}, headers=_h(keys["robot"]))
+    assert_detail(reply, 403, "a robot key may not PUT /v1/robots/r1 ")
+
+
 def _routes(client: TestClient) -> list[tuple[str, str]]:
     paths: dict[str, dict[str, Any]] = client.app.openapi()["paths"]  # type: ignore[attr-defined]
     return sorted(
@@ -146,6 +154,35 @@ def test_auto_mode_turns_on_with_the_first_key_or_a_public_bind(
     register(off)
 
 
+def test_auto_mode_stays_on_after_the_last_key_is_revoked(client_factory: ClientFactory) -> None:
+    client = client_factory(auth_cache_ttl_s=0)
+    secret = _key(client, "admin")
+    assert client.get("/v1/stats", headers=_h(secret)).status_code == 200
+    ctx = ctx_of(client)
+    with ctx.session() as session:
+        revoke_key(session=session, key=secret.split("_")[1])
+    ctx.keys.clear()
+    assert_detail(client.get("/v1/stats"), 401, "API key is required")
+    assert_detail(client.get("/v1/stats", headers=_h(secret)), 401, "revoked")
+    # Only the operator opens it again, explicitly.
+    assert client_factory(auth_mode="off").get("/v1/stats").status_code == 200
+
+
+def test_revoking_a_revoked_key_is_a_conflict(client_factory: ClientFactory) -> None:
+    from trajcache.services.errors import ConflictError, NotFoundError
+
+    client = client_factory()
+    secret = _key(client, "seeder")
+    prefix = secret.split("_")[1]
+    with ctx_of(client).session() as session:
+        first = revoke_key(session=session, key=prefix)
+        assert first.revoked_at is not None
+        with pytest.raises(ConflictError, match=rf"#{first.id} \({prefix}, 'seeder key'\) was"):
+            revoke_key(session=session, key=str(first.id))
+        with pytest.raises(NotFoundError, match="'nope' not found"):
+            revoke_key(session=session, key="nope")
+
+
 def test_is_loopback() -> None:
     assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
     assert not is_loopback("0.0.0.0") and not is_loopback("10.0.0.5") and not is_loopback("")
@@ -161,24 +198,3 @@ def test_key_validation() -> None:
         create_key(session=None, name="x", role="robot")  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="only robot keys"):
         create_key(session=None, name="x", role="admin", robot_ids=["r1"])  # type: ignore[arg-type]
-
-
-def test_cli_creates_lists_and_revokes_keys(tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
-    from trajcache.cli import app
-
-    monkeypatch.setenv("TRAJCACHE_DATABASE_URL", f"sqlite:///{tmp_path / 'keys.db'}")
-    runner = CliRunner()
-    made = runner.invoke(
-        app, ["keys", "create", "--name", "forklift-7", "--role", "robot", "--robot", "r1"]
-    )
-    assert made.exit_code == 0, made.output
-    secret = made.stdout.strip().splitlines()[-1]
-    assert secret.startswith("tc_")
-    listed = runner.invoke(app, ["keys", "list"])
-    assert listed.exit_code == 0 and "forklift-7" in listed.stdout and secret not in listed.stdout
-    prefix = secret.split("_")[1]
-    assert runner.invoke(app, ["keys", "revoke", prefix]).exit_code == 0
-    assert "forklift-7" not in runner.invoke(app, ["keys", "list"]).stdout
-    assert "forklift-7" in runner.invoke(app, ["keys", "list", "--all"]).stdout
-    bad = runner.invoke(app, ["keys", "create", "--name", "x", "--role", "root"])
-    assert bad.exit_code == 2 and "role 'root'" in bad.output

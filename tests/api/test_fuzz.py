@@ -35,11 +35,12 @@ from schemathesis.specs.openapi.checks import (
     status_code_conformance,
 )
 
-from tests.api.conftest import TWO_JOINT_URDF
+from tests.robots import TWO_JOINT_URDF
+from tests.waiting import wait_until
 from trajcache.core.config import Settings
 from trajcache.main import create_app
+from trajcache.services.catalog.keys import create_key
 from trajcache.services.context import ServiceContext
-from trajcache.services.keys import create_key
 
 DOCUMENT = Path(__file__).resolve().parents[2] / "openapi" / "openapi.json"
 EXAMPLES = {GenerationMode.POSITIVE: 60, GenerationMode.NEGATIVE: 25}
@@ -102,10 +103,8 @@ def _serve(settings: Settings) -> Iterator[tuple[str, ServiceContext]]:
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    deadline = time.monotonic() + 60
-    while not server.started:
-        assert thread.is_alive() and time.monotonic() < deadline, "the server did not start"
-        time.sleep(0.05)
+    wait_until(lambda: server.started or not thread.is_alive(), timeout_s=60)
+    assert server.started, "the server did not start"
     try:
         yield f"http://127.0.0.1:{port}", app.state.ctx
     finally:

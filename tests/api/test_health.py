@@ -6,7 +6,6 @@ import http.client
 import json
 import socket
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -17,6 +16,7 @@ from fastapi.testclient import TestClient
 from tests.api.conftest import assert_detail, register
 from tests.conftest import POSTGRES_URL
 from tests.proxy import TcpProxy
+from tests.waiting import wait_until
 from trajcache.core.config import Settings
 from trajcache.main import create_app
 
@@ -103,10 +103,7 @@ def test_a_500_leaves_the_keep_alive_connection_usable(
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     try:
-        deadline = time.monotonic() + 30
-        while not server.started:
-            assert time.monotonic() < deadline, "the server did not start"
-            time.sleep(0.05)
+        assert wait_until(lambda: server.started, timeout_s=30), "the server did not start"
         connection = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
         connection.request("GET", "/v1/robots/r1")
         failed = connection.getresponse()

@@ -13,6 +13,7 @@ from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, register
+from tests.robots import OPAQUE_URDF
 from trajcache.api.bounded import BoundedBodyRoute
 
 BODY_LIMIT = 4000
@@ -94,7 +95,7 @@ def test_a_registration_is_bounded_by_the_urdf_and_archive_limits(
     archive = io.BytesIO(b"\0" * 200_000)  # far past what the two limits allow together
     response = client.post(
         "/v1/robot-models",
-        data={"urdf": "<robot/>"},
+        data={"urdf": OPAQUE_URDF},
         files={"archive": ("a.zip", archive, "application/zip")},
     )
     assert_detail(response, 413, "request body has", "max_urdf_bytes=1000", "max_archive_bytes")

@@ -9,7 +9,6 @@ import socket
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -20,8 +19,10 @@ from fastapi.testclient import TestClient
 from prometheus_client import multiprocess
 from prometheus_client.parser import text_string_to_metric_families
 
-from tests.api.conftest import TWO_JOINT_URDF, ClientFactory, ctx_of
+from tests.api.conftest import ClientFactory, ctx_of
 from tests.jobs.test_pool import make_local_pool, make_problem
+from tests.robots import TWO_JOINT_URDF
+from tests.waiting import wait_until
 from trajcache.core.config import Settings
 from trajcache.main import create_app
 from trajcache.metrics_dir import MULTIPROC_ENV, prepare_multiprocess_dir
@@ -118,12 +119,9 @@ def test_pool_queue_depth_and_worker_failures(
         done.set()
 
     threading.Thread(target=slow_run, daemon=True).start()
-    deadline = time.monotonic() + 10
-    depth = 0.0
-    while depth < 1 and time.monotonic() < deadline:
-        depth = value(scrape(client), "trajcache_pool_queue_depth")
-        time.sleep(0.05)
-    assert depth == 1
+    assert wait_until(
+        lambda: value(scrape(client), "trajcache_pool_queue_depth") == 1, interval_s=0.05
+    )
     assert done.wait(15)
     assert pool.submit(make_problem(tmp_path, scene="crash", exit=True)).status.value == "error"
     after = scrape(client)
@@ -149,14 +147,13 @@ RECORDER = """
 import os
 import sys
 from trajcache.metrics import POOL_QUEUE_DEPTH, record_plan
-from trajcache.services.planning import PlanAnswer, PlanSource, PlanStatus
 
 hits, depth = int(sys.argv[1]), int(sys.argv[2])
 timings = {"lookup": 0.5, "validate": 4.0, "plan": 0.0, "total": 6.0}
 for _ in range(hits):
-    record_plan(PlanAnswer(PlanStatus.SUCCESS, PlanSource.CACHE, 1, None, 1, dict(timings)))
+    record_plan(status="success", source="cache", timings=timings)
 planned = {**timings, "plan": 70.0, "total": 80.0}
-record_plan(PlanAnswer(PlanStatus.SUCCESS, PlanSource.PLANNER, 2, None, 0, planned))
+record_plan(status="success", source="planner", timings=planned)
 POOL_QUEUE_DEPTH.set(depth)
 print(os.getpid())
 """
@@ -273,13 +270,12 @@ def free_port() -> int:
 
 
 def _wait_ready(base: str, proc: subprocess.Popen[bytes]) -> None:
-    deadline = time.monotonic() + 90
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, "the service exited"
+    def ready() -> bool:
         try:
-            if httpx.get(f"{base}/readyz", timeout=1.0).status_code == 200:
-                return
+            return httpx.get(f"{base}/readyz", timeout=1.0).status_code == 200
         except httpx.HTTPError:
-            pass
-        time.sleep(0.3)
-    raise AssertionError("the service did not become ready")
+            return False
+
+    wait_until(lambda: proc.poll() is not None or ready(), timeout_s=90, interval_s=0.3)
+    assert proc.poll() is None, "the service exited"
+    assert ready(), "the service did not become ready"

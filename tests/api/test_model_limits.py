@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.api.conftest import TWO_JOINT_URDF, assert_detail, register
+from tests.api.conftest import assert_detail, register
+from tests.robots import TWO_JOINT_URDF
 
 BALL = {"id": "ball", "type": "sphere", "size": [0.05], "pose": {"position": [0.4, 0.0, 0.2]}}
 

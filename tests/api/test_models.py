@@ -10,16 +10,9 @@ import zipfile
 import trimesh
 from fastapi.testclient import TestClient
 
-from tests.api.conftest import TWO_JOINT_URDF, ClientFactory, assert_detail, ctx_of, register
-from trajcache.services.models import get_model
-
-MESH_URDF = """<robot name="meshy">
-  <link name="base"><collision><geometry><box size="0.3 0.3 0.1"/></geometry></collision></link>
-  <link name="arm"><collision><origin xyz="0 0 0.3"/>
-    <geometry><mesh filename="package://meshy/meshes/part.stl"/></geometry></collision></link>
-  <joint name="lift" type="prismatic"><parent link="base"/><child link="arm"/>
-    <axis xyz="0 0 1"/><limit lower="0" upper="0.5" effort="1" velocity="0.2"/></joint>
-</robot>"""
+from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
+from tests.robots import MESH_URDF, ONE_LINK_URDF, TWO_JOINT_URDF
+from trajcache.services.catalog.models import get_model
 
 
 def _stl() -> bytes:
@@ -141,6 +134,7 @@ def test_model_loads_back_from_the_database(client_factory: ClientFactory) -> No
 
 
 def test_entity_urdf_is_refused(app_client: TestClient) -> None:
+    # A literal: the DOCTYPE with entities is what is tested.
     evil = (
         '<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;">]>'
         '<robot name="&b;"><link name="l"/></robot>'
@@ -149,8 +143,9 @@ def test_entity_urdf_is_refused(app_client: TestClient) -> None:
 
 
 def test_bad_urdf_and_fields_are_422(app_client: TestClient) -> None:
+    truncated = "<robot"  # a literal: the malformation is what is tested
     assert_detail(
-        app_client.post("/v1/robot-models", json={"urdf": "<robot"}), 422, "malformed URDF"
+        app_client.post("/v1/robot-models", json={"urdf": truncated}), 422, "malformed URDF"
     )
     assert_detail(
         app_client.post(
@@ -218,11 +213,10 @@ def test_size_limits(client_factory: ClientFactory) -> None:
     assert_detail(client.post("/v1/robot-models", files=uploaded), 413, "max_urdf_bytes")
     big = _zip({"meshes/part.stl": bytes(range(256)) * 64})
     assert len(big) > 4096
-    small_urdf = '<robot name="s"><link name="l"/></robot>'
     assert_detail(
         client.post(
             "/v1/robot-models",
-            data={"urdf": small_urdf},
+            data={"urdf": ONE_LINK_URDF},
             files={"archive": ("a.zip", big, "application/zip")},
         ),
         413,
@@ -231,7 +225,7 @@ def test_size_limits(client_factory: ClientFactory) -> None:
     assert_detail(
         client.post(
             "/v1/robot-models",
-            json={"urdf": small_urdf, "archive_base64": base64.b64encode(big).decode()},
+            json={"urdf": ONE_LINK_URDF, "archive_base64": base64.b64encode(big).decode()},
         ),
         413,
         "max_archive_bytes",

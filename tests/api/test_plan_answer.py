@@ -8,7 +8,7 @@ import sqlalchemy as sa
 from fastapi.testclient import TestClient
 
 from tests.api.conftest import ctx_of
-from trajcache.api.routes.plan import PlanResponse
+from trajcache.api.schemas.plan import PlanResponse
 from trajcache.db.models import PlanEvent, Trajectory
 
 PATH = [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]]

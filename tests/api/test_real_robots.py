@@ -13,7 +13,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from tests.api.conftest import assert_detail, register
-from trajcache.workload.example_robots import ROBOTS, ExampleRobot
+from trajcache.reference.example_robots import ROBOTS, ExampleRobot
 
 PANDA_ARM = [f"panda_joint{k}" for k in range(1, 8)]
 # All joints at 0 within the limits (joint 4 at its upper limit): the Panda's wrist is folded,

@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
 from trajcache.geometry.scene.scene import make_scene
-from trajcache.services.robots import current_scene, patch_scene
+from trajcache.services.catalog.robots import current_scene, patch_scene
 
 TABLE = {
     "id": "table",

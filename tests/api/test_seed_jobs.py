@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import threading
-import time
 from typing import Any
 
 import pytest
@@ -11,6 +10,7 @@ import sqlalchemy as sa
 from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
+from tests.waiting import wait_until
 from trajcache.core.config import Settings
 from trajcache.db.models import PlanEvent, SeedJob
 from trajcache.main import create_app
@@ -46,14 +46,16 @@ def job_of(client: TestClient, job_id: int) -> dict[str, Any]:
     return job
 
 
-def wait_until(client: TestClient, job_id: int, check: Any, timeout_s: float = 60.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        job = job_of(client, job_id)
-        if check(job):
-            return job
-        time.sleep(0.02)
-    raise AssertionError(f"job {job_id} never got there: {job}")
+def wait_for_job(client: TestClient, job_id: int, check: Any, timeout_s: float = 60.0) -> dict:
+    """The job once `check` holds for it (polled within `timeout_s`)."""
+    seen: list[dict[str, Any]] = [{}]
+
+    def reached() -> bool:
+        seen[0] = job_of(client, job_id)
+        return bool(check(seen[0]))
+
+    assert wait_until(reached, timeout_s=timeout_s), f"job {job_id} never got there: {seen[0]}"
+    return seen[0]
 
 
 def finished(job: dict[str, Any]) -> bool:
@@ -86,12 +88,12 @@ def test_a_job_runs_and_reports_progress(client_factory: ClientFactory) -> None:
     far = client.post("/v1/seed-jobs", json=body).json()
     assert job["state"] == "queued" and job["total"] == 4
 
-    done = wait_until(client, job["job_id"], finished)
+    done = wait_for_job(client, job["job_id"], finished)
     assert done["state"] == "completed"
     assert (done["done"], done["hits"], done["planned"], done["failed"]) == (4, 4, 0, 0)
     assert done["hit_rate"] == 1.0 and done["eta_s"] is None and done["runner"] is None
     assert done["name"] == "near and far"
-    missed = wait_until(client, far["job_id"], finished)
+    missed = wait_for_job(client, far["job_id"], finished)
     assert (missed["failed"], missed["hit_rate"]) == (1, 0.0)
     assert missed["errors"][0]["index"] == 0
     assert "miss" in missed["errors"][0]["reason"]
@@ -188,7 +190,7 @@ def test_cancel_stops_a_running_job_promptly(client_factory: ClientFactory) -> N
     client = client_factory(**FAST)
     model_id = register(client)["model_id"]
     job = submit(client, model_id, count=3000)
-    running = wait_until(client, job["job_id"], lambda j: j["done"] > 0)
+    running = wait_for_job(client, job["job_id"], lambda j: j["done"] > 0)
     assert running["state"] == "running" and running["runner"]
     assert running["eta_s"] is not None and running["eta_s"] >= 0
     assert running["started_at"] is not None and running["finished_at"] is None
@@ -196,21 +198,23 @@ def test_cancel_stops_a_running_job_promptly(client_factory: ClientFactory) -> N
     cancelled = client.delete(f"/v1/seed-jobs/{job['job_id']}")
     assert cancelled.status_code == 200, cancelled.text
     assert cancelled.json()["state"] == "cancelled"
-    time.sleep(0.3)  # requests in flight end (each takes milliseconds here)
+    seeds = client.app.state.background.seeds  # type: ignore[attr-defined]
+    caller = f"seed-job-{job['job_id']}"  # the run's thread and its planning threads
+    assert wait_until(lambda: not any(t.name.startswith(caller) for t in threading.enumerate())), (
+        "the run did not stop"
+    )
     events = plan_events(client, job["job_id"])
-    time.sleep(0.5)
+    assert job["job_id"] not in seeds.running() + seeds.poll()  # not run again
     assert plan_events(client, job["job_id"]) == events  # nothing new was started
     assert events < 3000
     after = job_of(client, job["job_id"])
     assert after["state"] == "cancelled" and after["done"] < 3000
     assert after["finished_at"] is not None and after["runner"] is None
-    seeds = client.app.state.background.seeds  # type: ignore[attr-defined]
-    assert job["job_id"] not in seeds.running()
 
     again = client.delete(f"/v1/seed-jobs/{job['job_id']}")
     assert again.status_code == 200 and again.json()["state"] == "cancelled"
     small = submit(client, model_id, count=1)
-    wait_until(client, small["job_id"], finished)
+    wait_for_job(client, small["job_id"], finished)
     assert_detail(client.delete(f"/v1/seed-jobs/{small['job_id']}"), 409, "already completed")
     assert_detail(client.delete("/v1/seed-jobs/999"), 404)
 
@@ -220,7 +224,7 @@ def test_a_restarted_service_resumes_where_it_stopped(database_url: str) -> None
     with TestClient(create_app(settings)) as first:
         model_id = register(first)["model_id"]
         job = submit(first, model_id, count=400)
-        wait_until(first, job["job_id"], lambda j: j["done"] > 0)
+        wait_for_job(first, job["job_id"], lambda j: j["done"] > 0)
     # A graceful stop waits for the requests in flight and hands the job back.
     with TestClient(create_app(settings)) as second:
         ctx = ctx_of(second)
@@ -230,7 +234,7 @@ def test_a_restarted_service_resumes_where_it_stopped(database_url: str) -> None
         handed_back = row.done
         assert 0 < handed_back < 400
         assert plan_events(second, job["job_id"]) == handed_back
-        done = wait_until(second, job["job_id"], finished)
+        done = wait_for_job(second, job["job_id"], finished)
     assert (done["state"], done["done"], done["failed"]) == ("completed", 400, 400)
     with TestClient(create_app(settings)) as third:
         assert plan_events(third, job["job_id"]) == 400  # every request planned exactly once
@@ -241,7 +245,7 @@ def test_the_handed_back_state_is_queued_without_a_lease(database_url: str) -> N
     with TestClient(create_app(settings)) as client:
         model_id = register(client)["model_id"]
         job = submit(client, model_id, count=400)
-        wait_until(client, job["job_id"], lambda j: j["done"] > 0)
+        wait_for_job(client, job["job_id"], lambda j: j["done"] > 0)
         ctx = ctx_of(client)
         client.app.state.background.seeds.stop()  # type: ignore[attr-defined]
         with ctx.session() as session:
@@ -264,16 +268,16 @@ def test_two_replicas_never_run_one_job_together(database_url: str, stop_the_run
         def watch() -> None:
             while not watching.is_set():
                 both.append(all(job["job_id"] in s.running() for s in seeds))
-                time.sleep(0.005)
+                watching.wait(0.005)  # sample every 5 ms until told to stop
 
         watcher = threading.Thread(target=watch)
         watcher.start()
         try:
-            running = wait_until(a, job["job_id"], lambda j: j["done"] > 0)
+            running = wait_for_job(a, job["job_id"], lambda j: j["done"] > 0)
             runner = next(s for s in seeds if s.owner == running["runner"])
             if stop_the_runner:  # the other replica takes the job over and finishes it
                 runner.stop()
-            done = wait_until(b, job["job_id"], finished)
+            done = wait_for_job(b, job["job_id"], finished)
         finally:
             watching.set()
             watcher.join()

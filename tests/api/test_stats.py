@@ -11,7 +11,7 @@ from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of
 from trajcache.db.models import PlanEvent
-from trajcache.services.keys import create_key
+from trajcache.services.catalog.keys import create_key
 
 PATH = [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]]
 OTHER = [[0.0, -1.0], [0.4, -1.0]]

@@ -5,14 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from harness.dense import DenseChecker, reference_checker
 from trajcache.geometry.collision.checker import CollisionChecker
-from trajcache.geometry.reference import restroom_scene
-from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
-from trajcache.geometry.scene.scene import make_scene, scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.geometry.scene.scene import make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
-from trajcache.protocol.dense import DenseChecker, reference_checker
-from trajcache.workload.cleaning import cleaning_run
-from trajcache.workload.tasks import work_stations
+from trajcache.reference import restroom_scene
+from trajcache.reference.cleaning import cleaning_run
+from trajcache.reference.robot import STOWED_ARM, reference_model
+from trajcache.reference.tasks import work_stations
 
 
 @pytest.fixture(scope="module")

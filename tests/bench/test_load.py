@@ -12,8 +12,8 @@ import pytest
 
 from load import MissMaker, robot_script
 from tests.conftest import POSTGRES_URL, require_service
-from trajcache.geometry.reference.robot import reference_model
-from trajcache.workload.cleaning import cleaning_run
+from trajcache.reference.cleaning import cleaning_run
+from trajcache.reference.robot import reference_model
 
 SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "load.py"
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trajcache.protocol.replay import CallRecord
-from trajcache.protocol.tables import Row, format_table, speedups
+from harness.replay import CallRecord
+from harness.tables import Row, format_table, speedups
 
 SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "paper_tables.py"
 ROWS = "sim_none,run1,run2,run1_arm,real_none"  # three services, both tables

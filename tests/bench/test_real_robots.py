@@ -8,7 +8,7 @@ import pytest
 from dense_mesh import MeshChecker
 from robot_description import describe
 from scene_families import FAMILIES, generate_problem, workspace
-from trajcache.workload.example_robots import ROBOTS
+from trajcache.reference.example_robots import ROBOTS
 
 HAND_IN_LINK5 = [0.0, 0.0, 0.0, -1.5, 0.0, -0.0175, 0.0]  # joint 6 at its lower limit
 

@@ -11,14 +11,15 @@ from typing import Any, cast
 import numpy as np
 import pytest
 
+from harness.dense import DenseChecker, reference_checker
 from safety_soak import SMOKE_PLANS, Request, Soak
 from soak_geometry import grazing_radius, judge, path_obstacle, sphere
 from trajcache.cache.adapt import adapt_trajectory
 from trajcache.cache.metric import PLANAR_ARM_OFFSET
-from trajcache.geometry.reference.restroom import restroom_scene
-from trajcache.geometry.scene.scene import Scene, apply_patch
-from trajcache.protocol.dense import DenseChecker, reference_checker
-from trajcache.workload.tasks import task_state, work_station
+from trajcache.geometry.scene.payload import apply_patch
+from trajcache.geometry.scene.scene import Scene
+from trajcache.reference.restroom import restroom_scene
+from trajcache.reference.tasks import task_state, work_station
 
 SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "safety_soak.py"
 

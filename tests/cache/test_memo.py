@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from tests.geometry.test_validation import SWING_URDF
+from tests.robots import ROD_URDF
 from trajcache.cache.memo import MemoScope, MemoUse, ValidationMemo, validate_with_memo
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import Shape, ShapeKind
@@ -32,7 +32,7 @@ PATH = np.array([[0.0], [0.4], [0.9], [1.4], [1.8]])  # segments 0–0.4, 0.4–
 
 @pytest.fixture(scope="module")
 def swing() -> RobotModel:
-    return load_robot_model(SWING_URDF)
+    return load_robot_model(ROD_URDF)
 
 
 def plates(*angles: float) -> Scene:
@@ -140,6 +140,25 @@ def test_other_validator_settings_are_a_new_scope(swing: RobotModel) -> None:
     coarse = MemoScope(swing.model_id, scene.hash, (Resolution(joint_rad=0.1), True))
     assert not memo.known_valid(coarse, PATH)
     assert not memo.known_valid(MemoScope("other-model", scene.hash, (Resolution(), True)), PATH)
+
+
+def test_the_scope_is_the_validators_model_scene_and_settings_key(swing: RobotModel) -> None:
+    """`MemoScope.of` follows every input of a verdict; a scene without a hash has no scope."""
+    scene = plates(-1.0)
+    base = MemoScope.of(TrajectoryValidator(swing, scene))
+    assert base is not None and base == MemoScope.of(TrajectoryValidator(swing, scene))
+    other = load_robot_model(ROD_URDF.replace('name="rod"', 'name="rod2"', 1))
+    scopes = {
+        base,
+        MemoScope.of(TrajectoryValidator(swing, scene, resolution=Resolution(joint_rad=0.01))),
+        MemoScope.of(TrajectoryValidator(swing, scene, certified=False)),
+        MemoScope.of(TrajectoryValidator(swing, scene, min_pad=1e-3)),
+        MemoScope.of(TrajectoryValidator(other, scene)),
+        MemoScope.of(TrajectoryValidator(swing, plates(-1.0, 1.15))),
+    }
+    assert len(scopes) == 6
+    unhashed = Scene(scene.objects, {}, "")
+    assert MemoScope.of(TrajectoryValidator(swing, unhashed)) is None
 
 
 def test_a_path_that_fails_is_never_remembered(swing: RobotModel) -> None:

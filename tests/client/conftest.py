@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import socket
 import threading
-import time
 from collections.abc import AsyncIterator, Iterator
-from pathlib import Path
 from typing import Any
 
 import httpx
@@ -14,19 +12,12 @@ import pytest
 import uvicorn
 from fastapi import FastAPI
 
+from tests.waiting import wait_until
 from trajcache.core.config import Settings
 from trajcache.main import create_app
 from trajcache_client import AsyncClient, Client, Retry
 
 FAST_RETRY = Retry(retries=2, backoff_s=0.001, backoff_max_s=0.01)
-
-
-@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
-def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
-    """An empty database: a SQLite file, or a fresh PostgreSQL schema."""
-    if request.param == "sqlite":
-        return f"sqlite:///{tmp_path / 'client.db'}"
-    return str(request.getfixturevalue("postgres_url"))
 
 
 def make_app(database_url: str, **overrides: Any) -> FastAPI:
@@ -49,11 +40,9 @@ class LiveServer:
 
     def __enter__(self) -> LiveServer:
         self.thread.start()
-        deadline = time.monotonic() + 60
-        while not self.server.started:
-            if not self.thread.is_alive() or time.monotonic() > deadline:
-                raise RuntimeError("the live server did not start")
-            time.sleep(0.02)
+        up = wait_until(lambda: self.server.started or not self.thread.is_alive(), timeout_s=60)
+        if not up or not self.server.started:
+            raise RuntimeError("the live server did not start")
         return self
 
     def __exit__(self, *exc: object) -> None:

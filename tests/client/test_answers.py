@@ -95,4 +95,4 @@ def test_scene_answers_carry_warnings_allowed_collisions_and_attached_objects() 
     )
     assert scene.allowed_collisions == [["finger", "table"]] and scene.attached_objects == [rod]
     bare = tc.Scene.model_validate({"version": 1, "hash": "h", "objects": [], "env": {}})
-    assert (bare.warnings, bare.allowed_collisions, bare.attached_objects) == ([], [], [])
+    assert (bare.allowed_collisions, bare.attached_objects) == ([], [])

@@ -7,8 +7,8 @@ import asyncio
 import pytest
 
 import trajcache_client as tc
-from tests.api.conftest import TWO_JOINT_URDF
 from tests.client.test_live import PATH, TABLE
+from tests.robots import TWO_JOINT_URDF
 from trajcache_client import AsyncClient
 
 pytestmark = pytest.mark.anyio

@@ -12,9 +12,9 @@ from types import ModuleType
 import pytest
 
 from tests.client.conftest import LiveServer, make_app
-from trajcache.geometry.reference.restroom import restroom_scene
-from trajcache.geometry.reference.robot import reference_urdf
-from trajcache.geometry.scene.scene import scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.reference.restroom import restroom_scene
+from trajcache.reference.robot import reference_urdf
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "robot_loop.py"
 

@@ -11,8 +11,7 @@ import trimesh
 import yaml
 
 import trajcache_client as tc
-from tests.api.conftest import TWO_JOINT_URDF
-from tests.api.test_models import MESH_URDF
+from tests.robots import MESH_URDF, PINCER_SRDF, PINCER_URDF, TWO_JOINT_URDF
 from trajcache_client import Client
 
 PATH = [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]]
@@ -23,50 +22,6 @@ world:
     - id: shelf
       primitives: [{type: 1, dimensions: [0.3, 0.3, 0.3]}]
       primitive_poses: [{position: {x: -2.0, y: 0.0, z: 0.2}}]
-"""
-
-
-PINCER_URDF = """<?xml version="1.0"?>
-<robot name="pincer">
-  <link name="base">
-    <collision><origin xyz="0 0 0.05"/><geometry><box size="0.2 0.2 0.1"/></geometry></collision>
-  </link>
-  <link name="upper">
-    <collision><origin xyz="0 0 0.15"/><geometry><cylinder radius="0.03" length="0.3"/>
-    </geometry></collision>
-  </link>
-  <link name="fore">
-    <collision><origin xyz="0 0 0.1"/><geometry><cylinder radius="0.02" length="0.2"/>
-    </geometry></collision>
-  </link>
-  <link name="finger">
-    <collision><origin xyz="0 0 0.02"/><geometry><box size="0.01 0.01 0.04"/></geometry>
-    </collision>
-  </link>
-  <joint name="shoulder" type="revolute">
-    <parent link="base"/><child link="upper"/><origin xyz="0 0 0.1"/><axis xyz="0 1 0"/>
-    <limit lower="-2.0" upper="2.0" effort="1" velocity="1"/>
-  </joint>
-  <joint name="elbow" type="revolute">
-    <parent link="upper"/><child link="fore"/><origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
-    <limit lower="-1.5" upper="1.5" effort="1" velocity="1"/>
-  </joint>
-  <joint name="finger" type="prismatic">
-    <parent link="fore"/><child link="finger"/><origin xyz="0 0 0.2"/><axis xyz="1 0 0"/>
-    <limit lower="0" upper="0.04" effort="1" velocity="0.1"/>
-  </joint>
-</robot>
-"""
-PINCER_SRDF = """<?xml version="1.0"?>
-<robot name="pincer">
-  <group name="arm"><joint name="shoulder"/><joint name="elbow"/></group>
-  <group name="hand"><joint name="finger"/></group>
-  <group_state name="ready" group="arm">
-    <joint name="shoulder" value="0.5"/><joint name="elbow" value="-0.4"/>
-  </group_state>
-  <group_state name="open" group="hand"><joint name="finger" value="0.03"/></group_state>
-  <disable_collisions link1="base" link2="fore" reason="Never"/>
-</robot>
 """
 
 

@@ -19,6 +19,7 @@ import pytest
 import trajcache_client as tc
 from tests.client.conftest import FAST_RETRY
 from tests.client.test_retries import PLAN, ROBOT, Script
+from tests.robots import OPAQUE_URDF
 from trajcache_client import NO_RETRY, Client, PlanOptions
 
 MODEL = {
@@ -128,11 +129,11 @@ def test_default_timeouts_are_set() -> None:
 def test_register_model_sends_json_without_an_archive() -> None:
     script = Script(ok=MODEL)
     with _client(script) as client:
-        model = client.register_model("<robot/>", base="planar", joint_names=("a", "b"))
+        model = client.register_model(OPAQUE_URDF, base="planar", joint_names=("a", "b"))
     request = script.requests[0]
     assert request.headers["content-type"] == "application/json"
     assert json.loads(request.content) == {
-        "urdf": "<robot/>",
+        "urdf": OPAQUE_URDF,
         "base": "planar",
         "joint_names": ["a", "b"],
     }
@@ -147,7 +148,7 @@ def test_register_model_uploads_an_archive_as_multipart(tmp_path: Path) -> None:
     path.write_bytes(buffer.getvalue())
     script = Script(ok=MODEL)
     with _client(script) as client:
-        client.register_model("<robot/>", joint_names=["a", "b"], name="arm", archive=path)
+        client.register_model(OPAQUE_URDF, joint_names=["a", "b"], name="arm", archive=path)
     request = script.requests[0]
     media, boundary = request.headers["content-type"].split("; boundary=")
     assert media == "multipart/form-data"
@@ -166,7 +167,7 @@ def test_register_model_sends_the_srdf_group_held_values_and_limits_as_json() ->
     script = Script(ok=MODEL)
     with _client(script) as client:
         client.register_model(
-            "<robot/>",
+            OPAQUE_URDF,
             srdf=SRDF,
             group="arm",
             joint_values={"finger": 1},
@@ -174,10 +175,10 @@ def test_register_model_sends_the_srdf_group_held_values_and_limits_as_json() ->
             jerk_limits={"a": 50, "b": 60.5},
             end_effector_link="tool",
         )
-        client.register_model("<robot/>", srdf=SRDF, joint_values="open")
+        client.register_model(OPAQUE_URDF, srdf=SRDF, joint_values="open")
     first, second = (json.loads(r.content) for r in script.requests)
     assert first == {
-        "urdf": "<robot/>",
+        "urdf": OPAQUE_URDF,
         "srdf": SRDF,
         "base": "fixed",
         "group": "arm",
@@ -186,14 +187,14 @@ def test_register_model_sends_the_srdf_group_held_values_and_limits_as_json() ->
         "jerk_limits": {"a": 50.0, "b": 60.5},
         "end_effector_link": "tool",
     }
-    assert second == {"urdf": "<robot/>", "srdf": SRDF, "base": "fixed", "joint_values": "open"}
+    assert second == {"urdf": OPAQUE_URDF, "srdf": SRDF, "base": "fixed", "joint_values": "open"}
 
 
 def test_multipart_registration_sends_the_srdf_as_a_file_and_values_as_json_text() -> None:
     script = Script(ok=MODEL)
     with _client(script) as client:
         client.register_model(
-            "<robot/>",
+            OPAQUE_URDF,
             srdf=SRDF,
             group="arm",
             joint_values={"finger": 0.02},
@@ -202,10 +203,10 @@ def test_multipart_registration_sends_the_srdf_as_a_file_and_values_as_json_text
             acceleration_limits={"a": 3},
             jerk_limits=40,
         )
-        client.register_model("<robot/>", joint_values="open", archive=b"PK")
+        client.register_model(OPAQUE_URDF, joint_values="open", archive=b"PK")
     full, named = (_form(r) for r in script.requests)
     assert full == {
-        "urdf": (None, b"<robot/>"),
+        "urdf": (None, OPAQUE_URDF.encode()),
         "base": (None, b"fixed"),
         "joint_names": (None, b"a,b"),
         "group": (None, b"arm"),
@@ -244,7 +245,7 @@ async def test_the_async_client_sends_the_same_new_fields() -> None:
 
     transport = httpx.MockTransport(handler)
     async with tc.AsyncClient("http://svc", retry=NO_RETRY, transport=transport) as client:
-        await client.register_model("<robot/>", srdf=SRDF, group="arm", joint_values="open")
+        await client.register_model(OPAQUE_URDF, srdf=SRDF, group="arm", joint_values="open")
         await client.put_robot("r1", "m1", kind="real", joint_values={"finger": 0})
         await client.plan("r1", {"a": 0, "b": 0}, "ready")
     registration, robot, plan = (json.loads(r.content) for r in sent)

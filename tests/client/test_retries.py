@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import email.utils
 import time
+from types import SimpleNamespace
 from typing import Any
 
 import httpx
@@ -12,6 +13,7 @@ import pytest
 import trajcache_client as tc
 from tests.client.conftest import FAST_RETRY
 from trajcache_client import AsyncClient, Client, Retry
+from trajcache_client import _client as _client_module
 
 ROBOT = {
     "robot_id": "r1",
@@ -151,13 +153,15 @@ def test_no_retry_policy_sends_once() -> None:
     assert len(script.requests) == 1
 
 
-def test_the_client_waits_between_tries() -> None:
+def test_the_client_waits_between_tries(monkeypatch: pytest.MonkeyPatch) -> None:
     script = Script(503, 503, ok=ROBOT)
     retry = Retry(retries=2, backoff_s=0.05, jitter=0.0)
-    began = time.monotonic()
+    waits: list[float] = []
+    monkeypatch.setattr(_client_module, "time", SimpleNamespace(sleep=waits.append))
     with _client(script, retry) as client:
         client.get_robot("r1")
-    assert time.monotonic() - began >= 0.05 + 0.1  # 0.05 s, then 0.1 s
+    assert waits == [0.05, 0.1]  # 0.05 s, then 0.1 s
+    assert len(script.requests) == 3
 
 
 def test_delays_grow_exponentially_within_the_jitter_and_the_cap() -> None:

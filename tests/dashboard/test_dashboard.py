@@ -15,7 +15,6 @@ import os
 import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -26,6 +25,7 @@ import httpx
 import pytest
 
 from tests.conftest import REQUIRE_SERVICES
+from tests.waiting import wait_until
 
 CHROMIUM = Path("/usr/bin/chromium")
 ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
@@ -70,24 +70,22 @@ def _free_port() -> int:
 
 
 def _wait_ready(base: str, proc: subprocess.Popen[bytes]) -> None:
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise AssertionError("the service exited before it was ready")
+    def ready() -> bool:
         try:
-            if httpx.get(f"{base}/readyz", timeout=1.0).status_code == 200:
-                return
+            return httpx.get(f"{base}/readyz", timeout=1.0).status_code == 200
         except httpx.HTTPError:
-            pass
-        time.sleep(0.3)
-    raise AssertionError("the service did not become ready")
+            return False
+
+    wait_until(lambda: proc.poll() is not None or ready(), timeout_s=120, interval_s=0.3)
+    assert proc.poll() is None, "the service exited before it was ready"
+    assert ready(), "the service did not become ready"
 
 
 def _seed(client: httpx.Client, seeded: Seeded) -> None:
     """Register the reference robot; run a cleaning run on it, then another on a second robot."""
-    from trajcache.geometry.reference.robot import reference_urdf
-    from trajcache.geometry.scene.scene import scene_to_payload
-    from trajcache.workload.cleaning import cleaning_run
+    from trajcache.geometry.scene.payload import scene_to_payload
+    from trajcache.reference.cleaning import cleaning_run
+    from trajcache.reference.robot import reference_urdf
 
     reply = client.post(
         "/v1/robot-models",
@@ -290,10 +288,11 @@ def test_the_page_asks_for_an_admin_key_once_keys_exist(
     )
     secret = created.stdout.strip().splitlines()[-1]
     tab, _errors = page  # the refused requests are logged by the browser; that is expected here
-    deadline = time.monotonic() + 30
-    while httpx.get(f"{seeded.base}/v1/stats").status_code != 401:  # keys are cached briefly
-        assert time.monotonic() < deadline, "the service did not start requiring keys"
-        time.sleep(0.5)
+    assert wait_until(  # keys are cached briefly
+        lambda: httpx.get(f"{seeded.base}/v1/stats").status_code == 401,
+        timeout_s=30,
+        interval_s=0.5,
+    ), "the service did not start requiring keys"
     tab.goto(f"{seeded.base}/dashboard/")
     tab.wait_for_function("document.body.dataset.state === 'auth'", timeout=WAIT_MS)
     assert tab.is_visible("#key-panel")

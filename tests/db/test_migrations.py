@@ -30,13 +30,6 @@ TABLES = {
 }
 
 
-@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
-def empty_db_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
-    if request.param == "sqlite":
-        return f"sqlite:///{tmp_path / 'migrate.db'}"
-    return str(request.getfixturevalue("postgres_url"))
-
-
 def schema_diff(url: str) -> list[Any]:
     engine = sa.create_engine(url)
     try:
@@ -64,16 +57,16 @@ def test_single_head() -> None:
     assert len(script.get_heads()) == 1
 
 
-def test_upgrade_empty_database_matches_models(empty_db_url: str) -> None:
-    assert migrate.current_revision(empty_db_url) is None
-    migrate.upgrade(empty_db_url)
-    assert migrate.current_revision(empty_db_url) == head_revision()
-    assert table_names(empty_db_url) == TABLES | {"alembic_version"}
-    assert schema_diff(empty_db_url) == []
+def test_upgrade_empty_database_matches_models(database_url: str) -> None:
+    assert migrate.current_revision(database_url) is None
+    migrate.upgrade(database_url)
+    assert migrate.current_revision(database_url) == head_revision()
+    assert table_names(database_url) == TABLES | {"alembic_version"}
+    assert schema_diff(database_url) == []
 
 
-def test_diff_detects_a_column_missing_from_migrations(empty_db_url: str) -> None:
-    migrate.upgrade(empty_db_url)
+def test_diff_detects_a_column_missing_from_migrations(database_url: str) -> None:
+    migrate.upgrade(database_url)
     metadata = sa.MetaData(naming_convention=Base.metadata.naming_convention)
     for table in Base.metadata.sorted_tables:
         table.to_metadata(metadata)
@@ -83,7 +76,7 @@ def test_diff_detects_a_column_missing_from_migrations(empty_db_url: str) -> Non
         sa.Column("unmigrated", sa.Integer()),
         extend_existing=True,
     )
-    engine = sa.create_engine(empty_db_url)
+    engine = sa.create_engine(database_url)
     try:
         with engine.connect() as conn:
             context = MigrationContext.configure(conn, opts={"compare_type": True})
@@ -94,14 +87,14 @@ def test_diff_detects_a_column_missing_from_migrations(empty_db_url: str) -> Non
     assert diff[0][3].name == "unmigrated"
 
 
-def test_downgrade_to_base_and_upgrade_again(empty_db_url: str) -> None:
-    migrate.upgrade(empty_db_url)
-    migrate.downgrade(empty_db_url, "base")
-    assert migrate.current_revision(empty_db_url) is None
-    assert table_names(empty_db_url) <= {"alembic_version"}
-    migrate.upgrade(empty_db_url)
-    assert migrate.current_revision(empty_db_url) == head_revision()
-    assert schema_diff(empty_db_url) == []
+def test_downgrade_to_base_and_upgrade_again(database_url: str) -> None:
+    migrate.upgrade(database_url)
+    migrate.downgrade(database_url, "base")
+    assert migrate.current_revision(database_url) is None
+    assert table_names(database_url) <= {"alembic_version"}
+    migrate.upgrade(database_url)
+    assert migrate.current_revision(database_url) == head_revision()
+    assert schema_diff(database_url) == []
 
 
 def test_sqlite_ids_are_never_reused(tmp_path: Path) -> None:

@@ -12,7 +12,7 @@ import sqlalchemy as sa
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
 
-from trajcache.db import migrate
+from tests.robots import OPAQUE_URDF
 from trajcache.db.models import (
     ApiKey,
     ModelFile,
@@ -29,16 +29,9 @@ from trajcache.db.models import (
 from trajcache.db.session import make_engine, make_sessionmaker
 
 
-@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
-def session_factory(
-    request: pytest.FixtureRequest, tmp_path: Path
-) -> Iterator[sessionmaker[Session]]:
-    if request.param == "sqlite":
-        url = f"sqlite:///{tmp_path / 'models.db'}"
-    else:
-        url = str(request.getfixturevalue("postgres_url"))
-    migrate.upgrade(url)
-    engine = make_engine(url, pool_size=2)
+@pytest.fixture
+def session_factory(migrated_url: str) -> Iterator[sessionmaker[Session]]:
+    engine = make_engine(migrated_url, pool_size=2)
     try:
         yield make_sessionmaker(engine)
     finally:
@@ -61,7 +54,7 @@ def add_model(session: Session, model_id: str = "m" * 64) -> RobotModel:
         name="mobile-arm",
         base="planar",
         joint_names=["j1", "j2"],
-        urdf="<robot name='r'/>",
+        urdf=OPAQUE_URDF,
         allowed_pairs=[[0, 2], [1, 3]],
         config={"acceleration_limits": [1.0, 2.0]},
     )

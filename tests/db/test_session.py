@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 import sqlalchemy as sa
 
+from tests.waiting import wait_until
 from trajcache.db import session as db_session
 from trajcache.db.session import make_engine
 
@@ -27,15 +26,25 @@ def _terminate(url: str, pid: int) -> None:
         admin.dispose()
 
 
+def _backend_alive(url: str, pid: int) -> bool:
+    admin = sa.create_engine(url, isolation_level="AUTOCOMMIT")
+    try:
+        with admin.connect() as conn:
+            query = sa.text("SELECT count(*) FROM pg_stat_activity WHERE pid = :pid")
+            return bool(conn.execute(query, {"pid": pid}).scalar())
+    finally:
+        admin.dispose()
+
+
 def test_a_dead_idle_connection_is_replaced_before_use(
     postgres_url: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(db_session, "PING_IDLE_S", 0.05)
+    monkeypatch.setattr(db_session, "PING_IDLE_S", 0.0)  # every connection has sat idle too long
     engine = make_engine(postgres_url, pool_size=1)
     try:
         first = _backend_pid(engine)
         _terminate(postgres_url, first)
-        time.sleep(0.1)
+        assert wait_until(lambda: not _backend_alive(postgres_url, first))
         assert _backend_pid(engine) != first  # pinged, found dead, reconnected: no error
     finally:
         engine.dispose()

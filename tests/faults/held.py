@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import os
 import tempfile
-import time
 from dataclasses import replace
 from pathlib import Path
 
+from tests.waiting import wait_until
+from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlanningProblem, PlanResult
 from trajcache.planning.run import run_planning
 
@@ -28,10 +29,9 @@ def held_planning(problem: PlanningProblem) -> PlanResult:
     hold = HOLD_DIR / problem.scene.hash
     if hold.exists():
         (HOLD_DIR / f"{problem.scene.hash}.{os.getpid()}.started").touch()
-        deadline = time.monotonic() + problem.budget_s
-        while hold.exists() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        problem = replace(problem, budget_s=max(0.01, deadline - time.monotonic()))
+        deadline = Deadline(problem.budget_s)
+        wait_until(lambda: not hold.exists(), timeout_s=problem.budget_s)
+        problem = replace(problem, budget_s=max(0.01, deadline.remaining()))
     return run_planning(problem)
 
 
@@ -58,13 +58,9 @@ class Hold:
 
     def wait_attempt(self, number: int, timeout: float = 20.0) -> int:
         """The pid of attempt `number` (1-based), once it has started."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            pids = self.attempts()
-            if len(pids) >= number:
-                return pids[number - 1]
-            time.sleep(0.01)
-        raise AssertionError(f"planning attempt {number} did not start within {timeout:g} s")
+        started = wait_until(lambda: len(self.attempts()) >= number, timeout_s=timeout)
+        assert started, f"planning attempt {number} did not start within {timeout:g} s"
+        return self.attempts()[number - 1]
 
     def clear(self) -> None:
         self.release()

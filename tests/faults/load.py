@@ -20,9 +20,10 @@ import httpx
 import numpy as np
 import sqlalchemy as sa
 
+from tests.waiting import wait_until
 from trajcache.db.models import PlanEvent, Trajectory, trajectory_content_hash, unpack_states
+from trajcache.services.catalog.models import get_model
 from trajcache.services.context import ServiceContext
-from trajcache.services.models import get_model
 
 ROBOT = "r1"
 KINDS = ("hit", "miss", "write")
@@ -87,13 +88,12 @@ class Load:
 
     def wait_for_successes(self, since: float, count: int, timeout: float) -> bool:
         """Wait until every kind has `count` successes among the requests sent after `since`."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
+
+        def reached() -> bool:
             done = Counter(o.kind for o in self.of() if o.ok and o.began > since)
-            if all(done[kind] >= count for kind in self.threads):
-                return True
-            time.sleep(0.05)
-        return False
+            return all(done[kind] >= count for kind in self.threads)
+
+        return wait_until(reached, timeout_s=timeout, interval_s=0.05)
 
     def _drive(self, kind: str, seed: int) -> None:
         rng = np.random.default_rng([KINDS.index(kind), seed, int(time.time())])

@@ -16,6 +16,7 @@ from fastapi.testclient import TestClient
 from tests.api.conftest import register
 from tests.api.test_fallback import DETOUR_SCENE, GOAL, START
 from tests.jobs.test_celery import Worker
+from tests.waiting import wait_until
 from trajcache.core.config import Settings
 from trajcache.main import create_app
 
@@ -65,13 +66,15 @@ def worker_command(queue: str) -> list[str]:
 
 def wait_ready(worker: Worker, timeout: float = 60.0) -> None:
     """Wait until the Celery worker logs that it is ready to take tasks."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        assert worker.process.poll() is None, f"worker exited:\n{worker.log_tail()}"
-        if " ready." in worker.log.read_text(errors="replace"):
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"the Celery worker was not ready within {timeout:g} s")
+    ready = wait_until(
+        lambda: (
+            worker.process.poll() is not None or " ready." in worker.log.read_text(errors="replace")
+        ),
+        timeout_s=timeout,
+        interval_s=0.1,
+    )
+    assert worker.process.poll() is None, f"worker exited:\n{worker.log_tail()}"
+    assert ready, f"the Celery worker was not ready within {timeout:g} s"
 
 
 Replies = list[tuple[httpx.Response, float]]

@@ -18,13 +18,14 @@ import httpx
 import pytest
 import sqlalchemy as sa
 
-from tests.api.conftest import TWO_JOINT_URDF
 from tests.client.conftest import LiveServer
 from tests.conftest import POSTGRES_URL, require_service
 from tests.faults.load import ROBOT, Load, Outcome, check_database, seed_trajectories
 from tests.proxy import TcpProxy
+from tests.robots import TWO_JOINT_URDF
 from trajcache.core.config import Settings
-from trajcache.jobs.pool import OVERHEAD_S, LocalBackend
+from trajcache.jobs.local import LocalBackend
+from trajcache.jobs.pool import OVERHEAD_S
 from trajcache.main import create_app
 from trajcache.services.context import ServiceContext
 

@@ -6,11 +6,12 @@ import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.api.conftest import assert_detail
+from tests.api.conftest import assert_detail, ctx_of
 from tests.api.test_fallback import GOAL, START
 from tests.faults.held import HELD_TASK, Hold
 from tests.faults.support import (
@@ -25,12 +26,12 @@ from tests.faults.support import (
 )
 from tests.jobs.test_celery import Worker
 from tests.proxy import TcpProxy
+from tests.waiting import wait_until
 from trajcache.jobs.pool import OVERHEAD_S
 
 pytestmark = pytest.mark.redis
 
 BUDGET_S = 3.0
-FAST_S = 1.5  # a miss while Redis is away is answered this quickly, whatever its budget
 
 
 @pytest.fixture
@@ -90,23 +91,31 @@ def _outage_cycle(client: TestClient, proxy: TcpProxy, hold: Hold) -> None:
     assert took < BUDGET_S + OVERHEAD_S + SLACK_S
     assert_detail(reply, 503, "planning is unavailable", "worker backend unavailable")
 
+    pool = ctx_of(client).planner_pool()
     for goal in ([1.0, 0.5], [1.0, 0.3]):  # new misses: a 503 at once, not at the deadline
         began = time.monotonic()
         reply = plan(client, goal=goal, budget_s=BUDGET_S)
-        assert time.monotonic() - began < FAST_S
+        # Fail fast is the promise: a broker out of reach is not waited on for the budget.
+        assert time.monotonic() - began < BUDGET_S
         assert_detail(reply, 503, "planning is unavailable", "worker backend unavailable")
 
-        began = time.monotonic()  # a hit needs no Redis
+        submitted = pool.stats().submitted  # a hit needs no Redis: the pool is not asked
         body = plan(client, budget_s=BUDGET_S).json()
-        assert time.monotonic() - began < FAST_S
+        assert pool.stats().submitted == submitted
         assert (body["source"], body["trajectory_id"]) == ("cache", cached["trajectory_id"])
         assert body["states"][0] == START
 
     proxy.start()  # Redis is back: misses are planned again, by the same app
-    deadline = time.monotonic() + 10.0
-    while (reply := plan(client, goal=[1.0, 0.3], budget_s=BUDGET_S)).status_code == 503:
-        assert time.monotonic() < deadline, f"no recovery: {reply.text}"
-        time.sleep(0.2)
-    body = reply.json()
+    replies: list[Any] = []
+    recovered = wait_until(
+        lambda: (
+            replies.append(plan(client, goal=[1.0, 0.3], budget_s=BUDGET_S))
+            or replies[-1].status_code != 503
+        ),
+        timeout_s=10.0,
+        interval_s=0.2,
+    )
+    assert recovered, f"no recovery: {replies[-1].text}"
+    body = replies[-1].json()
     assert (body["status"], body["source"]) == ("success", "planner"), body
     _planned(client, [1.0, 0.5])

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import signal
-import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -130,9 +129,9 @@ def test_killed_celery_worker_is_a_clear_503_then_a_new_worker_plans(
             assert_detail(reply, 503, "planning is unavailable", "worker", "lost")
             hold.release()
 
-            began = time.monotonic()  # no worker at all: a 503 too, within the budget
-            assert_detail(plan(client, budget_s=0.5), 503, "no Celery worker started")
-            assert time.monotonic() - began < 0.5 + OVERHEAD_S + SLACK_S
+            # No worker at all: a 503 too, once the budget and the overhead have passed.
+            reply = plan(client, budget_s=0.5)
+            assert_detail(reply, 503, "no Celery worker started", f"within {0.5 + OVERHEAD_S:g} s")
 
             second = Worker(command, queue, tmp_path / "second.log", redis_url, HELD_TASK)
             wait_ready(second)

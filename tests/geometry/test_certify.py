@@ -8,12 +8,20 @@ import math
 import numpy as np
 import pytest
 
+from tests.robots import (
+    BARE_JOINT_URDF,
+    SLIDING_BALL_URDF,
+    Z_AXIS,
+    box,
+    collision,
+    joint,
+    link,
+    planar_arm,
+)
 from trajcache.geometry.collision.checker import COLLIDING, ContactKind
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
-from trajcache.geometry.reference.robot import BASE_SIZE, STOWED_ARM, reference_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation import validator as validator_module
 from trajcache.geometry.validation.validator import (
@@ -22,6 +30,8 @@ from trajcache.geometry.validation.validator import (
     ValidationStatus,
     interpolate,
 )
+from trajcache.reference.restroom import restroom_layout, restroom_scene
+from trajcache.reference.robot import BASE_SIZE, STOWED_ARM, reference_model
 
 STEP = Resolution().joint_rad
 
@@ -36,22 +46,18 @@ def _rod_and_plate(angle: float) -> RobotModel:
     """A 1 m rod turning about z, and a thin plate on another link of the same robot (on a
     carriage, so that the two are not adjacent and their pair is checked)."""
     c, s = math.cos(angle), math.sin(angle)
-    return load_robot_model(
-        f"""<robot name="rod_and_plate">
-  <link name="root"/>
-  <link name="rod"><collision><origin xyz="0.5 0 0" rpy="0 1.5707963267948966 0"/>
-    <geometry><cylinder radius="0.01" length="1.0"/></geometry></collision></link>
-  <link name="carriage"/>
-  <link name="plate"><collision><geometry><box size="0.1 0.002 0.2"/></geometry></collision></link>
-  <joint name="turn" type="revolute"><parent link="root"/><child link="rod"/>
-    <origin xyz="0 0 0.5"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="shift" type="prismatic"><parent link="root"/><child link="carriage"/>
-    <axis xyz="0 0 1"/><limit lower="0" upper="0.01" effort="1" velocity="1"/></joint>
-  <joint name="mount" type="fixed"><parent link="carriage"/><child link="plate"/>
-    <origin xyz="{0.9 * c} {0.9 * s} 0.5" rpy="0 0 {angle}"/></joint>
-</robot>""",
+    plate = (
+        link("carriage"),
+        link("plate", collision(box(0.1, 0.002, 0.2))),
+        joint("shift", "prismatic", "root", "carriage", axis=Z_AXIS, limit=(0, 0.01)),
+        joint(
+            "mount", "fixed", "carriage", "plate", xyz=(0.9 * c, 0.9 * s, 0.5), rpy=(0, 0, angle)
+        ),
     )
+    urdf = planar_arm(
+        (1.0,), name="rod_and_plate", links=("rod",), joints=("turn",), height=0.5, extra=plate
+    )
+    return load_robot_model(urdf)
 
 
 def test_a_self_collision_between_samples_is_caught() -> None:
@@ -202,11 +208,7 @@ def test_mesh_obstacles_are_certified_like_primitives() -> None:
 
 
 def test_degenerate_inputs_validate() -> None:
-    ghost = load_robot_model(
-        """<robot name="ghost"><link name="a"/><link name="b"/>
-  <joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>""",
-    )
+    ghost = load_robot_model(BARE_JOINT_URDF)
     key = np.array([[0.0], [1.0]])
     assert TrajectoryValidator(ghost, restroom_scene()).validate(key).valid  # no geometry
     model = _rod_and_plate(-2.0)
@@ -267,12 +269,7 @@ def test_exact_distances_stay_below_the_mesh_s_true_distance() -> None:
     shape = scene.objects[0].shape
     assert shape.vertices is not None
     mesh = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
-    model = load_robot_model(
-        """<robot name="ball"><link name="root"/>
-  <link name="ball"><collision><geometry><sphere radius="0.02"/></geometry></collision></link>
-  <joint name="x" type="prismatic"><parent link="root"/><child link="ball"/><axis xyz="1 0 0"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>""",
-    )
+    model = load_robot_model(SLIDING_BALL_URDF)
     checker = TrajectoryValidator(model, scene).checker
     rng = np.random.default_rng(11)
     truths, bounds = [], []

@@ -7,20 +7,15 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+from tests.robots import BLOCK_URDF
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
-from trajcache.geometry.reference.robot import reference_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.reference.restroom import restroom_layout, restroom_scene
+from trajcache.reference.robot import reference_model
 
-BLOCK_URDF = """<robot name="block">
-  <link name="root"/>
-  <link name="block"><collision><geometry><box size="0.4 0.3 0.2"/></geometry></collision></link>
-  <joint name="j" type="revolute"><parent link="root"/><child link="block"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-</robot>"""
 # A cylinder pose at which FCL 0.7's GJK reports 0.0331 m from the block; the truth is 0.0114 m.
 BAD_ROTATION = np.array(
     [

@@ -16,9 +16,9 @@ from trajcache.geometry.collision.checker import (
 from trajcache.geometry.model.kinematics import element_transforms, link_transforms
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
-from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
-from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.reference.restroom import restroom_layout, restroom_scene
+from trajcache.reference.robot import STOWED_ARM, reference_model
 
 
 class PerStateFCL:

@@ -23,7 +23,7 @@ from trajcache.geometry.validation.validator import (
     ValidationStatus,
     interpolate,
 )
-from trajcache.workload.example_robots import ROBOTS
+from trajcache.reference.example_robots import ROBOTS
 
 
 @pytest.fixture(scope="module")

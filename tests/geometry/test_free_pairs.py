@@ -6,40 +6,22 @@ import fcl
 import numpy as np
 import pytest
 
+from tests.robots import planar_arm
 from trajcache.geometry.collision.bodies import Posed, RobotGeometry
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.collision.free_pairs import proven_free_pairs
 from trajcache.geometry.collision.shared import robot_geometry
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.geometry.reference.robot import reference_model
 from trajcache.geometry.scene.scene import Scene
-
-# A planar arm folding in the horizontal plane: l3 can swing back onto l1 unless j2 and j3 are
-# kept near straight; the pair (l1, l3) moves apart by j2 and j3 only.
-FOLD_URDF = """<?xml version="1.0"?>
-<robot name="fold">
-  <link name="root"/>
-  <link name="l1"><collision><origin xyz="0.5 0 0"/><geometry><box size="1.0 0.1 0.1"/></geometry>
-  </collision></link>
-  <link name="l2"><collision><origin xyz="0.25 0 0"/><geometry><box size="0.5 0.1 0.1"/></geometry>
-  </collision></link>
-  <link name="l3"><collision><origin xyz="0.4 0 0"/><geometry><box size="0.8 0.1 0.1"/></geometry>
-  </collision></link>
-  <joint name="j1" type="revolute"><parent link="root"/><child link="l1"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
-    <origin xyz="1.0 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-{limit}" upper="{limit}" effort="1" velocity="1"/></joint>
-  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/>
-    <origin xyz="0.5 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-{limit}" upper="{limit}" effort="1" velocity="1"/></joint>
-</robot>
-"""
+from trajcache.reference.robot import reference_model
 
 
 def _fold(limit: float) -> RobotModel:
-    return load_robot_model(FOLD_URDF.format(limit=limit))
+    """A planar arm folding in the horizontal plane: l3 can swing back onto l1 unless j2 and j3
+    are kept near straight; the pair (l1, l3) moves apart by j2 and j3 only."""
+    urdf = planar_arm((1.0, 0.5, 0.8), name="fold", limits=(3, limit, limit), width=0.1)
+    return load_robot_model(urdf)
 
 
 def _links(robot: RobotGeometry, pairs: list[tuple[int, int]]) -> set[tuple[str, str]]:

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 from yourdfpy import URDF
 
+from tests.robots import ARM_PATH, ARM_URDF, OFFSET_BALL_URDF, TURN_AND_SLIDE_URDF
 from trajcache.geometry.errors import StateError
 from trajcache.geometry.model.kinematics import (
     check_limits,
@@ -21,17 +21,6 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 
-ARM_PATH = Path(__file__).parent / "data" / "arm.urdf"
-ARM = ARM_PATH.read_text()
-
-PLANAR_URDF = """<robot name="p">
-  <link name="base"/>
-  <link name="arm"><collision><geometry><sphere radius="0.1"/></geometry></collision></link>
-  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
-    <origin xyz="0.5 0 0.3"/><axis xyz="0 0 1"/>
-    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
-</robot>"""
-
 
 def _random_states(model: RobotModel, n: int, rng: np.random.Generator) -> FloatArray:
     lower = np.where(np.isfinite(model.lower), model.lower, -2.0)
@@ -40,7 +29,7 @@ def _random_states(model: RobotModel, n: int, rng: np.random.Generator) -> Float
 
 
 def test_fk_matches_yourdfpy() -> None:
-    model = load_robot_model(ARM)
+    model = load_robot_model(ARM_URDF)
     reference = URDF.load(str(ARM_PATH), build_scene_graph=True, load_meshes=False)
     states = _random_states(model, 60, np.random.default_rng(1))
     tf = link_transforms(model, states)
@@ -53,7 +42,7 @@ def test_fk_matches_yourdfpy() -> None:
 
 
 def test_fk_holds_non_planning_joints_at_their_default() -> None:
-    model = load_robot_model(ARM, joint_names=["j1", "j2"])
+    model = load_robot_model(ARM_URDF, joint_names=["j1", "j2"])
     reference = URDF.load(str(ARM_PATH), build_scene_graph=True, load_meshes=False)
     reference.update_cfg({"j1": 0.4, "j2": -1.0, "j4": 0.0, "slide": 0.0, "flag_joint": 0.2})
     tf = link_transforms(model, [0.4, -1.0])
@@ -63,7 +52,7 @@ def test_fk_holds_non_planning_joints_at_their_default() -> None:
 
 
 def test_planar_base_fk_by_hand() -> None:
-    model = load_robot_model(PLANAR_URDF, base="planar")
+    model = load_robot_model(OFFSET_BALL_URDF, base="planar")
     x, y, theta, q = 1.0, 2.0, math.pi / 2, math.pi / 4
     tf = link_transforms(model, np.array([x, y, theta, q]))[0]
     c, s = math.cos(theta + q), math.sin(theta + q)
@@ -74,7 +63,7 @@ def test_planar_base_fk_by_hand() -> None:
 
 
 def test_element_transforms_compose_link_and_origin() -> None:
-    model = load_robot_model(ARM, base="planar")
+    model = load_robot_model(ARM_URDF, base="planar")
     states = _random_states(model, 5, np.random.default_rng(2))
     links = link_transforms(model, states)
     elements = element_transforms(model, links)
@@ -84,7 +73,7 @@ def test_element_transforms_compose_link_and_origin() -> None:
 
 
 def test_check_states_names_the_problem() -> None:
-    model = load_robot_model(ARM, base="planar")
+    model = load_robot_model(ARM_URDF, base="planar")
     with pytest.raises(StateError, match=r"start has 7 values, expected 8 \(base_x, base_y"):
         check_states(model, np.zeros(7), name="start")
     with pytest.raises(StateError, match="each state has 9 values"):
@@ -103,7 +92,7 @@ def test_check_states_names_the_problem() -> None:
 
 
 def test_check_limits_names_joints_and_wraps_theta() -> None:
-    model = load_robot_model(ARM, base="planar")
+    model = load_robot_model(ARM_URDF, base="planar")
     ok = np.array([100.0, -50.0, 12.0, 0.0, 0.0, 0.0, 0.0, 0.5])
     check_limits(model, ok)
     bad = ok.copy()
@@ -138,7 +127,7 @@ def _local_points(model: RobotModel) -> list[FloatArray]:
 
 @pytest.mark.parametrize("base", ["fixed", "planar"])
 def test_link_motion_bounds_hold_empirically(base: str) -> None:
-    model = load_robot_model(ARM, base=base)
+    model = load_robot_model(ARM_URDF, base=base)
     bounds = link_motion_bounds(model)
     assert bounds.shape == (len(model.link_names), model.dof)
     assert not bounds[model.link_names.index("camera_link")].any()  # no geometry
@@ -162,7 +151,7 @@ def test_link_motion_bounds_hold_empirically(base: str) -> None:
 
 
 def test_link_motion_bounds_only_count_ancestors() -> None:
-    model = load_robot_model(ARM)
+    model = load_robot_model(ARM_URDF)
     bounds = link_motion_bounds(model)
     flag = model.link_names.index("flag")
     tool = model.link_names.index("tool")
@@ -172,20 +161,9 @@ def test_link_motion_bounds_only_count_ancestors() -> None:
     assert bounds[model.link_names.index("link1"), slide] == 0.0  # descendant joint
 
 
-TIGHT_URDF = """<robot name="t">
-  <link name="base"/><link name="a"/>
-  <link name="b"><collision><geometry><sphere radius="0.1"/></geometry></collision></link>
-  <joint name="turn" type="revolute"><parent link="base"/><child link="a"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="slide" type="prismatic"><parent link="a"/><child link="b"/>
-    <origin xyz="0.3 0 0"/><axis xyz="1 0 0"/>
-    <limit lower="0" upper="0.5" effort="1" velocity="1"/></joint>
-</robot>"""
-
-
 @pytest.mark.parametrize("moving", [2, 3, 4])
 def test_link_motion_bounds_are_tight_at_full_extension(moving: int) -> None:
-    model = load_robot_model(TIGHT_URDF, base="planar")
+    model = load_robot_model(TURN_AND_SLIDE_URDF, base="planar")
     bounds = link_motion_bounds(model)
     np.testing.assert_allclose(bounds[2], [1.0, 1.0, 0.9, 0.9, 1.0])
     start = np.array([0.0, 0.0, 0.0, 0.2, 0.5])

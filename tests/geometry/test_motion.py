@@ -2,19 +2,16 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from tests.robots import ARM_URDF  # has a prismatic joint
 from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.motion import MotionBounds, motion_bounds
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.geometry.reference.robot import reference_model
-
-ARM = (Path(__file__).parent / "data" / "arm.urdf").read_text()  # has a prismatic joint
+from trajcache.reference.robot import reference_model
 
 
 def _states(model: RobotModel, n: int, rng: np.random.Generator) -> FloatArray:
@@ -67,7 +64,7 @@ def _levers(
 
 @pytest.mark.parametrize("base", ["fixed", "planar"])
 def test_no_point_moves_farther_than_its_bound(base: str) -> None:
-    model = load_robot_model(ARM, base=base)
+    model = load_robot_model(ARM_URDF, base=base)
     bounds = motion_bounds(model)
     rng = np.random.default_rng(3)
     a, b = _segments(model, rng, 60)
@@ -127,7 +124,7 @@ def test_pairs_only_count_the_dofs_between_them() -> None:
 
 
 def test_a_ball_around_a_point_moves_at_most_lever_plus_radius_times_turn() -> None:
-    model = load_robot_model(ARM, base="planar")
+    model = load_robot_model(ARM_URDF, base="planar")
     bounds = motion_bounds(model)
     rng = np.random.default_rng(5)
     a, b = _segments(model, rng, 40)

@@ -15,7 +15,7 @@ from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import ShapeKind
 from trajcache.geometry.scene.moveit import scene_to_moveit
 from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
-from trajcache.geometry.scene.scene import scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
 
 S2 = math.sqrt(0.5)
 

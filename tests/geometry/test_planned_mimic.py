@@ -14,7 +14,7 @@ from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
-from trajcache.workload.example_robots import ROBOTS
+from trajcache.reference.example_robots import ROBOTS
 
 ARM = [f"panda_joint{k}" for k in range(1, 8)]
 READY = np.array([0.0, -0.785398, 0.0, -2.35619, 0.0, 1.5707, 0.785398, 0.0])

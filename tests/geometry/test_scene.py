@@ -13,7 +13,8 @@ import yaml
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import ShapeKind
 from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
-from trajcache.geometry.scene.scene import apply_patch, matrix_to_quaternion, scene_to_payload
+from trajcache.geometry.scene.payload import apply_patch, scene_to_payload
+from trajcache.geometry.scene.scene import matrix_to_quaternion
 
 S2 = math.sqrt(0.5)
 

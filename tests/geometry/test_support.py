@@ -107,7 +107,7 @@ def test_the_compiled_mesh_support_is_the_largest_projection_of_its_hull() -> No
 @pytest.mark.parametrize("robot", ["kinova", "panda", "tiago"])
 def test_hill_climbing_finds_the_largest_projection_on_real_meshes(robot: str) -> None:
     from trajcache.geometry.model.urdf import load_robot_model
-    from trajcache.workload.example_robots import ROBOTS
+    from trajcache.reference.example_robots import ROBOTS
 
     example = ROBOTS[robot]
     model = load_robot_model(example.urdf, files=example.files(), joint_names=example.joint_names,

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.robots import ROD_URDF
 from trajcache.geometry.errors import StateError
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.geometry.reference.robot import STOWED_ARM, reference_model
 from trajcache.geometry.scene.scene import Scene, SceneObject
 from trajcache.geometry.validation.validator import (
     Resolution,
@@ -16,31 +16,14 @@ from trajcache.geometry.validation.validator import (
     ValidationStatus,
     interpolate,
 )
-
-# One revolute joint about z carrying a 1 m rod (radius 1 cm) along x, 0.5 m above the floor.
-SWING_URDF = """<?xml version="1.0"?>
-<robot name="swing">
-  <link name="root"/>
-  <link name="rod">
-    <collision>
-      <origin xyz="0.5 0 0" rpy="0 1.5707963267948966 0"/>
-      <geometry><cylinder radius="0.01" length="1.0"/></geometry>
-    </collision>
-  </link>
-  <joint name="j" type="revolute">
-    <parent link="root"/><child link="rod"/>
-    <origin xyz="0 0 0.5" rpy="0 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/>
-  </joint>
-</robot>
-"""
+from trajcache.reference.robot import STOWED_ARM, reference_model
 
 STEP = Resolution().joint_rad
 
 
 @pytest.fixture(scope="module")
 def swing():  # type: ignore[no-untyped-def]
-    return load_robot_model(SWING_URDF)
+    return load_robot_model(ROD_URDF)
 
 
 def _plate(angle: float, radius: float, *, thickness: float = 0.002, length: float = 0.1) -> Scene:

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import itertools
-import time
 from collections.abc import Callable
 
 import numpy as np
 import pytest
 
+from tests.waiting import FakeClock
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.rris import plan_rris
 
@@ -56,17 +56,35 @@ class Geometry:
         return rng.uniform(LOW, HIGH)
 
 
-def plan(geometry: Geometry, seed: int, budget_s: float = 2.0, **kw: object) -> list | None:
+def plan(
+    geometry: Geometry,
+    seed: int,
+    budget_s: float = 2.0,
+    clock: FakeClock | None = None,
+    **kw: object,
+) -> list | None:
     return plan_rris(
         np.array([1.0, 1.0]),
         np.array([9.0, 1.0]),
         segment_free_fn=geometry.segment_free,
         segment_collisions_fn=geometry.segment_collisions,
         sample_fn=geometry.sample,
-        budget=Deadline(budget_s),
+        budget=Deadline(budget_s) if clock is None else Deadline(budget_s, clock=clock),
         rng=np.random.default_rng(seed),
         **kw,  # type: ignore[arg-type]
     )
+
+
+class TickingClock(FakeClock):
+    """A fake clock that moves `step_s` forward each time it is read."""
+
+    def __init__(self, step_s: float) -> None:
+        super().__init__()
+        self.step_s = step_s
+
+    def __call__(self) -> float:
+        self.now += self.step_s
+        return self.now
 
 
 def assert_valid_path(path: list, colliding: Callable[[np.ndarray], np.ndarray]) -> None:
@@ -126,11 +144,10 @@ def test_same_seed_same_path() -> None:
 
 def test_impossible_problem_fails_within_the_budget() -> None:
     geometry = Geometry(gap=False)
-    began = time.perf_counter()
-    path = plan(geometry, 0, budget_s=0.3)
-    elapsed = time.perf_counter() - began
+    clock = TickingClock(step_s=0.001)  # every look at the budget costs a millisecond
+    path = plan(geometry, 0, budget_s=0.3, clock=clock)
     assert path is None
-    assert elapsed < 0.3 + 0.2
+    assert 0.3 <= clock.now < 0.3 + 0.02  # it stopped soon after the budget was spent
     assert geometry.segment_calls > 10  # it did search, with restarts
 
 
@@ -142,11 +159,16 @@ def test_depth_limit_bounds_a_single_attempt() -> None:
 
 
 def test_deadline_counts_down_and_nests() -> None:
-    deadline = Deadline(0.2)
-    assert not deadline.expired()
-    assert 0.0 < deadline.remaining() <= 0.2
+    clock = FakeClock(100.0)
+    deadline = Deadline(0.2, clock=clock)
+    assert not deadline.expired() and deadline.remaining() == pytest.approx(0.2)
     child = deadline.sub(10.0)
-    assert child.ends <= deadline.ends + 1e-9  # never outlives its parent
-    assert deadline.sub(0.05).ends < deadline.ends - 0.1
+    assert child.ends == pytest.approx(deadline.ends)  # never outlives its parent
+    assert deadline.sub(0.05).ends == pytest.approx(100.05)
+    clock.advance(0.15)
+    assert deadline.elapsed() == pytest.approx(0.15)
+    assert child.remaining() == pytest.approx(0.05) and not child.expired()
+    clock.advance(0.05)
+    assert deadline.expired() and child.expired() and deadline.remaining() == 0.0
     assert Deadline(0.0).expired() and Deadline(0.0).remaining() == 0.0
     assert Deadline(-1.0).remaining() == 0.0

@@ -11,9 +11,7 @@ import numpy as np
 import pytest
 
 from tests.planning.test_ompl_planner import DOWN, FORWARD
-from trajcache.geometry.reference.restroom import restroom_layout, restroom_scene
-from trajcache.geometry.reference.robot import reference_model, reference_urdf
-from trajcache.geometry.scene.scene import scene_to_payload
+from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
 from trajcache.planning import ompl_planner, rris, run
 from trajcache.planning.problem import (
@@ -23,8 +21,10 @@ from trajcache.planning.problem import (
     PlanResult,
     SceneSource,
 )
-from trajcache.planning.run import LRUCache, run_planning
+from trajcache.planning.run import run_planning
 from trajcache.planning.space import prepare_query
+from trajcache.reference.restroom import restroom_layout, restroom_scene
+from trajcache.reference.robot import reference_model, reference_urdf
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +124,8 @@ def test_rris_is_dispatched_by_name(problem: PlanningProblem) -> None:
 
 
 def test_failures_are_results_not_exceptions(problem: PlanningProblem) -> None:
-    broken = replace(problem, model=replace(problem.model, model_id="broken", urdf="<robot"))
+    truncated = "<robot"  # a literal: the malformation is what is tested
+    broken = replace(problem, model=replace(problem.model, model_id="broken", urdf=truncated))
     result = run_planning(broken)
     assert result.status is PlannerStatus.ERROR and "planning failed" in result.message
     bad_scene = replace(problem, scene=SceneSource("bad", {"objects": [{"id": 1}]}))
@@ -133,14 +134,3 @@ def test_failures_are_results_not_exceptions(problem: PlanningProblem) -> None:
     assert unknown.status is PlannerStatus.ERROR and "rrtconnect" in unknown.message
     short = run_planning(replace(problem, start=problem.start[:5]))
     assert short.status is PlannerStatus.INVALID_START
-
-
-def test_lru_cache_evicts_the_least_recently_used() -> None:
-    cache: LRUCache[str, int] = LRUCache(2)
-    cache.put("a", 1)
-    cache.put("b", 2)
-    assert cache.get("a") == 1  # "a" is now the most recent
-    cache.put("c", 3)
-    assert "b" not in cache and "a" in cache and "c" in cache
-    assert cache.get("b") is None
-    assert (cache.hits, cache.misses) == (1, 1)

@@ -9,13 +9,13 @@ from typing import Any
 import numpy as np
 import sqlalchemy as sa
 
-from tests.api.conftest import TWO_JOINT_URDF
+from tests.robots import TWO_JOINT_URDF
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.services.catalog.models import register_model
+from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
-from trajcache.services.models import register_model
-from trajcache.services.trajectories import store_trajectory
 
 
 @contextmanager

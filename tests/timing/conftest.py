@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.geometry.reference.robot import reference_model
+from trajcache.reference.robot import reference_model
 from trajcache.timing import KinematicLimits, kinematic_limits
 
 SETTINGS = SimpleNamespace(

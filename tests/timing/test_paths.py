@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.quality import motion_bound
 from trajcache.timing._paths import (
     PolylinePath,
     SplinePath,
@@ -16,6 +15,7 @@ from trajcache.timing._paths import (
     is_straight,
     path_positions,
 )
+from trajcache.trajectory_metrics import motion_bound
 
 
 def test_polyline_is_exact_with_right_hand_derivatives() -> None:

@@ -7,7 +7,6 @@ import pytest
 
 from tests.timing.conftest import arm_move
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.quality import motion_bound
 from trajcache.timing import (
     KinematicLimits,
     PathShape,
@@ -16,6 +15,7 @@ from trajcache.timing import (
     TimingMethod,
     time_trajectory,
 )
+from trajcache.trajectory_metrics import motion_bound
 
 TOL = 1e-6
 

@@ -6,7 +6,10 @@ further limited, for `robot` keys, to the robots the key is bound to. A route mi
 policy is admin-only, so a new endpoint is never open by accident.
 
 When checks are on (`auth_mode`): `on` always; `off` never; `auto` (the default) when the service
-binds beyond loopback (`host`) or once any key exists. Health checks stay open.
+binds beyond loopback (`host`) or once any key has been created. Keys are only ever revoked, never
+deleted, so in `auto` mode checks stay on after the last key is revoked: a service that once had
+keys never silently opens again; an operator who wants it open says so with `auth_mode=off`.
+Health checks stay open.
 """
 
 from __future__ import annotations
@@ -20,9 +23,9 @@ from starlette.concurrency import run_in_threadpool
 from starlette.routing import Route
 
 from trajcache.api.deps import CtxDep
+from trajcache.services.catalog.keys import Principal, Role
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import AuthenticationError, PermissionDeniedError
-from trajcache.services.keys import Principal, Role
 
 R, S = Role.ROBOT, Role.SEEDER
 
@@ -117,12 +120,13 @@ def _authorize(request: Request, ctx: ServiceContext) -> Principal | None:
     if principal.role is Role.ADMIN:
         return principal
     route = request.scope.get("route")
+    # The route's template under /v1 picks the rule; messages name the path as requested.
     path = route.path if isinstance(route, Route) else request.url.path
     method = "GET" if request.method.upper() == "HEAD" else request.method.upper()
     rule = POLICY.get((method, path), ADMIN_ONLY)
     if principal.role not in rule.roles:
         raise PermissionDeniedError(
-            f"a {principal.role.value} key may not {request.method} {path}"
+            f"a {principal.role.value} key may not {request.method} {request.url.path}"
             + ("" if rule.roles else " (admin only)")
         )
     if rule.own_robot and principal.role is Role.ROBOT:

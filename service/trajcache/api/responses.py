@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from trajcache.api.schemas import ErrorOut
+from trajcache.api.schemas.errors import ErrorOut
 
 Responses = dict[int | str, dict[str, Any]]
 

@@ -22,16 +22,19 @@ endpoint, a base re-anchored by 1 µm, a reversed playback — is a different en
 from __future__ import annotations
 
 import hashlib
-import threading
-from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
 
+from trajcache.core.lru import LRU
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.validation.validator import ValidationResult, ValidationStatus
+from trajcache.geometry.validation.validator import (
+    TrajectoryValidator,
+    ValidationResult,
+    ValidationStatus,
+)
 
 __all__ = ["MemoScope", "MemoUse", "ValidationMemo", "validate_with_memo"]
 
@@ -44,7 +47,14 @@ class MemoScope:
 
     model_id: str
     scene_hash: str
-    settings: tuple[object, ...]  # validator settings (resolution, certified mode, …)
+    settings: tuple[object, ...]  # the validator's `settings_key` (resolution, certified mode, …)
+
+    @classmethod
+    def of(cls, validator: TrajectoryValidator) -> MemoScope | None:
+        """The scope of `validator`'s verdicts (None: its scene has no content hash)."""
+        if not validator.scene_hash:
+            return None
+        return cls(validator.model.model_id, validator.scene_hash, validator.settings_key)
 
 
 class MemoUse(str, Enum):
@@ -62,35 +72,22 @@ class ValidationMemo:
         if capacity < 1:
             raise ValueError(f"capacity must be at least 1, not {capacity}")
         self.capacity = capacity
-        self._entries: OrderedDict[tuple[MemoScope, bytes], None] = OrderedDict()
-        self._lock = threading.Lock()
+        self._entries: LRU[tuple[MemoScope, bytes], bool] = LRU(capacity=capacity)
 
     def known_valid(self, scope: MemoScope, states: FloatArray) -> bool:
         """Whether exactly these key states passed validation in `scope`."""
-        key = (scope, _digest(states))
-        with self._lock:
-            if key not in self._entries:
-                return False
-            self._entries.move_to_end(key)
-            return True
+        return self._entries.get((scope, _digest(states))) is not None
 
     def remember(self, scope: MemoScope, states: FloatArray) -> None:
         """Record that these key states passed certified validation in `scope`."""
-        key = (scope, _digest(states))
-        with self._lock:
-            self._entries[key] = None
-            self._entries.move_to_end(key)
-            while len(self._entries) > self.capacity:
-                self._entries.popitem(last=False)
+        self._entries.put((scope, _digest(states)), True)
 
     def clear(self) -> None:
         """Forget everything."""
-        with self._lock:
-            self._entries.clear()
+        self._entries.clear()
 
     def __len__(self) -> int:
-        with self._lock:
-            return len(self._entries)
+        return len(self._entries)
 
 
 def _digest(states: FloatArray) -> bytes:

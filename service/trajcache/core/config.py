@@ -180,7 +180,7 @@ class Settings(BaseSettings):
     auth_mode: Literal["auto", "on", "off"] = Field(
         default="auto",
         description="API key checks: `on`, `off`, or `auto` (on when `host` is not a loopback "
-        "address or once any key exists).",
+        "address or once any key has been created, even if all are revoked since).",
     )
     auth_cache_ttl_s: float = Field(
         default=5.0,

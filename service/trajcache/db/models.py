@@ -275,7 +275,7 @@ class PlanEvent(Base):
 class PlanEventRollup(Base):
     """Plan events of one hour with one robot, model, source and status, summarised.
 
-    Sums of the timings and a sparse latency histogram per timing (`services/rollups.py`), so
+    Sums of the timings and a sparse latency histogram per timing (`services/stats/rollups.py`), so
     statistics over long windows read one row per hour and group instead of every event.
     """
 
@@ -320,7 +320,7 @@ class ApiKey(Base):
 
 
 class SeedJob(Base):
-    """A pre-seeding job: its request, progress and which replica runs it (services/seeding.py).
+    """A pre-seeding job: its request, progress and which replica runs it (services/seeding/).
 
     Progress counts only the first `done` work items, all finished: a job resumed elsewhere
     starts at item `done`. A replica runs a job while it holds the lease (`lease_owner` until

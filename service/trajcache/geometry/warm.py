@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from trajcache.geometry.collision.checker import CollisionChecker
-from trajcache.geometry.collision.kernels import hull_support_climb
+from trajcache.geometry.model.kernels import hull_support_climb
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import SceneObject, make_scene

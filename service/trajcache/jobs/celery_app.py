@@ -25,7 +25,7 @@ from redis.exceptions import RedisError
 
 from trajcache.core.config import Settings, get_settings
 from trajcache.geometry.warm import warm
-from trajcache.jobs.pool import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
+from trajcache.jobs.backend import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
 from trajcache.jobs.threads import pin_one_thread
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import numpy as np
@@ -65,7 +65,16 @@ def plan_until_certified(
     stuck = _stuck_endpoint(query, validator)
     if stuck is not None:
         return PlanResult(stuck[0], message=stuck[1], stats=stats)
-    certify = remembered(lambda a, b: validator.validate(np.stack([a, b])).valid)
+    finisher = _Finisher(
+        query=query,
+        validator=validator,
+        segment_fn=shortcut_segment_fn,
+        detour_fn=detour_fn,
+        deadline=deadline,
+        rng=rng,
+        shortcut_s=shortcut_s,
+        stats=stats,
+    )
     found, reason = 0, ""
     for key in ("attempts", "paths_found", "repairs", "repair_ms", *_SUMMED):
         stats.setdefault(key, 0.0)
@@ -80,35 +89,9 @@ def plan_until_certified(
             break
         found += 1
         stats["paths_found"] += 1
-        finished = shortcut_and_certify(
-            list(raw),
-            segment_free_fn=shortcut_segment_fn,
-            distance_fn=query.spec.distance,
-            interpolate_fn=query.spec.interpolate,
-            validate_fn=lambda p: _verdict(validator, p),
-            budget_s=shortcut_s,
-            rng=rng,
-        )
-        for key in _SUMMED:
-            stats[key] += finished.stats.pop(key, 0.0)
-        stats.update(finished.stats)
-        if finished.path is not None:
-            return PlanResult(PlannerStatus.SOLVED, finished.path, stats=stats)
-        reason = finished.message
-        began = time.perf_counter()
-        budget = deadline.sub(REPAIR_S)
-        repair = repair_path(
-            finished.short,
-            certify_fn=certify,
-            detour_fn=partial(_detour, detour_fn, query, budget, certify),
-            budget=budget,
-        )
-        stats["repair_ms"] += (time.perf_counter() - began) * 1e3
-        stats["repairs"] += repair.repaired
-        if repair.path is not None:
-            stats["length_after"] = query.spec.path_length(repair.path)
-            stats["waypoints_after"] = float(len(repair.path))
-            return PlanResult(PlannerStatus.SOLVED, np.asarray(repair.path), stats=stats)
+        path, reason = finisher.finish(raw)
+        if path is not None:
+            return PlanResult(PlannerStatus.SOLVED, path, stats=stats)
     if not found:
         return PlanResult(PlannerStatus.TIMEOUT, message=none_found, stats=stats)
     message = (
@@ -116,6 +99,65 @@ def plan_until_certified(
         f"last: {reason}"
     )
     return PlanResult(PlannerStatus.UNCERTIFIED, message=message, stats=stats)
+
+
+@dataclass
+class _Finisher:
+    """Turns a found path into a certified one: shortcut and certify it, else repair it.
+
+    `segment_fn` checks the shortcuts' segments; `certify` remembers its verdicts across
+    attempts; counts and times go into `stats`.
+    """
+
+    query: Query
+    validator: TrajectoryValidator
+    segment_fn: SegmentFn
+    detour_fn: DetourFn
+    deadline: Deadline
+    rng: np.random.Generator
+    shortcut_s: float
+    stats: dict[str, float]
+    certify: SegmentFn = field(init=False)
+
+    def __post_init__(self) -> None:
+        validator = self.validator
+        self.certify = remembered(lambda a, b: validator.validate(np.stack([a, b])).valid)
+
+    def finish(self, raw: Sequence[FloatArray] | FloatArray) -> tuple[FloatArray | None, str]:
+        """The certified path (or None) and why the shortcut path was rejected (or "")."""
+        finished = shortcut_and_certify(
+            list(raw),
+            segment_free_fn=self.segment_fn,
+            distance_fn=self.query.spec.distance,
+            interpolate_fn=self.query.spec.interpolate,
+            validate_fn=lambda p: _verdict(self.validator, p),
+            budget_s=self.shortcut_s,
+            rng=self.rng,
+        )
+        for key in _SUMMED:
+            self.stats[key] += finished.stats.pop(key, 0.0)
+        self.stats.update(finished.stats)
+        if finished.path is not None:
+            return finished.path, ""
+        return self.repair(finished.short), finished.message
+
+    def repair(self, path: Sequence[FloatArray]) -> FloatArray | None:
+        """`path` with certified detours for its failing segments, within `REPAIR_S`; or None."""
+        began = time.perf_counter()
+        budget = self.deadline.sub(REPAIR_S)
+        repair = repair_path(
+            path,
+            certify_fn=self.certify,
+            detour_fn=partial(_detour, self.detour_fn, self.query, budget, self.certify),
+            budget=budget,
+        )
+        self.stats["repair_ms"] += (time.perf_counter() - began) * 1e3
+        self.stats["repairs"] += repair.repaired
+        if repair.path is None:
+            return None
+        self.stats["length_after"] = self.query.spec.path_length(repair.path)
+        self.stats["waypoints_after"] = float(len(repair.path))
+        return np.asarray(repair.path)
 
 
 def _detour(

@@ -59,6 +59,22 @@ def _euclidean(a: FloatArray, b: FloatArray) -> float:
     return float(np.linalg.norm(np.asarray(b, dtype=float) - np.asarray(a, dtype=float)))
 
 
+def _gaussian_near(center: FloatArray, radius: float, g: np.random.Generator) -> FloatArray:
+    return np.asarray(center, dtype=float) + g.normal(0.0, radius, len(center))
+
+
+def _counts_each(
+    segment_collisions_fn: SegmentCountFn, starts: FloatArray, ends: FloatArray
+) -> NDArray[np.int64]:
+    """Batched counts from the one-segment count, segment by segment."""
+    return np.array([segment_collisions_fn(s, e) for s, e in zip(starts, ends, strict=True)])
+
+
+def _free_each(segment_collisions_fn: SegmentCountFn, states: FloatArray) -> NDArray[np.bool_]:
+    """Which states are free, each checked as a segment of length zero."""
+    return np.array([segment_collisions_fn(s, s) == 0 for s in states], dtype=bool)
+
+
 @dataclass
 class _Search:
     """The callables and settings of one RRIS run (so the recursion stays small)."""
@@ -77,6 +93,19 @@ class _Search:
     samples: int
     uniform_share: float
     min_radius: float
+
+    def restart(
+        self, a: FloatArray, b: FloatArray, *, spread: float, growth: float, restarts: int
+    ) -> list[FloatArray] | None:
+        """Split a → b from scratch, the spread `growth` times wider each attempt (cycling after
+        four), until a path is found; None when the attempts or the budget run out."""
+        for attempt in range(restarts):
+            if self.budget.expired():
+                return None
+            path = self.split(a, b, 0, spread * growth ** (attempt % 4))
+            if path:
+                return path
+        return None
 
     def split(self, a: FloatArray, b: FloatArray, depth: int, spread: float) -> list[FloatArray]:
         """Waypoints a … b whose segments are free, or [] when this attempt fails."""
@@ -147,23 +176,13 @@ def plan_rris(
     a, b = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
     if segment_free_fn(a, b):
         return [a, b]
-
-    def near(center: FloatArray, radius: float, g: np.random.Generator) -> FloatArray:
-        return np.asarray(center, dtype=float) + g.normal(0.0, radius, len(center))
-
-    def counts(starts: FloatArray, ends: FloatArray) -> NDArray[np.int64]:
-        return np.array([segment_collisions_fn(s, e) for s, e in zip(starts, ends, strict=True)])
-
-    def free(states: FloatArray) -> NDArray[np.bool_]:
-        return np.array([segment_collisions_fn(s, s) == 0 for s in states], dtype=bool)
-
     search = _Search(
         segment_free=segment_free_fn,
-        segment_counts=segments_collisions_fn or counts,
+        segment_counts=segments_collisions_fn or partial(_counts_each, segment_collisions_fn),
         counts_exact=counts_exact or segments_collisions_fn is None,
-        states_free=states_free_fn or free,
+        states_free=states_free_fn or partial(_free_each, segment_collisions_fn),
         sample=sample_fn,
-        sample_near=sample_near_fn or near,
+        sample_near=sample_near_fn or _gaussian_near,
         interpolate=interpolate_fn,
         distance=distance_fn,
         budget=budget,
@@ -173,13 +192,7 @@ def plan_rris(
         uniform_share=uniform_share,
         min_radius=min_radius,
     )
-    for attempt in range(restarts):
-        if budget.expired():
-            return None
-        path = search.split(a, b, 0, spread * spread_growth ** (attempt % 4))
-        if path:
-            return path
-    return None
+    return search.restart(a, b, spread=spread, growth=spread_growth, restarts=restarts)
 
 
 def plan_with_rris(

@@ -1,23 +1,22 @@
 """The planning task that worker processes run: picklable problem in, picklable result out.
 
 `run_planning` never touches a database and never raises. Each worker process keeps the robot
-models it rebuilt (LRU by model id) and the scenes it parsed (LRU by scene hash), so repeated
-queries against the same robot and scene skip URDF parsing and scene parsing.
+models it rebuilt (LRU by model id), the scenes it parsed (LRU by scene hash) and the model
+variants it built for them, so repeated queries against the same robot and scene skip URDF
+parsing and scene parsing.
 """
 
 from __future__ import annotations
 
-import threading
 import time
 import traceback
-from collections import OrderedDict
-from typing import Generic, TypeVar
 
+from trajcache.core.lru import LRU
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.scene.variant import model_in_scene
+from trajcache.geometry.scene.variant import VariantCache, model_in_scene, variant_cache
 from trajcache.planning.ompl_planner import plan_ompl
 from trajcache.planning.problem import (
     ModelSource,
@@ -32,56 +31,10 @@ MODEL_CACHE_SIZE = 8
 SCENE_CACHE_SIZE = 64
 RRIS = "rris"
 
-K = TypeVar("K")
-V = TypeVar("V")
-
-
-class LRUCache(Generic[K, V]):
-    """A small thread-safe LRU map that counts hits and misses."""
-
-    def __init__(self, size: int) -> None:
-        self.size = size
-        self.hits = 0
-        self.misses = 0
-        self._items: OrderedDict[K, V] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, key: K) -> V | None:
-        """The cached value (now most recent), or None."""
-        with self._lock:
-            value = self._items.get(key)
-            if value is None:
-                self.misses += 1
-                return None
-            self.hits += 1
-            self._items.move_to_end(key)
-            return value
-
-    def put(self, key: K, value: V) -> None:
-        """Store a value, evicting the least recently used beyond the size."""
-        with self._lock:
-            self._items[key] = value
-            self._items.move_to_end(key)
-            while len(self._items) > self.size:
-                self._items.popitem(last=False)
-
-    def __contains__(self, key: object) -> bool:
-        with self._lock:
-            return key in self._items
-
-    def __len__(self) -> int:
-        with self._lock:
-            return len(self._items)
-
-    def clear(self) -> None:
-        """Forget everything (tests)."""
-        with self._lock:
-            self._items.clear()
-            self.hits = self.misses = 0
-
-
-MODELS: LRUCache[str, RobotModel] = LRUCache(MODEL_CACHE_SIZE)
-SCENES: LRUCache[str, Scene] = LRUCache(SCENE_CACHE_SIZE)
+# Per process: each worker process keeps its own.
+MODELS: LRU[str, RobotModel] = LRU(capacity=MODEL_CACHE_SIZE)
+SCENES: LRU[str, Scene] = LRU(capacity=SCENE_CACHE_SIZE)
+VARIANTS: VariantCache = variant_cache()
 
 
 def model_from_source(source: ModelSource) -> RobotModel:
@@ -115,7 +68,9 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
     began = time.perf_counter()
     try:
         scene = scene_from_source(problem.scene)
-        model = model_in_scene(model_from_source(problem.model), scene, dict(problem.joint_values))
+        model = model_in_scene(
+            model_from_source(problem.model), scene, dict(problem.joint_values), cache=VARIANTS
+        )
         setup_ms = (time.perf_counter() - began) * 1e3
         name = problem.planner.strip().lower()
         if name == RRIS:

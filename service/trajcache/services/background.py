@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from trajcache.services.context import ServiceContext
-from trajcache.services.eviction import EvictionTimer
-from trajcache.services.seeding import SeedScheduler
+from trajcache.services.maintenance.eviction import EvictionTimer
+from trajcache.services.seeding.scheduler import SeedScheduler
 
 
 @dataclass

@@ -16,19 +16,25 @@ from trajcache.cache.memo import ValidationMemo
 from trajcache.cache.ranking import RankingRules
 from trajcache.core.config import Settings
 from trajcache.db.session import make_engine, make_sessionmaker
+from trajcache.geometry.scene.variant import VariantCache, variant_cache
+from trajcache.geometry.validation.validator import ValidatorCache
 from trajcache.jobs.pool import PlannerPool, make_pool
+from trajcache.services.catalog.index_store import IndexStore
+from trajcache.services.catalog.keys import KeyCache
+from trajcache.services.catalog.models import ModelRegistry
+from trajcache.services.catalog.scene_cache import SceneCache
 from trajcache.services.errors import UnavailableError
-from trajcache.services.index_store import IndexStore
-from trajcache.services.keys import KeyCache
-from trajcache.services.models import ModelRegistry
-from trajcache.services.plan_records import PlanRecorder
-from trajcache.services.ranking_facts import RankingFactsCache
-from trajcache.services.robots import SceneCache
+from trajcache.services.plan.ranking_facts import RankingFactsCache
+from trajcache.services.plan.records import PlanRecorder
 
 
 @dataclass
 class ServiceContext:
-    """The process-wide state of the service (one per app, stored on `app.state.ctx`)."""
+    """The process-wide state of the service (one per app, stored on `app.state.ctx`).
+
+    Every in-memory cache of the service process is one of its fields, built with it and
+    emptied by `clear_caches`. (Worker processes keep their own, in `planning.run`.)
+    """
 
     settings: Settings
     engine: Engine
@@ -41,6 +47,8 @@ class ServiceContext:
     records: PlanRecorder  # plan bookkeeping, written off the request path
     ranking: RankingRules  # how lookup candidates are ordered before validation
     facts: RankingFactsCache = field(default_factory=RankingFactsCache)  # what ranking reads
+    variants: VariantCache = field(default_factory=variant_cache)  # models as robots hold them
+    validators: ValidatorCache = field(default_factory=ValidatorCache)  # and their geometry
     planner: PlannerPool | None = None  # started by planner_pool(), closed by close()
     _planner_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
@@ -66,6 +74,17 @@ class ServiceContext:
         """A session that is closed (uncommitted work rolled back) on exit."""
         with self.sessions() as session:
             yield session
+
+    def clear_caches(self) -> None:
+        """Empty every in-memory cache (the database stays the source of truth)."""
+        self.models.clear()
+        self.scenes.clear()
+        self.indexes.clear_states()
+        self.keys.clear()
+        self.memo.clear()
+        self.facts.clear()
+        self.variants.clear()
+        self.validators.clear()
 
     def ping(self) -> None:
         """Run `SELECT 1`; raise UnavailableError when the database cannot be reached."""

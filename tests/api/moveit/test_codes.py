@@ -7,7 +7,7 @@ import pytest
 from trajcache.api.moveit import MoveItErrorCode, answer_code, native_planner, state_error_code
 from trajcache.geometry.errors import CollisionStateError, StateError
 from trajcache.planning.problem import PLANNER_NAMES
-from trajcache.services.planning import PlanAnswer, PlanStatus
+from trajcache.services.plan.flow import PlanAnswer, PlanStatus
 
 C = MoveItErrorCode
 

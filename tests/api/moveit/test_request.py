@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.api.conftest import TWO_JOINT_URDF
+from tests.robots import TWO_JOINT_URDF
 from trajcache.api.moveit import (
     MotionPlanError,
     MotionPlanRequestIn,

@@ -1,6 +1,6 @@
 """MoveIt's planning messages over HTTP: a MotionPlanRequest in, a MotionPlanResponse out.
 
-The request becomes the native plan request (`services.planning.PlanRequest`) and the native
+The request becomes the native plan request (`services.plan.flow.PlanRequest`) and the native
 answer a MotionPlanResponse; the plan flow itself is the native endpoint's. A well-formed request
 is always answered, with MoveIt's error code saying whether it succeeded (`_codes`); malformed or
 unsupported requests are 422s (`_body`, `_messages`).

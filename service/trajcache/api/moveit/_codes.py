@@ -21,9 +21,9 @@ from enum import IntEnum
 
 from trajcache.geometry.errors import CollisionStateError, StateError
 from trajcache.planning.problem import PlannerStatus
-from trajcache.services.planning import PlanAnswer, PlanStatus
+from trajcache.services.plan.flow import PlanAnswer, PlanStatus
 
-VALIDATION_FAILED = "planned path failed validation"  # services.planning's message
+VALIDATION_FAILED = "planned path failed validation"  # services.plan.flow's message
 
 
 class MoveItErrorCode(IntEnum):

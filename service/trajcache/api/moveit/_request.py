@@ -22,6 +22,7 @@ import math
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
+from trajcache.api.answer_extras import TimingOptions
 from trajcache.api.moveit._codes import MotionPlanError, MoveItErrorCode
 from trajcache.api.moveit._messages import (
     Constraints,
@@ -30,7 +31,6 @@ from trajcache.api.moveit._messages import (
     Quaternion,
     RobotState,
 )
-from trajcache.api.quality import TimingOptions
 from trajcache.core.config import Settings
 from trajcache.geometry.errors import SceneError, StateError
 from trajcache.geometry.model.kinematics import (
@@ -41,9 +41,9 @@ from trajcache.geometry.model.kinematics import (
 )
 from trajcache.geometry.model.robot import BASE_STATE_NAMES, BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.scene.scene import unit_quaternion
-from trajcache.services.errors import InvalidInputError
-from trajcache.services.planning import PlanRequest
+from trajcache.geometry.scene.fields import unit_quaternion
+from trajcache.services.plan.flow import PlanOptions, PlanRequest
+from trajcache.services.plan.options import resolve_request
 
 BASE_VARIABLES = {"x": "base_x", "y": "base_y", "theta": "base_theta"}
 DEFAULT_BASE_JOINT = "base"  # the planar base's name in an answer when the request gives none
@@ -73,13 +73,15 @@ def motion_plan_query(
     start = _checked(model, start_values, "start", _START)
     goal_values = _goal_values(message.goal_constraints, model, start)
     _checked(model, goal_values, "goal", _GOAL)
-    request = PlanRequest(
+    request = resolve_request(
+        settings=settings,
         start=start_values,
         goal=goal_values,
-        threshold=settings.lookup_threshold,
-        max_candidates=settings.max_candidates,
-        budget_s=_budget(message.allowed_planning_time, settings),
-        planner=message.planner_id or settings.default_planner,
+        # 0 s: the default budget; above the limit a 422, as natively
+        options=PlanOptions(
+            budget_s=message.allowed_planning_time or None, planner=message.planner_id or None
+        ),
+        names={"budget_s": "allowed_planning_time"},
     )
     timing = TimingOptions(
         velocity_scaling=message.max_velocity_scaling_factor or 1.0,
@@ -88,18 +90,6 @@ def motion_plan_query(
     )
     base_joint = _base_joint(message) if planar else DEFAULT_BASE_JOINT
     return MotionPlanQuery(request, start, timing, base_joint)
-
-
-def _budget(allowed_s: float, settings: Settings) -> float:
-    """`allowed_planning_time`, 0 meaning the default; above the limit a 422, as natively."""
-    if allowed_s == 0:
-        return settings.plan_budget_s
-    if allowed_s > settings.plan_budget_max_s:
-        raise InvalidInputError(
-            f"allowed_planning_time: {allowed_s} is above "
-            f"plan_budget_max_s={settings.plan_budget_max_s}"
-        )
-    return allowed_s
 
 
 def _checked(

@@ -13,11 +13,12 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
+from trajcache.api.answer_extras import extras_body
 from trajcache.api.moveit._codes import MoveItErrorCode, answer_code
 from trajcache.api.moveit._messages import MotionPlanRequestIn
 from trajcache.api.moveit._request import MotionPlanQuery
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.services.planning import PlanAnswer
+from trajcache.services.plan.flow import PlanAnswer
 
 SOURCE = "trajcache"
 _NS = 1_000_000_000
@@ -27,14 +28,12 @@ def answered_body(
     *,
     message: MotionPlanRequestIn,
     query: MotionPlanQuery,
+    model: RobotModel,
     answer: PlanAnswer,
-    extras: dict[str, Any],
     began: float,
 ) -> dict[str, Any]:
-    """The response to a request the plan flow answered; `extras` are `answer_extras`'."""
-    model = answer.model
-    if model is None:
-        raise ValueError("a plan answer carries the model it was planned with")
+    """The response to a request the plan flow answered, for the robot's `model`."""
+    extras = extras_body(answer.details)
     start = answer.states[0] if answer.states is not None else query.start
     code = answer_code(answer)
     return _body(

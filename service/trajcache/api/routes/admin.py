@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import zlib
 from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
 from typing import Annotated, Literal
@@ -15,11 +14,17 @@ from starlette.concurrency import run_in_threadpool
 from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, SessionDep, SettingsDep
 from trajcache.api.responses import COMMON, errors
-from trajcache.api.schemas import SourceName
-from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
-from trajcache.services.eviction import prune
-from trajcache.services.transfer import ExportFilter, check_filter, dumps, export_records
-from trajcache.services.transfer import import_lines as run_import
+from trajcache.api.schemas.trajectories import SourceName
+from trajcache.services.errors import InvalidInputError
+from trajcache.services.maintenance.eviction import prune
+from trajcache.services.maintenance.importer import import_lines as run_import
+from trajcache.services.maintenance.reading import export_lines
+from trajcache.services.maintenance.transfer import (
+    ExportFilter,
+    check_filter,
+    dumps,
+    export_records,
+)
 
 router = APIRouter(prefix="/admin", tags=["admin"], responses=COMMON, route_class=BoundedBodyRoute)
 
@@ -37,7 +42,6 @@ _NDJSON_EXAMPLE = (
     '"last_validated_at":null,"last_real_validated_at":null,"hits":0,"failures":0,'
     '"consecutive_failures":0,"real_validations":0}\n'
 )
-_GZIP_MAGIC = b"\x1f\x8b"
 MAX_AGE_S = 1e10  # about 300 years: ages beyond cannot be subtracted from today's date
 
 
@@ -222,20 +226,6 @@ def export_route(
     return StreamingResponse(lines(), media_type=NDJSON)
 
 
-def _decoded(data: bytes, limit: int) -> bytes:
-    """The body, gunzipped when it is gzip (bounded: no decompression bombs)."""
-    if not data.startswith(_GZIP_MAGIC):
-        return data
-    inflater = zlib.decompressobj(16 + zlib.MAX_WBITS)
-    try:
-        out = inflater.decompress(data, limit + 1)
-    except zlib.error as exc:
-        raise InvalidInputError(f"the body is not valid gzip: {exc}") from None
-    if len(out) > limit:
-        raise PayloadTooLargeError(f"the unpacked body is larger than max_body_bytes={limit}")
-    return out
-
-
 @router.post(
     "/import",
     response_model=ImportOut,
@@ -244,7 +234,10 @@ def _decoded(data: bytes, limit: int) -> bytes:
     "accepted). Models in the file are registered; every trajectory is checked against its "
     "model (state count and length, finite values, joint limits) and stored unless the same "
     "one (same model and states) is already there. Rejected lines are listed with their "
-    "reasons; the rest is imported. `source` relabels every trajectory's provenance.",
+    "reasons; the rest is imported. The import is one transaction: a corrupt, truncated or "
+    "empty body (gzip that does not unpack to its end, text that is not UTF-8, a line that is "
+    "not JSON) is a 422 naming the byte or line, and nothing is imported. `source` relabels "
+    "every trajectory's provenance.",
     openapi_extra={
         "requestBody": {
             "required": True,
@@ -262,7 +255,7 @@ def _decoded(data: bytes, limit: int) -> bytes:
                 "Body above max_body_bytes",
                 "request body has 17000000 bytes, more than max_body_bytes=16777216",
             ),
-            422: ("Not an export", "line 1: not a trajcache export (format 'x')"),
+            422: ("Not an export, or corrupt", "line 12: not JSON: Expecting ',' delimiter …"),
         }
     ),
 )
@@ -272,14 +265,10 @@ async def import_route(
     source: Annotated[SourceName | None, Query()] = None,
 ) -> ImportOut:
     """Import the body."""
-    limit = ctx.settings.max_body_bytes
-    text = _decoded(await request.body(), limit)  # bounded while read (BoundedBodyRoute)
-    try:
-        lines = text.decode("utf-8-sig").splitlines()
-    except UnicodeDecodeError:
-        raise InvalidInputError("the body is not UTF-8 text") from None
+    body = await request.body()  # bounded while read (BoundedBodyRoute)
 
     def work() -> ImportOut:
+        lines = export_lines(chunks=[body], max_bytes=ctx.settings.max_body_bytes)
         with ctx.sessions() as session:
             report = run_import(
                 session=session,

@@ -6,7 +6,7 @@ from fastapi import APIRouter
 
 from trajcache.api.deps import CtxDep
 from trajcache.api.responses import DB_UNAVAILABLE, errors
-from trajcache.api.schemas import HealthOut
+from trajcache.api.schemas.health import HealthOut
 
 router = APIRouter(tags=["health"])
 

@@ -18,7 +18,7 @@ from starlette.exceptions import HTTPException
 from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, PageDep, SessionDep, SettingsDep
 from trajcache.api.responses import COMMON, errors
-from trajcache.api.schemas import (
+from trajcache.api.schemas.models import (
     URDF_EXAMPLE,
     ModelFileOut,
     RobotModelDetail,
@@ -29,11 +29,9 @@ from trajcache.api.schemas import (
     SkippedPairOut,
 )
 from trajcache.core.config import Settings
-from trajcache.geometry.collision.shared import robot_geometry
+from trajcache.geometry.collision.shared import GeometryCache
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.quality import end_effector_link
-from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
-from trajcache.services.models import (
+from trajcache.services.catalog.models import (
     get_model,
     get_model_row,
     list_model_files,
@@ -42,7 +40,9 @@ from trajcache.services.models import (
     state_names,
     unpack_model_archive,
 )
+from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 from trajcache.timing import kinematic_limits
+from trajcache.trajectory_metrics import end_effector_link
 
 
 def registration_body_limit(settings: Settings) -> tuple[int, str]:
@@ -305,7 +305,7 @@ def register_model_route(
         base=model.base.value,
         state_names=list(model.state_names),
         created=created,
-        **_semantics(model),
+        **_semantics(model, ctx.validators.geometry),
     )
 
 
@@ -374,13 +374,13 @@ def get_model_route(model_id: str, ctx: CtxDep, session: SessionDep) -> RobotMod
         jerk_limits=limits.jerk.tolist(),
         end_effector_link=model.link_names[end_effector_link(model)],
         files=[ModelFileOut(path=f.path, sha256=f.sha256, size=f.size) for f in files],
-        **_semantics(model),
+        **_semantics(model, ctx.validators.geometry),
     )
 
 
-def _semantics(model: RobotModel) -> dict[str, Any]:
+def _semantics(model: RobotModel, geometry: GeometryCache) -> dict[str, Any]:
     """The skipped self-collision pairs, held joints and named states of a model's answer."""
-    skipped = robot_geometry(model).skipped_link_pairs()
+    skipped = geometry.robot(model).skipped_link_pairs()
     return {
         "skipped_pairs": [SkippedPairOut(links=(a, b), reason=why) for a, b, why in skipped],
         "held_joints": dict(model.held_values),

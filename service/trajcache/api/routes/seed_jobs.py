@@ -2,154 +2,40 @@
 
 from __future__ import annotations
 
-from datetime import datetime
-from typing import Annotated, Any, Literal
+import dataclasses
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, Query, Request, Response
-from pydantic import BaseModel, ConfigDict
 
 from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, PageDep, SessionDep
 from trajcache.api.responses import COMMON, errors
-from trajcache.db.models import SeedJob, utcnow
-from trajcache.services.seed_spec import SeedJobSpec
-from trajcache.services.seeding import cancel_job, create_job, get_job, list_jobs
+from trajcache.api.schemas.seed_jobs import (
+    SEED_JOB_EXAMPLES,
+    JobStateName,
+    SeedJobOut,
+    SeedJobPage,
+)
+from trajcache.services.seeding.jobs import (
+    SeedJobInfo,
+    cancel_job,
+    create_job,
+    get_job,
+    list_jobs,
+)
+from trajcache.services.seeding.spec import SeedJobSpec
 
 router = APIRouter(
     prefix="/seed-jobs", tags=["seed jobs"], responses=COMMON, route_class=BoundedBodyRoute
 )
 
 JobId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Seed job id.")]
-JobStateName = Literal["queued", "running", "completed", "cancelled", "failed"]
 _UNKNOWN_JOB = ("Unknown seed job", "seed job 7 not found")
-_EXAMPLE_SPEC: dict[str, Any] = {
-    "model_id": "5158592d7f5559c728b6d23f76857a89890f358d7aa40994d9e2338ac93ec821",
-    "name": "door sweep",
-    "workload": {
-        "name": "door_sweep",
-        "seed": 1,
-        "doors_deg": {"start": 0, "stop": 90, "step": 10},
-    },
-}
-_EXAMPLE_VARIANTS: dict[str, Any] = {
-    "model_id": "5158592d7f5559c728b6d23f76857a89890f358d7aa40994d9e2338ac93ec821",
-    "base_scene": {"generator": "restroom", "seats_deg": 0},
-    "sweep": {"param": "doors_deg", "start": 0, "stop": 90, "step": 10},
-    "queries": [
-        {
-            "start": [1.0, 0.8, 1.57, 0, -0.5, 0, 0.5, 0, 1.0, 0],
-            "goal": [1.0, 0.8, 1.57, 0.4, 0.2, 0, 1.2, 0, 1.0, 0],
-        }
-    ],
-    "options": {"budget_s": 2.0},
-}
-_EXAMPLES = {
-    "door sweep workload": {"value": _EXAMPLE_SPEC},
-    "queries over door-angle variants": {"value": _EXAMPLE_VARIANTS},
-}
 
 
-_JOB_OUT: dict[str, Any] = {
-    "job_id": 7,
-    "name": "door sweep",
-    "model_id": _EXAMPLE_SPEC["model_id"],
-    "state": "running",
-    "total": 2710,
-    "done": 1200,
-    "hits": 1104,
-    "planned": 94,
-    "failed": 2,
-    "hit_rate": 0.92,
-    "eta_s": 31.5,
-    "runner": "api-1:4242:5f1c0e9a7b3d",
-    "message": None,
-    "errors": [
-        {
-            "index": 411,
-            "label": "doors 10°, call 141: stall 2: stow → spray_rim",
-            "reason": "failure: timeout: no path within 2 s",
-        }
-    ],
-    "created_at": "2025-06-02T09:25:01.941173Z",
-    "started_at": "2025-06-02T09:25:02.103311Z",
-    "finished_at": None,
-    "updated_at": "2025-06-02T09:26:12.500214Z",
-}
-
-
-class SeedJobError(BaseModel):
-    """A work item that failed, and why."""
-
-    index: int
-    label: str
-    reason: str
-
-
-class SeedJobOut(BaseModel):
-    """A seed job's state and progress (counters cover the first `done` items)."""
-
-    model_config = ConfigDict(json_schema_extra={"examples": [_JOB_OUT]})
-
-    job_id: int
-    name: str | None
-    model_id: str
-    state: JobStateName
-    total: int
-    done: int
-    hits: int
-    planned: int
-    failed: int
-    hit_rate: float | None
-    eta_s: float | None
-    runner: str | None
-    message: str | None
-    errors: list[SeedJobError]
-    created_at: datetime
-    started_at: datetime | None
-    finished_at: datetime | None
-    updated_at: datetime
-
-
-class SeedJobPage(BaseModel):
-    """A page of seed jobs, newest first."""
-
-    model_config = ConfigDict(
-        json_schema_extra={
-            "examples": [{"items": [_JOB_OUT], "total": 1, "limit": 100, "offset": 0}]
-        }
-    )
-
-    items: list[SeedJobOut]
-    total: int
-    limit: int
-    offset: int
-
-
-def job_out(row: SeedJob) -> SeedJobOut:
-    """The API view of a job row."""
-    eta = None
-    if row.eta_at is not None and row.state == "running":
-        eta = round(max(0.0, (row.eta_at - utcnow()).total_seconds()), 1)
-    return SeedJobOut(
-        job_id=row.id,
-        name=row.name,
-        model_id=row.model_id,
-        state=row.state,
-        total=row.total,
-        done=row.done,
-        hits=row.hits,
-        planned=row.planned,
-        failed=row.failed,
-        hit_rate=round(row.hits / row.done, 4) if row.done else None,
-        eta_s=eta,
-        runner=row.lease_owner,
-        message=row.message,
-        errors=[SeedJobError.model_validate(e) for e in (row.errors or [])],
-        created_at=row.created_at,
-        started_at=row.started_at,
-        finished_at=row.finished_at,
-        updated_at=row.updated_at,
-    )
+def job_out(job: SeedJobInfo) -> SeedJobOut:
+    """The API view of a job."""
+    return SeedJobOut(**dataclasses.asdict(job))
 
 
 def _scheduler(request: Request) -> Any:
@@ -173,7 +59,9 @@ def _scheduler(request: Request) -> Any:
     "(start/goal, optionally one `scene` index each), or a `workload` (`cleaning` or "
     "`door_sweep` of the reference robot, each call in its own restroom state). A job survives "
     "restarts: an unfinished job resumes where its progress was last written.",
-    openapi_extra={"requestBody": {"content": {"application/json": {"examples": _EXAMPLES}}}},
+    openapi_extra={
+        "requestBody": {"content": {"application/json": {"examples": SEED_JOB_EXAMPLES}}}
+    },
     responses=errors(
         {
             404: ("Unknown model", "robot model '5158592d' not found"),
@@ -197,7 +85,7 @@ def create_job_route(
     if scheduler is not None:
         scheduler.wake()
     response.headers["location"] = f"/v1/seed-jobs/{row.id}"
-    return job_out(row)
+    return job_out(SeedJobInfo.of(row))
 
 
 @router.get(
@@ -218,7 +106,10 @@ def list_jobs_route(
         session=session, state=state, model_id=model_id, limit=page.limit, offset=page.offset
     )
     return SeedJobPage(
-        items=[job_out(r) for r in rows], total=total, limit=page.limit, offset=page.offset
+        items=[job_out(SeedJobInfo.of(r)) for r in rows],
+        total=total,
+        limit=page.limit,
+        offset=page.offset,
     )
 
 
@@ -232,7 +123,7 @@ def list_jobs_route(
 )
 def get_job_route(job_id: JobId, session: SessionDep) -> SeedJobOut:
     """The job `job_id`."""
-    return job_out(get_job(session=session, job_id=job_id))
+    return job_out(SeedJobInfo.of(get_job(session=session, job_id=job_id)))
 
 
 @router.delete(
@@ -253,4 +144,4 @@ def cancel_job_route(job_id: JobId, session: SessionDep, request: Request) -> Se
     scheduler = _scheduler(request)
     if scheduler is not None:
         scheduler.cancel(job_id)
-    return job_out(row)
+    return job_out(SeedJobInfo.of(row))

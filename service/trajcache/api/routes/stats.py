@@ -10,7 +10,7 @@ from fastapi import APIRouter, Query
 
 from trajcache.api.deps import PageSizeDep, SessionDep, SettingsDep, checked_page_size
 from trajcache.api.responses import COMMON, errors
-from trajcache.api.stats_schemas import (
+from trajcache.api.schemas.stats import (
     BucketOut,
     EventSource,
     EventStatus,
@@ -23,9 +23,9 @@ from trajcache.api.stats_schemas import (
     StatsOut,
     TopTrajectoryOut,
 )
-from trajcache.services.histograms import MAX_RELATIVE_ERROR
-from trajcache.services.plan_events import list_plan_events, top_trajectories
-from trajcache.services.stats import parse_window, plan_stats
+from trajcache.services.stats.events import list_plan_events, top_trajectories
+from trajcache.services.stats.histograms import MAX_RELATIVE_ERROR
+from trajcache.services.stats.window import parse_window, plan_stats
 
 router = APIRouter(tags=["stats"], responses=COMMON)
 

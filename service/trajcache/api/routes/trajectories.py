@@ -9,23 +9,23 @@ from fastapi import APIRouter, Path, Query, Response
 from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, PageDep, SessionDep
 from trajcache.api.responses import COMMON, errors
-from trajcache.api.schemas import (
+from trajcache.api.schemas.stats import PlanEventOut, TrajectoryDetailOut
+from trajcache.api.schemas.trajectories import (
     SourceName,
     TrajectoryCreated,
     TrajectoryIn,
     TrajectoryPage,
     TrajectorySummary,
 )
-from trajcache.api.stats_schemas import PlanEventOut, TrajectoryDetailOut
-from trajcache.services.models import get_model
-from trajcache.services.plan_events import trajectory_usage
-from trajcache.services.trajectories import (
+from trajcache.services.catalog.models import get_model
+from trajcache.services.catalog.trajectories import (
     delete_trajectory,
     get_trajectory,
     list_trajectories,
     store_trajectory,
     trajectory_states,
 )
+from trajcache.services.stats.events import trajectory_usage
 
 router = APIRouter(
     prefix="/trajectories", tags=["trajectories"], responses=COMMON, route_class=BoundedBodyRoute
@@ -90,6 +90,8 @@ def store_trajectory_route(
         planning_time_ms=body.planning_time_ms,
         max_states=ctx.settings.max_trajectory_states,
         require_robot=True,
+        scenes=ctx.scenes,
+        validators=ctx.validators,
     )
     if not created:
         response.status_code = 200

@@ -23,7 +23,7 @@ from trajcache.geometry.collision.bodies import Posed, RobotGeometry, SceneGeome
 from trajcache.geometry.collision.clearance import Clearance
 from trajcache.geometry.collision.compiled import state_rows_kernel
 from trajcache.geometry.collision.narrow import Narrow
-from trajcache.geometry.collision.shared import robot_geometry, scene_geometry
+from trajcache.geometry.collision.shared import GeometryCache, robot_geometry, scene_geometry
 from trajcache.geometry.model.kinematics import check_states
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
@@ -83,11 +83,18 @@ class BatchVerdict:
 class CollisionChecker:
     """Checks batches of states of one robot model in one scene."""
 
-    def __init__(self, model: RobotModel, scene: Scene, *, compiled: bool = True) -> None:
+    def __init__(
+        self,
+        model: RobotModel,
+        scene: Scene,
+        *,
+        compiled: bool = True,
+        geometry: GeometryCache | None = None,
+    ) -> None:
         self.model = model
-        self.compiled = compiled  # the bounds of `compiled.py`; else the numpy levels
-        self.robot = robot_geometry(model)
-        self.scene = scene_geometry(scene)
+        self.compiled = compiled  # the bounds of `compiled/`; else the numpy levels
+        self.robot = robot_geometry(model, geometry)  # None: this process's shared geometry
+        self.scene = scene_geometry(scene, geometry)
         self.clearance = Clearance(self.robot, self.scene)
         allowed = self.clearance.allowed
         self._allowed = np.zeros((0, 0), dtype=bool) if allowed is None else allowed
@@ -124,37 +131,11 @@ class CollisionChecker:
         posed = self.pose(states)
         n = len(posed.states)
         before = self.narrow.calls
-        cl = self.clearance
         padded = element_pad is not None or pair_pad is not None
         epad = np.zeros((n, len(self.robot.radius))) if element_pad is None else element_pad
         ppad = np.zeros((n, len(self.robot.pair_i))) if pair_pad is None else pair_pad
         status = np.full(n, FREE, dtype=np.int8)
-        if self.compiled:
-            rg = self.robot
-            scene_rows, self_rows = state_rows_kernel(
-                posed.links,
-                rg.kernel_robot,
-                rg.element_half,
-                rg.support.kernel_args,
-                rg.kernel_motion,
-                self.scene.kernel_scene,
-                self.scene.support.kernel_args,
-                self._allowed,
-                rg.kernel_pairs,
-                np.ascontiguousarray(epad, dtype=float),
-                np.ascontiguousarray(ppad, dtype=float),
-            )
-            scene_pad = epad[scene_rows[:, 0], scene_rows[:, 1]]
-            self_pad = ppad[self_rows[:, 0], self_rows[:, 1]]
-        else:
-            scene_rows = cl.scene_ball_rows(posed, np.asarray(epad, dtype=float))
-            self_rows = np.argwhere(cl.self_balls(posed) <= ppad)
-            scene_pad = epad[scene_rows[:, 0], scene_rows[:, 1]]
-            self_pad = ppad[self_rows[:, 0], self_rows[:, 1]]
-            if len(scene_rows) >= _FEW_ROWS:
-                scene_rows, scene_pad = self._filter(posed, scene_rows, scene_pad)
-            if len(self_rows) >= _FEW_ROWS:
-                self_rows, self_pad = self._filter(posed, self_rows, self_pad)
+        scene_rows, self_rows, scene_pad, self_pad = self._candidates(posed, epad, ppad)
         if len(scene_rows) == 0 and len(self_rows) == 0:
             return BatchVerdict(status, -1, [], self.narrow.calls - before)
         hit_scene, hit_self, near_scene, near_self = self.narrow.first_collision(
@@ -182,6 +163,43 @@ class CollisionChecker:
             contacts=[c for _, c in contacts],
             narrow_checks=self.narrow.calls - before,
         )
+
+    def _candidates(
+        self, posed: Posed, epad: FloatArray, ppad: FloatArray
+    ) -> tuple[IntArray, IntArray, FloatArray, FloatArray]:
+        """The scene rows (state, element, object) and pair rows (state, pair) that no bound
+        clears by more than their pad, with those pads: FCL's to decide."""
+        if self.compiled:
+            rg = self.robot
+            scene_rows, self_rows = state_rows_kernel(
+                posed.links,
+                rg.kernel_robot,
+                rg.element_half,
+                rg.support.kernel_args,
+                rg.kernel_motion,
+                self.scene.kernel_scene,
+                self.scene.support.kernel_args,
+                self._allowed,
+                rg.kernel_pairs,
+                np.ascontiguousarray(epad, dtype=float),
+                np.ascontiguousarray(ppad, dtype=float),
+            )
+            return (
+                scene_rows,
+                self_rows,
+                epad[scene_rows[:, 0], scene_rows[:, 1]],
+                ppad[self_rows[:, 0], self_rows[:, 1]],
+            )
+        cl = self.clearance
+        scene_rows = cl.scene_ball_rows(posed, np.asarray(epad, dtype=float))
+        self_rows = np.argwhere(cl.self_balls(posed) <= ppad)
+        scene_pad = epad[scene_rows[:, 0], scene_rows[:, 1]]
+        self_pad = ppad[self_rows[:, 0], self_rows[:, 1]]
+        if len(scene_rows) >= _FEW_ROWS:
+            scene_rows, scene_pad = self._filter(posed, scene_rows, scene_pad)
+        if len(self_rows) >= _FEW_ROWS:
+            self_rows, self_pad = self._filter(posed, self_rows, self_pad)
+        return scene_rows, self_rows, scene_pad, self_pad
 
     def _filter(self, posed: Posed, rows: IntArray, pad: FloatArray) -> tuple[IntArray, FloatArray]:
         """Level 2: the rows (and their pads) whose slab bounds stay within the pad. It pays off

@@ -7,61 +7,56 @@ which is why it is applied here, above them, and not where the geometry is built
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
-
+from trajcache.core.lru import LRU
 from trajcache.geometry.collision.bodies import RobotGeometry, SceneGeometry
 from trajcache.geometry.collision.free_pairs import proven_free_pairs
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.scene import Scene
 
-_CACHE_SIZE = 64
+CACHE_SIZE = 64
 
 
-class _LRU:
-    """A small thread-safe LRU map used for per-model and per-scene geometry."""
+class GeometryCache:
+    """The RobotGeometry of each model (by id) and SceneGeometry of each scene (by hash)."""
 
-    def __init__(self, size: int) -> None:
-        self._size = size
-        self._items: OrderedDict[str, object] = OrderedDict()
-        self._lock = threading.Lock()
+    def __init__(self, capacity: int = CACHE_SIZE) -> None:
+        self.robots: LRU[str, RobotGeometry] = LRU(capacity=capacity)
+        self.scenes: LRU[str, SceneGeometry] = LRU(capacity=capacity)
 
-    def get(self, key: str) -> object | None:
-        with self._lock:
-            item = self._items.get(key)
-            if item is not None:
-                self._items.move_to_end(key)
-            return item
+    def robot(self, model: RobotModel) -> RobotGeometry:
+        """The shared RobotGeometry of a model (built once per model id)."""
+        cached = self.robots.get(model.model_id)
+        if cached is not None and cached.model is model:
+            return cached
+        return self.robots.put(model.model_id, _build_robot(model))
 
-    def put(self, key: str, value: object) -> None:
-        with self._lock:
-            self._items[key] = value
-            self._items.move_to_end(key)
-            while len(self._items) > self._size:
-                self._items.popitem(last=False)
+    def scene(self, scene: Scene) -> SceneGeometry:
+        """The shared SceneGeometry of a scene version (built once per content hash)."""
+        key = scene.hash or f"id:{id(scene)}"
+        return self.scenes.get_or_build(key, lambda: SceneGeometry(scene))
 
-
-_robots = _LRU(_CACHE_SIZE)
-_scenes = _LRU(_CACHE_SIZE)
+    def clear(self) -> None:
+        """Forget every geometry."""
+        self.robots.clear()
+        self.scenes.clear()
 
 
-def robot_geometry(model: RobotModel) -> RobotGeometry:
-    """The shared RobotGeometry of a model (cached by model id)."""
-    cached = _robots.get(model.model_id)
-    if isinstance(cached, RobotGeometry) and cached.model is model:
-        return cached
+def _build_robot(model: RobotModel) -> RobotGeometry:
     built = RobotGeometry(model)
     built.drop_pairs(proven_free_pairs(built))
-    _robots.put(model.model_id, built)
     return built
 
 
-def scene_geometry(scene: Scene) -> SceneGeometry:
+# The geometry of checkers built without a cache of their own: planners, which run in worker
+# processes (each has its own), and tools. The service's validators use its context's cache.
+PROCESS_GEOMETRY = GeometryCache()
+
+
+def robot_geometry(model: RobotModel, cache: GeometryCache | None = None) -> RobotGeometry:
+    """The shared RobotGeometry of a model (cached by model id)."""
+    return (cache or PROCESS_GEOMETRY).robot(model)
+
+
+def scene_geometry(scene: Scene, cache: GeometryCache | None = None) -> SceneGeometry:
     """The shared SceneGeometry of a scene version (cached by content hash)."""
-    key = scene.hash or f"id:{id(scene)}"
-    cached = _scenes.get(key)
-    if isinstance(cached, SceneGeometry):
-        return cached
-    built = SceneGeometry(scene)
-    _scenes.put(key, built)
-    return built
+    return (cache or PROCESS_GEOMETRY).scene(scene)

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from trajcache.geometry.collision.compiled import forward_kinematics_kernel
 from trajcache.geometry.errors import StateError
+from trajcache.geometry.model.kernels import forward_kinematics_kernel
 from trajcache.geometry.model.robot import BaseType, KinematicJoint, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import ConvexHull, QhullError
 
-from trajcache.geometry.collision.kernels import hull_support_climb
+from trajcache.geometry.model.kernels import hull_support_climb
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 
 IntArray = NDArray[np.int64]
@@ -157,7 +157,7 @@ class SupportTable:
 
     @functools.cached_property
     def kernel_args(self) -> tuple[np.ndarray, ...]:
-        """The table as the compiled kernels take it (`compiled._support`)."""
+        """The table as the compiled kernels take it (`collision/compiled/slabs.support_at`)."""
         return (
             np.ascontiguousarray(self.centre, dtype=float),
             np.ascontiguousarray(self.packed, dtype=float),

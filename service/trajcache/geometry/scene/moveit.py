@@ -24,16 +24,14 @@ import numpy as np
 
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import FloatArray, ShapeKind
+from trajcache.geometry.scene.fields import make_shape, number_list, parse_pose
 from trajcache.geometry.scene.scene import (
     MAX_OBJECTS,
     AttachedObject,
     Scene,
     SceneObject,
     make_scene,
-    make_shape,
     matrix_to_quaternion,
-    number_list,
-    parse_pose,
 )
 
 WORLD_FRAMES = frozenset({"", "world", "map", "odom"})

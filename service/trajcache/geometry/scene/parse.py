@@ -13,8 +13,10 @@ from typing import Any
 import yaml
 
 from trajcache.geometry.errors import SceneError
+from trajcache.geometry.scene.fields import parse_env
 from trajcache.geometry.scene.moveit import parse_planning_scene
-from trajcache.geometry.scene.scene import Scene, parse_env, parse_native_scene
+from trajcache.geometry.scene.payload import parse_native_scene
+from trajcache.geometry.scene.scene import Scene
 
 MAX_SCENE_TEXT_BYTES = 16 * 1024 * 1024
 

@@ -18,27 +18,36 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import threading
-from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import replace
 
 import numpy as np
 
+from trajcache.core.lru import LRU
 from trajcache.geometry.errors import SceneError, StateError
 from trajcache.geometry.model.robot import CollisionElement, KinematicJoint, RobotModel
 from trajcache.geometry.scene.scene import Scene
 
-_CACHE_SIZE = 256
-_variants: OrderedDict[tuple[str, str], RobotModel] = OrderedDict()
-_lock = threading.Lock()
+VARIANT_CACHE_SIZE = 256
+
+VariantCache = LRU[tuple[str, str], RobotModel]  # by (registered model id, variant key)
+
+
+def variant_cache(capacity: int = VARIANT_CACHE_SIZE) -> VariantCache:
+    """An empty cache of built variants."""
+    return LRU(capacity=capacity)
 
 
 def model_in_scene(
-    model: RobotModel, scene: Scene, held: Mapping[str, float] | None = None
+    model: RobotModel,
+    scene: Scene,
+    held: Mapping[str, float] | None = None,
+    *,
+    cache: VariantCache | None = None,
 ) -> RobotModel:
     """`model` with the robot's `held` joint values, the scene's attached objects and its
-    allowed link pairs (the model itself when none of them applies)."""
+    allowed link pairs (the model itself when none of them applies); built once per `cache`,
+    or every time without one."""
     if not held and not scene.attached and not scene.allowed:
         return model  # the common case, on every plan: nothing to look at
     links = set(model.link_names)
@@ -46,17 +55,9 @@ def model_in_scene(
     if not held and not scene.attached and not robot_pairs:
         return model
     key = (model.model_id, _variant_key(scene, robot_pairs, held or {}))
-    with _lock:
-        found = _variants.get(key)
-        if found is not None:
-            _variants.move_to_end(key)
-            return found
-    built = _build(model, scene, robot_pairs, held or {}, key[1])
-    with _lock:
-        _variants[key] = built
-        while len(_variants) > _CACHE_SIZE:
-            _variants.popitem(last=False)
-    return built
+    if cache is None:
+        return _build(model, scene, robot_pairs, held or {}, key[1])
+    return cache.get_or_build(key, lambda: _build(model, scene, robot_pairs, held or {}, key[1]))
 
 
 def _variant_key(

@@ -25,6 +25,9 @@ end's d ≤ M, and no level certifies its segments.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -38,6 +41,17 @@ from trajcache.geometry.validation.segments import Finding, OpenPairs, SegmentSt
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class _CoverLevel:
+    """Level 3 on K rows: which it settles (K,), its lower bounds at both ends (2K,) and motion
+    (K,), and the cover slabs at given ends (rows, a mask over both ends) of what it leaves."""
+
+    settled: BoolArray
+    lower: FloatArray
+    motion: FloatArray
+    slabs_fn: Callable[[IntArray, BoolArray], FloatArray]
 
 
 class SegmentCertifier:
@@ -104,7 +118,7 @@ class SegmentCertifier:
     def _compiled_levels(
         self, posed: Posed, step: FloatArray, *, first_only: bool = False
     ) -> list[OpenPairs]:
-        """Levels 1 to 3 on every segment at once, compiled (`collision/compiled.py`): what they
+        """Levels 1 to 3 on every segment at once, compiled (`collision/compiled/`): what they
         leave open, scene pairs then robot pairs (with `first_only`, at most the first one
         found)."""
         rg = self.robot
@@ -197,6 +211,14 @@ class SegmentCertifier:
         """
         if len(left.rows) == 0:
             return left
+        left = self._slabs(posed, step, left)
+        if len(left.rows) == 0:
+            return left
+        return self._cover_balls(posed, step, left)
+
+    def _slabs(self, posed: Posed, step: FloatArray, left: OpenPairs) -> OpenPairs:
+        """Level 2: slabs with meshes as their boxes, then as their hulls, then the
+        configuration-dependent motion of the whole elements for what they leave."""
         cl = self.clearance
         slabs = cl.scene_slabs if left.scene else cl.self_slabs
         # Meshes as their boxes first (no hull query), then as their hulls for what is left.
@@ -211,48 +233,64 @@ class SegmentCertifier:
         if len(left.rows):
             left.motion = np.minimum(left.motion, self._element_motion(posed, step, left))
             left = left.open()
+        return left
+
+    def _cover_balls(self, posed: Posed, step: FloatArray, left: OpenPairs) -> OpenPairs:
+        """Level 3: every ball of the sphere covers with the motion of its own centre; where a
+        ball is not settled, slabs along the ways the closest balls look (`_CoverLevel`)."""
         k = len(left.rows)
-        if k == 0:
-            return left
         both = np.concatenate([left.rows, left.ends])
-        seg = left.rows[:, 0]
-        if left.scene:
-            balls = cl.scene_spheres(posed, both)
-            centre, whole = self._ball_motion(
-                posed, step, seg, balls.centres[:k], balls.centres[k:], left.rows[:, 1]
-            )
-            low = np.maximum(balls.lower, 0.0)
-            settled = np.all(low[:k] + low[k:] > centre, axis=1)
-            motion = whole.max(axis=1)
-            lower = low.min(axis=1)
-        else:
-            pairs = cl.self_spheres(posed, both)
-            pair = left.rows[:, 1]
-            mask = self.robot.pair_mask[pair].astype(float)
-            ci, wi = self._ball_motion(
-                posed, step, seg, pairs.first[:k], pairs.first[k:], self.robot.pair_i[pair], mask
-            )
-            cj, wj = self._ball_motion(
-                posed, step, seg, pairs.second[:k], pairs.second[k:], self.robot.pair_j[pair], mask
-            )
-            low = np.maximum(pairs.lower, 0.0)
-            settled = np.all(low[:k] + low[k:] > ci[:, :, None] + cj[:, None, :], axis=(1, 2))
-            motion = wi.max(axis=1) + wj.max(axis=1)
-            lower = low.min(axis=(1, 2))
-        left.lower_a = np.maximum(left.lower_a, lower[:k])
-        left.lower_b = np.maximum(left.lower_b, lower[k:])
-        left.motion = np.minimum(left.motion, motion)
-        open_ = np.concatenate([~settled, ~settled])
-        rows = both[open_]
-        if left.scene:
-            cover = cl.scene_cover_slabs(posed, rows, balls.subset(open_))
-        else:
-            cover = cl.self_cover_slabs(posed, rows, pairs.subset(open_))
-        left = left.take(~settled)
+        cover_level = self._scene_cover if left.scene else self._self_cover
+        level = cover_level(posed, step, left, both)
+        left.lower_a = np.maximum(left.lower_a, level.lower[:k])
+        left.lower_b = np.maximum(left.lower_b, level.lower[k:])
+        left.motion = np.minimum(left.motion, level.motion)
+        open_ = np.concatenate([~level.settled, ~level.settled])
+        cover = level.slabs_fn(both[open_], open_)
+        left = left.take(~level.settled)
         k = len(left.rows)
         left.lower_a = np.maximum(left.lower_a, cover[:k])
         left.lower_b = np.maximum(left.lower_b, cover[k:])
         return left.open()
+
+    def _scene_cover(
+        self, posed: Posed, step: FloatArray, left: OpenPairs, both: IntArray
+    ) -> _CoverLevel:
+        """Level 3 for scene rows: the element's cover balls against the object."""
+        cl, k, seg = self.clearance, len(left.rows), left.rows[:, 0]
+        balls = cl.scene_spheres(posed, both)
+        centre, whole = self._ball_motion(
+            posed, step, seg, balls.centres[:k], balls.centres[k:], left.rows[:, 1]
+        )
+        low = np.maximum(balls.lower, 0.0)
+        return _CoverLevel(
+            settled=np.all(low[:k] + low[k:] > centre, axis=1),
+            lower=low.min(axis=1),
+            motion=whole.max(axis=1),
+            slabs_fn=lambda rows, keep: cl.scene_cover_slabs(posed, rows, balls.subset(keep)),
+        )
+
+    def _self_cover(
+        self, posed: Posed, step: FloatArray, left: OpenPairs, both: IntArray
+    ) -> _CoverLevel:
+        """Level 3 for robot pairs: every ball of one cover against every ball of the other."""
+        cl, k, seg = self.clearance, len(left.rows), left.rows[:, 0]
+        pairs = cl.self_spheres(posed, both)
+        pair = left.rows[:, 1]
+        mask = self.robot.pair_mask[pair].astype(float)
+        ci, wi = self._ball_motion(
+            posed, step, seg, pairs.first[:k], pairs.first[k:], self.robot.pair_i[pair], mask
+        )
+        cj, wj = self._ball_motion(
+            posed, step, seg, pairs.second[:k], pairs.second[k:], self.robot.pair_j[pair], mask
+        )
+        low = np.maximum(pairs.lower, 0.0)
+        return _CoverLevel(
+            settled=np.all(low[:k] + low[k:] > ci[:, :, None] + cj[:, None, :], axis=(1, 2)),
+            lower=low.min(axis=(1, 2)),
+            motion=wi.max(axis=1) + wj.max(axis=1),
+            slabs_fn=lambda rows, keep: cl.self_cover_slabs(posed, rows, pairs.subset(keep)),
+        )
 
     def _ball_motion(
         self,

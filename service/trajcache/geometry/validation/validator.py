@@ -23,16 +23,16 @@ With `certified=False` only the samples are checked, with FCL's verdicts.
 
 from __future__ import annotations
 
-import threading
 import time
-from collections import OrderedDict
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Protocol
 
 import numpy as np
 
+from trajcache.core.lru import LRU
 from trajcache.geometry.collision.checker import CollisionChecker, Contact, ContactKind
+from trajcache.geometry.collision.shared import GeometryCache
 from trajcache.geometry.model.kinematics import check_states
 from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
@@ -122,11 +122,15 @@ class TrajectoryValidator:
         min_pad: float = 1e-4,
         max_depth: int = 24,
         compiled: bool = True,
+        geometry: GeometryCache | None = None,
     ) -> None:
         self.model = model
-        self.checker = CollisionChecker(model, scene)
+        self.scene_hash = scene.hash  # "" for a scene without a content hash
+        self.checker = CollisionChecker(model, scene, geometry=geometry)
         self.resolution = resolution or Resolution()
         self.certified = certified
+        # Every setting a verdict depends on besides the model, the scene and the states.
+        self.settings_key: tuple[object, ...] = (self.resolution, certified, min_pad, max_depth)
         self.certifier = SegmentCertifier(
             self.checker,
             planar=model.base is BaseType.PLANAR,
@@ -282,30 +286,53 @@ class ValidationSettings(Protocol):
     certified_validation: bool
 
 
-_validators: OrderedDict[tuple[object, ...], TrajectoryValidator] = OrderedDict()
-_validators_lock = threading.Lock()
-_VALIDATOR_CACHE = 128
+VALIDATOR_CACHE_SIZE = 128
+
+
+class ValidatorCache:
+    """Shared validators by model, scene version and settings, all on one GeometryCache."""
+
+    def __init__(
+        self, *, capacity: int = VALIDATOR_CACHE_SIZE, geometry: GeometryCache | None = None
+    ) -> None:
+        self.geometry = geometry or GeometryCache()
+        self.validators: LRU[tuple[object, ...], TrajectoryValidator] = LRU(capacity=capacity)
+
+    def clear(self) -> None:
+        """Forget every validator and geometry."""
+        self.validators.clear()
+        self.geometry.clear()
 
 
 def validator_for(
-    model: RobotModel, scene: Scene, settings: ValidationSettings
+    model: RobotModel, scene: Scene, settings: ValidationSettings, *, cache: ValidatorCache
 ) -> TrajectoryValidator:
     """A shared validator for this model, scene version and resolution (built once)."""
-    resolution = Resolution(
+    scene_key = scene.hash or f"id:{id(scene)}"
+    key = (model.model_id, scene_key, _resolution(settings), settings.certified_validation)
+    return cache.validators.get_or_build(
+        key, lambda: build_validator(model, scene, settings, geometry=cache.geometry)
+    )
+
+
+def build_validator(
+    model: RobotModel,
+    scene: Scene,
+    settings: ValidationSettings,
+    *,
+    geometry: GeometryCache | None = None,
+) -> TrajectoryValidator:
+    """A new validator with these settings (geometry from `geometry`, else this process's)."""
+    return TrajectoryValidator(
+        model,
+        scene,
+        resolution=_resolution(settings),
+        certified=settings.certified_validation,
+        geometry=geometry,
+    )
+
+
+def _resolution(settings: ValidationSettings) -> Resolution:
+    return Resolution(
         settings.step_position_m, settings.step_orientation_rad, settings.step_joint_rad
     )
-    scene_key = scene.hash or f"id:{id(scene)}"
-    key = (model.model_id, scene_key, resolution, settings.certified_validation)
-    with _validators_lock:
-        found = _validators.get(key)
-        if found is not None:
-            _validators.move_to_end(key)
-            return found
-    built = TrajectoryValidator(
-        model, scene, resolution=resolution, certified=settings.certified_validation
-    )
-    with _validators_lock:
-        _validators[key] = built
-        while len(_validators) > _VALIDATOR_CACHE:
-            _validators.popitem(last=False)
-    return built

@@ -1,0 +1,20 @@
+"""What the schema modules share: field types and the OpenAPI example values they agree on."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from pydantic import Field
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+ModelId = Annotated[str, Field(min_length=1, max_length=64)]
+
+# Answers of the request examples, as the service gives them (OpenAPI examples of the responses).
+MODEL_ID = "5158592d7f5559c728b6d23f76857a89890f358d7aa40994d9e2338ac93ec821"
+SCENE_HASH = "08dd82870f84ed8b43d17f3baca4d6c55c6de216fbfee2996678642b82b81e4a"
+WHEN = "2025-06-02T09:25:01.941173Z"
+
+
+def examples(*values: dict[str, Any]) -> dict[str, Any]:
+    """A model's `json_schema_extra` with these examples."""
+    return {"examples": list(values)}

@@ -1,0 +1,148 @@
+"""The plan endpoint's request and answer: options, states, rejected candidates."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from trajcache.api.answer_extras import JointTrajectory, TimingOptions, TrajectoryQuality
+from trajcache.api.schemas.common import FiniteFloat
+from trajcache.planning.problem import PLANNER_NAMES
+
+
+class PlanOptions(BaseModel):
+    """Per-request options; each is bounded by the service settings."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    threshold: FiniteFloat | None = Field(
+        default=None, gt=0, description="Lookup distance threshold (default from settings)."
+    )
+    max_candidates: int | None = Field(
+        default=None, ge=1, description="How many cached candidates to try at most."
+    )
+    fallback: bool = Field(default=True, description="Plan when no cached candidate is valid.")
+    lookup: bool = Field(
+        default=True,
+        description="Look in the cache first; false plans a fresh trajectory (which is stored).",
+    )
+    budget_s: FiniteFloat | None = Field(
+        default=None, gt=0, description="Planning time budget in seconds."
+    )
+    planner: str | None = Field(
+        default=None,
+        description="Planner name (default from settings): " + ", ".join(PLANNER_NAMES) + ".",
+    )
+    match: Literal["full", "arm"] = Field(
+        default="full",
+        description="'arm' matches on arm joints only when the base does not move, so a motion "
+        "learned at one place serves the same motion elsewhere (validation keeps it safe).",
+    )
+    timing: TimingOptions | None = Field(
+        default=None, description="Time the answer: it then carries `joint_trajectory`."
+    )
+    quality: Literal["basic", "full"] = Field(
+        default="basic",
+        description="'basic': path lengths (cheap); 'full': also clearance to the scene and "
+        "duration (milliseconds more).",
+    )
+
+    @field_validator("planner")
+    @classmethod
+    def _known_planner(cls, name: str | None) -> str | None:
+        if name is None:
+            return None
+        key = name.strip().lower()
+        if key not in PLANNER_NAMES:
+            raise ValueError(f"unknown planner {name!r}; use one of {', '.join(PLANNER_NAMES)}")
+        return key
+
+
+_ANSWER_EXAMPLES: list[Any] = [
+    {
+        "status": "success",
+        "source": "cache",
+        "trajectory_id": 4211,
+        "states": [
+            [1.0, 0.8, 1.57, 0, -0.5, 0, 0.5, 0, 1.0, 0],
+            [1.0, 0.8, 1.57, 0.2, -0.1, 0, 0.9, 0, 1.0, 0],
+            [1.0, 0.8, 1.57, 0.4, 0.2, 0, 1.2, 0, 1.0, 0],
+        ],
+        "candidates_tried": 1,
+        "timings_ms": {"lookup": 0.4, "validate": 6.1, "plan": 0.0, "db": 2.3, "total": 9.2},
+        "message": "",
+        "rejected": [],
+    },
+    {
+        "status": "miss",
+        "source": None,
+        "trajectory_id": None,
+        "states": None,
+        "candidates_tried": 1,
+        "timings_ms": {"lookup": 0.4, "validate": 3.0, "plan": 0.0, "db": 1.9, "total": 5.6},
+        "message": "no valid cached trajectory; fallback planning disabled",
+        "rejected": [
+            {
+                "trajectory_id": 4211,
+                "status": "collision",
+                "reason": "link 'link5' hits object 'stall_2_door'",
+            }
+        ],
+    },
+]
+
+
+StateIn = (
+    Annotated[list[FiniteFloat], Field(min_length=1, max_length=64)]
+    | Annotated[dict[Annotated[str, Field(max_length=200)], FiniteFloat], Field(max_length=256)]
+    | Annotated[str, Field(min_length=1, max_length=200)]
+)
+
+
+class PlanBody(BaseModel):
+    """A plan request: each state as values in the model's `state_names` order, as a map
+    {joint name: value} (held joints may be given at their held values), or as the name of one
+    of the model's named states (SRDF group states)."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {
+                    "start": [1.0, 0.8, 1.57, 0, -0.5, 0, 0.5, 0, 1.0, 0],
+                    "goal": [1.0, 0.8, 1.57, 0.4, 0.2, 0, 1.2, 0, 1.0, 0],
+                    "options": {"threshold": 0.2, "fallback": True},
+                }
+            ]
+        },
+    )
+
+    start: StateIn
+    goal: StateIn
+    options: PlanOptions = Field(default_factory=PlanOptions)
+
+
+class Rejection(BaseModel):
+    """A cached candidate that failed validation, and why."""
+
+    trajectory_id: int
+    status: str
+    reason: str
+
+
+class PlanResponse(BaseModel):
+    """The answer: a trajectory and where it came from, or a status saying why there is none."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": _ANSWER_EXAMPLES})
+
+    status: Literal["success", "miss", "failure", "error"]
+    source: Literal["cache", "planner"] | None
+    trajectory_id: int | None
+    states: list[list[float]] | None
+    candidates_tried: int
+    timings_ms: dict[str, float]
+    message: str = ""
+    rejected: list[Rejection] = []
+    joint_trajectory: JointTrajectory | None = None
+    quality: TrajectoryQuality | None = None

@@ -1,0 +1,73 @@
+"""`trajcache serve` and `trajcache migrate`: run the HTTP service, upgrade its database."""
+
+from __future__ import annotations
+
+import os
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from trajcache.cli.common import DatabaseUrlOption, err_console, load_settings
+
+
+def serve(
+    host: Annotated[
+        str | None, typer.Option(metavar="HOST", help="Address to bind (default: TRAJCACHE_HOST).")
+    ] = None,
+    port: Annotated[
+        int | None, typer.Option(min=1, max=65535, help="Port (default: TRAJCACHE_PORT).")
+    ] = None,
+    workers: Annotated[int, typer.Option(min=1, help="Server worker processes.")] = 1,
+    no_migrate: Annotated[
+        bool, typer.Option("--no-migrate", help="Do not upgrade the database on start.")
+    ] = False,
+    database_url: DatabaseUrlOption = None,
+) -> None:
+    """Run the HTTP service (settings from TRAJCACHE_* environment variables)."""
+    import uvicorn
+
+    from trajcache.metrics_dir import prepare_multiprocess_dir
+
+    prepare_multiprocess_dir(workers)  # before any metric exists: workers merge /metrics there
+    from trajcache.db import migrate
+    from trajcache.main import AUTO_MIGRATE_ENV
+
+    settings = load_settings(database_url)
+    host = host or settings.host
+    port = port or settings.port
+    if not no_migrate:
+        migrate.upgrade(settings.database_url)  # once here rather than once per worker
+    os.environ[AUTO_MIGRATE_ENV] = "0"
+    if database_url is not None:
+        os.environ["TRAJCACHE_DATABASE_URL"] = database_url  # the app's workers read it there
+    os.environ["TRAJCACHE_HOST"] = host  # the app decides from it whether keys are required
+    shown = f"[{host}]" if ":" in host else host
+    err_console().print(
+        f"trajcache serving on [bold]http://{shown}:{port}[/bold] "
+        f"(API docs at /docs, {workers} worker{'s' if workers > 1 else ''})"
+    )
+    uvicorn.run(
+        "trajcache.main:create_app",
+        factory=True,
+        host=host,
+        port=port,
+        workers=workers,
+        log_level=settings.log_level,
+    )
+
+
+def migrate_command(
+    revision: Annotated[str, typer.Option(metavar="REVISION", help="Target revision.")] = "head",
+    database_url: DatabaseUrlOption = None,
+) -> None:
+    """Upgrade the database (default: TRAJCACHE_DATABASE_URL) to a revision."""
+    from sqlalchemy.engine import make_url
+
+    from trajcache.db import migrate
+
+    settings = load_settings(database_url)
+    url = settings.database_url
+    migrate.upgrade(url, revision)
+    shown = make_url(url).render_as_string(hide_password=True)
+    Console().print(f"{shown} is at revision [bold]{migrate.current_revision(url)}[/bold]")

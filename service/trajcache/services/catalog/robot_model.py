@@ -1,0 +1,15 @@
+"""The model behind a robot id, for requests that must read joint names before the plan flow."""
+
+from __future__ import annotations
+
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.services.catalog.models import get_model
+from trajcache.services.catalog.robots import get_robot
+from trajcache.services.context import ServiceContext
+
+
+def robot_model(*, ctx: ServiceContext, robot_id: str) -> RobotModel:
+    """The model of robot `robot_id` (NotFoundError when unknown); one query when it is cached."""
+    with ctx.sessions() as session:
+        robot = get_robot(session=session, robot_id=robot_id)
+        return get_model(session=session, registry=ctx.models, model_id=robot.model_id)

@@ -1,0 +1,1 @@
+"""Keeping a cache in shape: eviction, export and import."""

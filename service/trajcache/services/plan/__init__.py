@@ -1,0 +1,12 @@
+"""The plan flow: lookup, validation, fallback to the planner, and the answer.
+
+- `flow`: the entry points (`answer_plan`, `answer_request`, `plan`, `plan_in_scene`) and the
+  spine `_answer` with its steps;
+- `attempt`: the request-scoped `PlanAttempt`, its `PhaseClock`, the request and answer types;
+- `answers`: the answers of an attempt, each recorded through the record writer;
+- `fallback`: planning in the worker pool, validating and storing what it finds;
+- `options`: plan options resolved against the settings (defaults and limits);
+- `quality`: store-time and answer-time quality and timing;
+- `records`, `record_batch`: the ordered writer of usage counters and plan events;
+- `ranking_facts`: ranking facts kept in memory briefly.
+"""

@@ -1,0 +1,186 @@
+"""One plan request as it is answered: what it asks, where it runs, and what it found so far.
+
+A :class:`PlanAttempt` is built once per request (as OMPL's `ProblemDefinition` is per problem)
+and handed to each step of the flow (`services.plan.flow`): the context, the caller and its
+origin, the model and scene, the request with its start and goal resolved, the validator (built
+once, on first use), the clock that times each phase, and the candidates that failed validation.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+from sqlalchemy.orm import Session
+
+from trajcache.cache.memo import MemoScope, MemoUse
+from trajcache.geometry.model.kinematics import StateInput
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.validator import TrajectoryValidator, validator_for
+from trajcache.services.context import ServiceContext
+from trajcache.services.plan.quality import AnswerDetails
+
+__all__ = [
+    "Origin",
+    "PhaseClock",
+    "PlanAnswer",
+    "PlanAttempt",
+    "PlanRequest",
+    "PlanSource",
+    "PlanStatus",
+]
+
+PHASES = ("lookup", "validate", "plan", "db")
+
+
+class PlanStatus(str, Enum):
+    """How a plan request ended."""
+
+    SUCCESS = "success"
+    MISS = "miss"  # no valid cached candidate and no fallback planning asked for or available
+    FAILURE = "failure"  # the planner found no path within its budget
+    ERROR = "error"  # the planner could not run (pool broken, backend down): answered with 503
+
+
+class PlanSource(str, Enum):
+    """Where an answered trajectory came from."""
+
+    CACHE = "cache"
+    PLANNER = "planner"
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """A validated plan request with its options resolved against the settings."""
+
+    start: StateInput  # values in state_names order, a {joint: value} map, or a named state
+    goal: StateInput
+    threshold: float
+    max_candidates: int
+    fallback: bool = True
+    budget_s: float = 2.0
+    planner: str = "rrtconnect"
+    arm_only: bool = False  # match on arm joints only when the base does not move
+    lookup: bool = True  # False: skip the cache and plan (a fresh plan is still stored)
+
+
+@dataclass(frozen=True)
+class Origin:
+    """Where a request comes from: what a planned trajectory is stored as, and if it is real."""
+
+    store_source: str  # source of a trajectory the planner finds for this request
+    store_robot_id: str | None
+    real: bool  # a real robot: a hit counts as a validation of the trajectory in the real world
+    held: Mapping[str, float] | None = None  # the robot's own held joint values, if it set any
+
+
+@dataclass
+class PlanAnswer:
+    """What the plan endpoint returns."""
+
+    status: PlanStatus
+    source: PlanSource | None
+    trajectory_id: int | None
+    states: np.ndarray | None
+    candidates_tried: int
+    timings_ms: dict[str, float]
+    message: str = ""
+    rejected: list[dict[str, object]] = field(default_factory=list)
+    record: int | None = None  # sequence number of the bookkeeping in `ctx.records`, if queued
+    memo: MemoUse | None = None  # how the served cached trajectory was validated
+    details: AnswerDetails | None = None  # quality and timing, when the caller asked for extras
+
+
+class PhaseClock:
+    """Time spent per phase of a request; `measure` adds a block's time to its phase."""
+
+    __slots__ = ("arrived", "began", "spent")
+
+    def __init__(self) -> None:
+        self.began = time.perf_counter()
+        self.arrived = time.monotonic()  # what replica syncs must cover
+        self.spent = dict.fromkeys(PHASES, 0.0)
+
+    @contextmanager
+    def measure(self, phase: str) -> Iterator[None]:
+        """Add the time the block takes to `phase` (one of lookup, validate, plan, db)."""
+        began = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.spent[phase] += time.perf_counter() - began
+
+    def seconds(self, phase: str) -> float:
+        """Time spent in `phase` so far (s)."""
+        return self.spent[phase]
+
+    def timings(self) -> dict[str, float]:
+        """Milliseconds per phase and in all, rounded to the microsecond."""
+        total = (time.perf_counter() - self.began) * 1e3
+        timings = {phase: round(s * 1e3, 3) for phase, s in self.spent.items()}
+        timings["total"] = round(total, 3)
+        return timings
+
+
+@dataclass(eq=False)
+class PlanAttempt:
+    """One plan request being answered, in one session."""
+
+    ctx: ServiceContext
+    session: Session
+    caller: str  # the robot (or seed job) recorded in the plan event
+    origin: Origin
+    model: RobotModel  # as registered: what the cache and the planner key on
+    scene: Scene
+    request: PlanRequest
+    clock: PhaseClock
+    checked: RobotModel  # `model` as the robot holds its joints in `scene`: what is validated
+    start: np.ndarray
+    goal: np.ndarray
+    failed: list[int] = field(default_factory=list)  # candidates that failed validation
+    rejected: list[dict[str, object]] = field(default_factory=list)  # and why
+    candidates: dict[int, np.ndarray] = field(default_factory=dict)  # key states, by id
+    tried: int = 0  # candidates counted in the answer and its plan event
+
+    @functools.cached_property
+    def validator(self) -> TrajectoryValidator:
+        """The validator of the checked model in the scene, under the service's settings."""
+        return validator_for(self.checked, self.scene, self.ctx.settings, cache=self.ctx.validators)
+
+    @functools.cached_property
+    def memo_scope(self) -> MemoScope | None:
+        """What the validator's verdicts depend on besides the states (`cache.memo`)."""
+        return MemoScope.of(self.validator)
+
+    def event(
+        self,
+        status: PlanStatus,
+        *,
+        source: PlanSource | None = None,
+        trajectory_id: int | None = None,
+        timings: Mapping[str, float],
+        error: str | None = None,
+        seed: int | None = None,  # the planner's seed, when the request planned
+    ) -> dict[str, object]:
+        """The plan_events column values of this request's outcome."""
+        return {
+            "robot_id": self.caller,
+            "model_id": self.model.model_id,
+            "scene_hash": self.scene.hash,
+            "status": status.value,
+            "source": source.value if source else None,
+            "trajectory_id": trajectory_id,
+            "candidates_tried": self.tried,
+            "lookup_ms": timings["lookup"],
+            "validate_ms": timings["validate"],
+            "plan_ms": timings["plan"],
+            "total_ms": timings["total"],
+            "error": (error or None) and error[:500],
+            "seed": seed,
+        }

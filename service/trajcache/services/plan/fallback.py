@@ -1,0 +1,103 @@
+"""Fallback to the planner: plan in the worker pool, validate like a cached trajectory, store.
+
+The session's transaction ends before planning, so a request waiting on a worker holds no
+database connection; storing the result opens a new one. Each request plans with a fresh seed (a
+retry searches anew), recorded in its plan event. The new trajectory's quality (its clearance in
+the scene it was planned in) is computed by the record writer, off the request path.
+"""
+
+from __future__ import annotations
+
+from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.jobs.pool import PlannerPool
+from trajcache.planning.problem import (
+    PlannerStatus,
+    PlanningProblem,
+    PlanResult,
+    SceneSource,
+    fresh_seed,
+)
+from trajcache.services.catalog.models import model_source
+from trajcache.services.catalog.trajectories import quality_columns, store_trajectory
+from trajcache.services.errors import UnavailableError
+from trajcache.services.plan.answers import answer_planned, answer_without_path
+from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanStatus
+from trajcache.services.plan.records import QualityJob
+
+__all__ = ["plan_fallback"]
+
+RECORD_WAIT_S = 10.0  # how long an unavailable planner's answer waits for its record
+
+
+def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
+    """Plan, validate, store and answer; an unavailable planner is a 503 (UnavailableError)."""
+    with attempt.clock.measure("plan"):
+        problem = _problem(attempt)
+        attempt.session.rollback()  # nothing is written yet; release the connection
+        outcome = planner.submit(problem)
+    # A coalesced or remembered answer ran with its leader's seed; an unrun one with none.
+    seed = outcome.seed if outcome.seed is not None else problem.seed
+    if not outcome.solved or outcome.path is None:
+        return _unsolved(attempt, outcome, seed)
+    with attempt.clock.measure("validate"):
+        result = attempt.validator.validate(outcome.path)
+    if not result.valid:
+        message = f"planned path failed validation: {result.message}"
+        return answer_without_path(attempt, PlanStatus.FAILURE, message, seed=seed)
+    model, scene, settings = attempt.model, attempt.scene, attempt.ctx.settings
+    with attempt.clock.measure("db"):
+        trajectory_id, created = store_trajectory(
+            session=attempt.session,
+            model=model,
+            states=outcome.path,
+            source=attempt.origin.store_source,
+            robot_id=attempt.origin.store_robot_id,
+            scene_hash=scene.hash,
+            env=scene.env,
+            planning_time_ms=attempt.clock.seconds("plan") * 1e3,
+            max_states=settings.max_trajectory_states,
+            compute_quality=False,  # computed after the answer, with the plan record
+        )
+    job = None
+    if created:
+        path = outcome.path
+        validators = attempt.ctx.validators
+        job = QualityJob(
+            trajectory_id,
+            lambda: quality_columns(model, path, settings, scene, validators=validators),
+        )
+    return answer_planned(attempt, trajectory_id, outcome.path, seed=seed, quality=job)
+
+
+def _problem(attempt: PlanAttempt) -> PlanningProblem:
+    """The planning problem of the attempt, certified by the worker as the flow validates."""
+    ctx, scene, settings = attempt.ctx, attempt.scene, attempt.ctx.settings
+    return PlanningProblem(
+        model=model_source(
+            session=attempt.session, model_id=attempt.model.model_id, registry=ctx.models
+        ),
+        scene=SceneSource(hash=scene.hash, payload=scene_to_payload(scene)),
+        start=tuple(float(v) for v in attempt.start),
+        goal=tuple(float(v) for v in attempt.goal),
+        budget_s=attempt.request.budget_s,
+        planner=attempt.request.planner,
+        seed=fresh_seed(),
+        joint_values=tuple(sorted((attempt.origin.held or {}).items())),
+        step_position_m=settings.step_position_m,
+        step_orientation_rad=settings.step_orientation_rad,
+        step_joint_rad=settings.step_joint_rad,
+        certified_validation=settings.certified_validation,
+    )
+
+
+def _unsolved(attempt: PlanAttempt, outcome: PlanResult, seed: int | None) -> PlanAnswer:
+    """A failure answer; a planner that could not run raises a 503 the caller may retry, once
+    its plan event is written."""
+    status = PlanStatus.ERROR if outcome.status is PlannerStatus.ERROR else PlanStatus.FAILURE
+    message = f"{outcome.status.value}: {outcome.message}".rstrip(": ")
+    answer = answer_without_path(attempt, status, message, seed=seed)
+    if status is PlanStatus.ERROR:
+        if answer.record is not None:
+            attempt.ctx.records.wait(answer.record, timeout=RECORD_WAIT_S)
+        raise UnavailableError(f"planning is unavailable, retry later ({outcome.message})")
+    return answer

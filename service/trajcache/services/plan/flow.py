@@ -1,0 +1,372 @@
+"""The plan flow (paper, section 3): lookup → adapt → validate → fallback → store → answer.
+
+`_answer` is the spine and reads top to bottom: look up candidates, validate them, answer the
+first valid one; otherwise check the endpoints and answer a miss, or fall back to the planner
+(`services.plan.fallback`). Each step takes the request's :class:`PlanAttempt`
+(`services.plan.attempt`), which holds what the steps share and times each phase.
+
+A cache hit, the hot path, reads the database once: the robot with its current scene version
+(parsed scenes are cached by hash), and in the same query the replica sync (what other replicas
+stored or deleted since the last sync; with `index_sync_interval_s=0` a sync that began after the
+request arrived).
+Candidates' key states come from a per-process cache (stored states never change), and so do
+their ranking facts while less than a second old (`services.plan.ranking_facts`). The read
+transaction ends before validation, so no connection is held while checking collisions.
+
+Validation memo (`cache.memo`). A cached trajectory's verdict depends on its key states, the
+robot model (id = content hash of the robot), the scene (hash = content hash of every object and
+environment value) and the validator's settings (its `settings_key`): the memo scope. Per
+scope, a bounded per-process LRU holds digests of exact key-state sequences that passed certified
+validation. Adaptation (`cache.adapt`) replaces the first and last states (their heading unwrapped
+towards their neighbour) and, when the base stays still, re-anchors every interior base pose to
+the request's. Validation certifies each straight segment between key states on its own, so:
+
+- the exact adapted path was certified in this scope → valid without collision checks;
+- its interior (all but the first and last state) was → only the first and last segments, the
+  ones endpoint substitution changed, are validated;
+- anything else — another scene (new hash), other settings, an interior moved by re-anchoring
+  the base, reversal — is a different digest, and the whole path is validated.
+
+Only a path that passed is ever remembered; a rejection is never remembered, and a memo entry can
+only skip checks whose outcome is already known to be "valid". Candidates that adapt to the same
+path as one already rejected in this request (two-state trajectories all become the straight
+line from start to goal) reuse that verdict.
+
+Bookkeeping of every answer (usage counters of the served and the rejected candidates, the plan
+event) goes to `ctx.records` (`services.plan.records`), the only writer of those counters and
+events: written in order by a background writer, many per transaction, flushed at shutdown. The
+HTTP layer keeps the request's cycle open, after sending the answer, until its record is
+committed.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from trajcache.cache.adapt import adapt_trajectory, base_is_still
+from trajcache.cache.index import Match
+from trajcache.cache.memo import MemoUse, validate_with_memo
+from trajcache.cache.ranking import RANKING_COLUMNS, facts_from_row, rank_matches
+from trajcache.db.models import Trajectory, utcnow
+from trajcache.geometry.errors import CollisionStateError
+from trajcache.geometry.model.kinematics import (
+    StateInput,
+    check_limits,
+    check_states,
+    resolve_state,
+)
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.scene.variant import model_in_scene
+from trajcache.geometry.validation.validator import ValidationResult
+from trajcache.metrics import record_plan
+from trajcache.services.catalog.models import get_model
+from trajcache.services.catalog.robots import robot_scene
+from trajcache.services.context import ServiceContext
+from trajcache.services.errors import InvalidInputError
+from trajcache.services.plan.answers import answer_hit, answer_without_path
+from trajcache.services.plan.attempt import (
+    Origin,
+    PhaseClock,
+    PlanAnswer,
+    PlanAttempt,
+    PlanRequest,
+    PlanSource,
+    PlanStatus,
+)
+from trajcache.services.plan.fallback import plan_fallback
+from trajcache.services.plan.options import PlanOptions, resolve_request
+from trajcache.services.plan.quality import AnswerExtras, answer_details
+from trajcache.timing import TimingError
+
+__all__ = [
+    "AnswerExtras",
+    "PlanAnswer",
+    "PlanOptions",
+    "PlanRequest",
+    "PlanSource",
+    "PlanStatus",
+    "answer_plan",
+    "answer_request",
+    "plan",
+    "plan_in_scene",
+]
+
+
+@dataclass(frozen=True)
+class _Hit:
+    """A cached candidate that passed validation, adapted to the request."""
+
+    match: Match
+    states: np.ndarray
+    memo: MemoUse
+
+
+def answer_plan(
+    *,
+    ctx: ServiceContext,
+    robot_id: str,
+    start: StateInput,
+    goal: StateInput,
+    options: PlanOptions,
+    extras: AnswerExtras,
+) -> PlanAnswer:
+    """The plan endpoint's request: options resolved against the settings, answered with extras."""
+    request = resolve_request(settings=ctx.settings, start=start, goal=goal, options=options)
+    return answer_request(ctx=ctx, robot_id=robot_id, request=request, extras=extras)
+
+
+def answer_request(
+    *, ctx: ServiceContext, robot_id: str, request: PlanRequest, extras: AnswerExtras
+) -> PlanAnswer:
+    """Answer a robot's plan request, count it in the metrics, and add the extras it asks for."""
+    answer, attempt = _plan_robot(ctx, robot_id, request)
+    record_plan(
+        status=answer.status.value,
+        source=answer.source.value if answer.source is not None else None,
+        timings=answer.timings_ms,
+    )
+    return describe_answer(
+        ctx=ctx, answer=answer, model=attempt.model, scene=attempt.scene, extras=extras
+    )
+
+
+def plan(*, ctx: ServiceContext, robot_id: str, request: PlanRequest) -> PlanAnswer:
+    """Answer one plan request of a robot, in the scene the robot last uploaded."""
+    return _plan_robot(ctx, robot_id, request)[0]
+
+
+def plan_in_scene(
+    *,
+    ctx: ServiceContext,
+    caller: str,
+    model_id: str,
+    scene: Scene,
+    request: PlanRequest,
+    store_as: str = "sim",
+) -> PlanAnswer:
+    """Answer a plan request in a given scene (a seed job's simulated robot).
+
+    The flow is the robots' one; `caller` is recorded in the plan event, and a trajectory the
+    planner finds is stored with source `store_as`.
+    """
+    clock = PhaseClock()
+    with ctx.sessions() as session:
+        with clock.measure("db"):
+            model = get_model(session=session, registry=ctx.models, model_id=model_id)
+        origin = Origin(store_as, None, real=False)
+        attempt = _open(ctx, session, caller, origin, model, scene, request, clock)
+        return _answer(attempt)
+
+
+def _plan_robot(
+    ctx: ServiceContext, robot_id: str, request: PlanRequest
+) -> tuple[PlanAnswer, PlanAttempt]:
+    """A robot's request in its current scene: one query for the robot, its scene and the sync."""
+    clock = PhaseClock()
+    with ctx.sessions() as session:
+        with clock.measure("db"):
+            _read_without_transaction(session)
+            robot = robot_scene(  # one query, the replica sync riding along
+                session=session,
+                scenes=ctx.scenes,
+                robot_id=robot_id,
+                read_fn=functools.partial(
+                    ctx.indexes.read_with_sync, session, arrived=clock.arrived
+                ),
+            )
+            model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
+        origin = Origin("planner", robot_id, real=robot.kind == "real", held=robot.joint_values)
+        attempt = _open(ctx, session, robot_id, origin, model, robot.scene, request, clock)
+        return _answer(attempt), attempt
+
+
+def _open(
+    ctx: ServiceContext,
+    session: Session,
+    caller: str,
+    origin: Origin,
+    model: RobotModel,
+    scene: Scene,
+    request: PlanRequest,
+    clock: PhaseClock,
+) -> PlanAttempt:
+    """The attempt of `request`, its start and goal resolved and checked (timed as validation)."""
+    with clock.measure("validate"):
+        # Checked as the robot holds its joints in this scene; cached under the registered model.
+        checked = model_in_scene(model, scene, origin.held, cache=ctx.variants)
+        start_values = resolve_state(checked, request.start, name="start")
+        goal_values = resolve_state(checked, request.goal, name="goal")
+        start = check_states(model, start_values, name="start")[0]
+        goal = check_states(model, goal_values, name="goal")[0]
+        check_limits(model, start, name="start")
+        check_limits(model, goal, name="goal")
+    return PlanAttempt(
+        ctx, session, caller, origin, model, scene, request, clock, checked, start, goal
+    )
+
+
+def _answer(attempt: PlanAttempt) -> PlanAnswer:
+    """Lookup → validate → the hit; else endpoints checked → a miss, or the planner's answer."""
+    matches = lookup(attempt)
+    hit = validate_candidates(attempt, matches)
+    if hit is not None:
+        return answer_hit(attempt, hit.match.trajectory_id, hit.states, hit.memo)
+    check_endpoints(attempt)
+    planner = attempt.ctx.planner_pool() if attempt.request.fallback else None
+    if planner is None:
+        why = "planning is off" if attempt.request.fallback else "fallback planning disabled"
+        message = f"no valid cached trajectory; {why}"
+        return answer_without_path(attempt, PlanStatus.MISS, message)
+    return plan_fallback(attempt, planner)
+
+
+def lookup(attempt: PlanAttempt) -> list[Match]:
+    """Candidates within the threshold, ranked, the first `max_candidates`; their key states
+    are read (or cached) before the read transaction ends.
+
+    Lookup fetches up to `ranking_pool` candidates, nearest first; ranking (`cache.ranking`:
+    environment nearness, real-robot validations, failure streaks) orders them.
+    """
+    ctx, session, clock, request = attempt.ctx, attempt.session, attempt.clock, attempt.request
+    with clock.measure("db"):
+        # what other replicas wrote before the request arrived (no query if `plan` read it)
+        index = ctx.indexes.index(session, attempt.model, arrived=clock.arrived)
+    with clock.measure("lookup"):
+        start, goal, offset = attempt.start, attempt.goal, attempt.model.arm_offset
+        arm_only = request.arm_only and base_is_still(start, goal, arm_offset=offset)
+        ranking = ctx.ranking.active  # no rule on: skip the facts query, lookup's order stands
+        matches: list[Match] = []
+        if request.lookup:
+            matches = index.query(
+                start,
+                goal,
+                threshold=request.threshold,
+                limit=max(request.max_candidates, ctx.ranking.pool if ranking else 0),
+                arm_only=arm_only,
+            )
+        if ranking and len(matches) > 1:
+            matches = _ranked(session, ctx, matches, attempt.scene)
+        matches = matches[: request.max_candidates]
+        attempt.candidates = ctx.indexes.states(session, [m.trajectory_id for m in matches])
+        session.rollback()  # end the read transaction: no connection is held while validating
+    return matches
+
+
+def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | None:
+    """The first candidate valid once adapted; the rejected ones are noted on the attempt."""
+    attempt.tried = len(matches)
+    seen: list[tuple[np.ndarray, ValidationResult]] = []  # adapted paths rejected so far
+    with attempt.clock.measure("validate"):
+        for match in matches:
+            stored = attempt.candidates.get(match.trajectory_id)
+            if stored is None:  # deleted since the index was read
+                continue
+            adapted = adapt_trajectory(
+                stored,
+                attempt.start,
+                attempt.goal,
+                arm_offset=attempt.model.arm_offset,
+                reverse=match.reversed,
+            )
+            result = next((r for path, r in seen if np.array_equal(path, adapted)), None)
+            if result is None:
+                result, memo_use = validate_with_memo(
+                    adapted,
+                    validate_fn=attempt.validator.validate,
+                    memo=attempt.ctx.memo,
+                    scope=attempt.memo_scope,
+                )
+                if result.valid:
+                    return _Hit(match, adapted, memo_use)
+                seen.append((adapted, result))
+            attempt.failed.append(match.trajectory_id)
+            attempt.rejected.append(_rejection(match, result))
+    attempt.ctx.facts.record(
+        served=None, failed=attempt.failed, real=False, at=attempt.ctx.records.now()
+    )
+    return None
+
+
+def check_endpoints(attempt: PlanAttempt) -> None:
+    """A start or goal in collision is the caller's error (422), not a planning failure."""
+    with attempt.clock.measure("validate"):
+        checker = attempt.validator.checker
+        for name, state in (("start", attempt.start), ("goal", attempt.goal)):
+            contacts = checker.state_contacts(state)
+            if contacts:
+                text = "; ".join(c.describe() for c in contacts)
+                raise CollisionStateError(
+                    f"{name} state is in collision: {text}", contacts=contacts
+                )
+
+
+def _ranked(
+    session: Session, ctx: ServiceContext, matches: list[Match], scene: Scene
+) -> list[Match]:
+    """`matches` in the order the ranking rules give (facts not fresh in `ctx.facts`: one query)."""
+    facts, missing = ctx.facts.get_many(m.trajectory_id for m in matches)
+    if missing:
+        rows = session.execute(
+            sa.select(*(getattr(Trajectory, c) for c in RANKING_COLUMNS)).where(
+                Trajectory.id.in_(missing)
+            )
+        ).all()
+        read = {row.id: facts_from_row(row) for row in rows}
+        ctx.facts.put_many(read)
+        facts.update(read)
+    return rank_matches(matches, facts, env=scene.env, now=utcnow(), rules=ctx.ranking)
+
+
+def _read_without_transaction(session: Session) -> None:
+    """On PostgreSQL, run the lookup's reads in autocommit: no BEGIN and ROLLBACK round trips.
+
+    Each read sees its own snapshot either way (read committed) and none writes; the connection
+    goes back to the pool (its isolation level reset) when the reads end, so later writes of the
+    request run in an ordinary transaction.
+    """
+    if session.get_bind().dialect.name == "postgresql":
+        session.connection(execution_options={"isolation_level": "AUTOCOMMIT"})
+
+
+def _rejection(match: Match, result: ValidationResult) -> dict[str, object]:
+    return {
+        "trajectory_id": match.trajectory_id,
+        "status": result.status.value,
+        "reason": result.message,
+    }
+
+
+def describe_answer(
+    *,
+    ctx: ServiceContext,
+    answer: PlanAnswer,
+    model: RobotModel,
+    scene: Scene,
+    extras: AnswerExtras,
+) -> PlanAnswer:
+    """`answer` with the details `extras` ask for, their cost in its timings (ms).
+
+    A timing the request's limits cannot satisfy is the caller's error (422).
+    """
+    if answer.states is None:
+        return answer
+    try:
+        details = answer_details(
+            ctx=ctx,
+            model=model,
+            scene=scene,
+            states=answer.states,
+            timing=extras.timing,
+            level=extras.quality,
+        )
+    except TimingError as exc:
+        raise InvalidInputError(f"options.timing: {exc}") from None
+    answer.details = details
+    answer.timings_ms.update({k: round(v, 3) for k, v in details.timings_ms.items()})
+    return answer

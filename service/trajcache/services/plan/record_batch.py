@@ -1,0 +1,160 @@
+"""One transaction of plan records: the counter updates, events and quality columns they write.
+
+The only statements that write trajectories' usage counters (hits, failures, failure streaks,
+real-robot validations) and plan events; `services.plan.records` runs them in submission order.
+"""
+
+from __future__ import annotations
+
+import logging
+import uuid
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy import Engine
+
+from trajcache.db.models import PlanEvent, Trajectory
+
+__all__ = ["PlanRecord", "QualityJob", "committed", "write_records"]
+
+_log = logging.getLogger(__name__)
+
+
+class QualityJob:
+    """The quality columns of a trajectory the planner just stored, computed off the request
+    path (by the writer, before the record's transaction; once, whatever the retries)."""
+
+    def __init__(self, trajectory_id: int, compute: Callable[[], Mapping[str, Any] | None]):
+        self.trajectory_id = trajectory_id
+        self._compute: Callable[[], Mapping[str, Any] | None] | None = compute
+        self._values: Mapping[str, Any] | None = None
+
+    def values(self) -> Mapping[str, Any] | None:
+        """The column values (None: nothing could be computed); computed on the first call."""
+        if self._compute is not None:
+            compute, self._compute = self._compute, None
+            try:
+                self._values = compute()
+            except Exception:  # a metric must never cost the record
+                _log.warning("quality of trajectory %d could not be computed", self.trajectory_id,
+                             exc_info=True)  # fmt: skip
+        return self._values
+
+
+@dataclass(frozen=True)
+class PlanRecord:
+    """The bookkeeping of one plan request."""
+
+    at: datetime  # when the plan was answered
+    served: int | None  # the cached trajectory that was returned
+    failed: tuple[int, ...]  # cached candidates that failed validation
+    event: Mapping[str, Any]  # plan_events column values (without id and created_at)
+    real: bool = False  # served to a real robot: counts as a real-world validation
+    key: str = field(default_factory=lambda: uuid.uuid4().hex)  # its event's record_key
+    quality: QualityJob | None = None  # a newly planned trajectory's quality, written with it
+
+
+_T = Trajectory
+
+_AT = _T.last_used_at.type
+# The counters of one trajectory for a batch, served or not. Every row of a batch is updated by
+# this one statement in id order, so writers (of all replicas) lock rows in the same order and
+# cannot deadlock. A served row's failure streak is what followed its last hit in the batch; the
+# streak of a row that only failed validation grows.
+_USAGE = (
+    sa.update(_T)
+    .where(_T.id == sa.bindparam("b_id"))
+    .values(
+        hits=_T.hits + sa.bindparam("b_hits"),
+        failures=_T.failures + sa.bindparam("b_failures"),
+        consecutive_failures=sa.case(
+            (sa.bindparam("b_served", type_=sa.Boolean), sa.bindparam("b_streak")),
+            else_=_T.consecutive_failures + sa.bindparam("b_failures"),
+        ),
+        last_used_at=sa.func.coalesce(sa.bindparam("b_at", type_=_AT), _T.last_used_at),
+        last_validated_at=sa.func.coalesce(sa.bindparam("b_at", type_=_AT), _T.last_validated_at),
+        real_validations=_T.real_validations + sa.bindparam("b_real"),
+        last_real_validated_at=sa.func.coalesce(
+            sa.bindparam("b_real_at", type_=_AT), _T.last_real_validated_at
+        ),
+    )
+)
+
+_EVENTS = sa.insert(PlanEvent)
+_QUALITY = (
+    sa.update(_T)
+    .where(_T.id == sa.bindparam("q_id"))
+    .values(
+        length=sa.bindparam("length"),
+        ee_length=sa.bindparam("ee_length"),
+        min_clearance=sa.bindparam("min_clearance"),
+        duration_s=sa.bindparam("duration_s"),
+        quality=sa.bindparam("quality", type_=_T.quality.type),
+    )
+)
+
+
+@dataclass
+class _Usage:
+    hits: int = 0
+    failures: int = 0
+    streak: int = 0  # failures since the last hit in the batch
+    served_at: datetime | None = None
+    real: int = 0  # hits by real robots
+    real_at: datetime | None = None
+
+
+def write_records(engine: Engine, records: Iterable[PlanRecord]) -> None:
+    """Commit the records' counter updates, events and quality columns in one transaction."""
+    usage: dict[int, _Usage] = {}
+    events: list[dict[str, Any]] = []
+    qualities: list[dict[str, Any]] = []
+    for record in records:
+        values = record.quality.values() if record.quality is not None else None
+        if values is not None and record.quality is not None:
+            qualities.append({"q_id": record.quality.trajectory_id, **values})
+        for trajectory_id in record.failed:
+            u = usage.setdefault(trajectory_id, _Usage())
+            u.failures += 1
+            u.streak += 1
+        if record.served is not None:
+            u = usage.setdefault(record.served, _Usage())
+            u.hits += 1
+            u.streak = 0
+            u.served_at = record.at
+            if record.real:
+                u.real += 1
+                u.real_at = record.at
+        events.append({**record.event, "created_at": record.at, "record_key": record.key})
+    rows = [
+        {"b_id": i, "b_hits": u.hits, "b_failures": u.failures, "b_served": u.served_at is not None,
+         "b_streak": u.streak, "b_at": u.served_at, "b_real": u.real, "b_real_at": u.real_at}
+        for i, u in sorted(usage.items())
+    ]  # fmt: skip
+    with engine.begin() as conn:
+        if rows:
+            conn.execute(_USAGE, _one_or_many(rows))
+        if events:
+            conn.execute(_EVENTS, _one_or_many(events))
+        for values in qualities:  # few: one per planned trajectory
+            conn.execute(_QUALITY, values)
+
+
+def committed(engine: Engine, record: PlanRecord) -> bool:
+    """Whether `record` is in the database: its batch's transaction was committed (a batch is
+    written whole or not at all)."""
+    with engine.connect() as conn:
+        found = conn.execute(_KEY_FOUND, {"key": record.key}).first()
+    return found is not None
+
+
+_KEY_FOUND = sa.select(PlanEvent.id).where(PlanEvent.record_key == sa.bindparam("key"))
+
+
+def _one_or_many(params: list[dict[str, Any]]) -> dict[str, Any] | list[dict[str, Any]]:
+    """A lone parameter set is executed as such: an executemany of one costs the driver more
+    (psycopg runs it as a pipeline with its own sync)."""
+    return params[0] if len(params) == 1 else params

@@ -1,0 +1,1 @@
+"""Plan statistics: events, hourly rollups, histograms and windows."""

@@ -1,0 +1,168 @@
+"""Plan events and their hourly rollups as columns, read in one query each.
+
+`EventRows` holds either kind the same way (an event is a rollup of one), so statistics and
+rollups are computed by one code path: counts and sums per row, and histogram entries.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+
+import numpy as np
+import numpy.typing as npt
+import sqlalchemy as sa
+from sqlalchemy.orm import InstrumentedAttribute, Session
+
+from trajcache.db.models import PlanEvent, PlanEventRollup
+from trajcache.services.stats import histograms
+
+ObjArray = npt.NDArray[np.object_]
+
+
+@dataclass
+class EventRows:
+    """Plan events or rollups as columns: one row per event (`n` = 1) or per rollup (`n` ≥ 1)."""
+
+    t: npt.NDArray[np.int64]  # epoch seconds of the event, or of the rollup's hour
+    robot: ObjArray
+    model: ObjArray
+    source: ObjArray  # None when no trajectory was returned
+    status: ObjArray
+    n: npt.NDArray[np.int64]
+    sums: npt.NDArray[np.float64]  # (rows, len(METRICS)) timing sums in ms
+    # Histogram entries: (row, metric, bin, count).
+    entries: tuple[
+        npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]
+    ]
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    @staticmethod
+    def concat(parts: list[EventRows]) -> EventRows:
+        """All rows of `parts`, in order."""
+        offsets = np.cumsum([0] + [len(p) for p in parts])
+        return EventRows(
+            t=np.concatenate([p.t for p in parts]),
+            robot=np.concatenate([p.robot for p in parts]),
+            model=np.concatenate([p.model for p in parts]),
+            source=np.concatenate([p.source for p in parts]),
+            status=np.concatenate([p.status for p in parts]),
+            n=np.concatenate([p.n for p in parts]),
+            sums=np.concatenate([p.sums for p in parts]).reshape(-1, len(histograms.METRICS)),
+            entries=(
+                np.concatenate(
+                    [p.entries[0] + o for p, o in zip(parts, offsets[:-1], strict=True)]
+                ),
+                np.concatenate([p.entries[1] for p in parts]),
+                np.concatenate([p.entries[2] for p in parts]),
+                np.concatenate([p.entries[3] for p in parts]),
+            ),
+        )
+
+
+def epoch_seconds(
+    session: Session, column: InstrumentedAttribute[datetime]
+) -> sa.ColumnElement[int]:
+    """SQL for a timestamp column as whole seconds since the epoch (UTC)."""
+    if session.get_bind().dialect.name == "sqlite":
+        return sa.cast(sa.func.strftime("%s", column), sa.BigInteger)
+    return sa.cast(sa.func.floor(sa.extract("epoch", column)), sa.BigInteger)
+
+
+def fetch_events(
+    session: Session,
+    begin: datetime,
+    end: datetime,
+    *,
+    robot_id: str | None = None,
+    model_id: str | None = None,
+) -> EventRows:
+    """Plan events with `begin` ≤ created_at < `end`, as columns."""
+    e = PlanEvent
+    query = sa.select(
+        epoch_seconds(session, e.created_at),
+        e.robot_id,
+        e.model_id,
+        e.source,
+        e.status,
+        e.lookup_ms,
+        e.validate_ms,
+        e.plan_ms,
+        e.total_ms,
+    ).where(e.created_at >= begin, e.created_at < end)
+    if robot_id is not None:
+        query = query.where(e.robot_id == robot_id)
+    if model_id is not None:
+        query = query.where(e.model_id == model_id)
+    rows = session.connection().execute(query).all()  # core rows: no ORM overhead
+    count = len(rows)
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 9
+    sums = np.array(cols[5:9], dtype=np.float64).T.reshape(count, len(histograms.METRICS))
+    metrics = len(histograms.METRICS)
+    return EventRows(
+        t=np.array(cols[0], dtype=np.int64),
+        robot=np.array(cols[1], dtype=object),
+        model=np.array(cols[2], dtype=object),
+        source=np.array(cols[3], dtype=object),
+        status=np.array(cols[4], dtype=object),
+        n=np.ones(count, dtype=np.int64),
+        sums=sums,
+        entries=(
+            np.repeat(np.arange(count, dtype=np.int64), metrics),
+            np.tile(np.arange(metrics, dtype=np.int64), count),
+            histograms.bin_of(sums.ravel()),
+            np.ones(count * metrics, dtype=np.int64),
+        ),
+    )
+
+
+def fetch_rollups(
+    session: Session,
+    begin: datetime,
+    end: datetime,
+    *,
+    robot_id: str | None = None,
+    model_id: str | None = None,
+) -> EventRows:
+    """Rollups of the hours `begin` ≤ hour < `end`, as columns."""
+    r = PlanEventRollup
+    query = sa.select(
+        epoch_seconds(session, r.bucket_start),
+        r.robot_id,
+        r.model_id,
+        r.source,
+        r.status,
+        r.requests,
+        r.lookup_ms,
+        r.validate_ms,
+        r.plan_ms,
+        r.total_ms,
+        r.histograms,
+    ).where(r.bucket_start >= begin, r.bucket_start < end)
+    if robot_id is not None:
+        query = query.where(r.robot_id == robot_id)
+    if model_id is not None:
+        query = query.where(r.model_id == model_id)
+    rows = session.connection().execute(query).all()  # core rows: no ORM overhead
+    count = len(rows)
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 11
+    return EventRows(
+        t=np.array(cols[0], dtype=np.int64),
+        robot=np.array(cols[1], dtype=object),
+        model=np.array(cols[2], dtype=object),
+        source=np.array(cols[3], dtype=object),
+        status=np.array(cols[4], dtype=object),
+        n=np.array(cols[5], dtype=np.int64),
+        sums=np.array(cols[6:10], dtype=np.float64).T.reshape(count, len(histograms.METRICS)),
+        entries=histograms.decode(list(cols[10])),
+    )
+
+
+def codes(values: ObjArray) -> tuple[ObjArray, npt.NDArray[np.int64]]:
+    """The distinct values (None sorts as "") and each row's index into them."""
+    keys = np.where(values == None, "", values).astype(str)  # noqa: E711  (elementwise)
+    unique, inverse = np.unique(keys, return_inverse=True)
+    labels = np.array([u or None for u in unique.tolist()], dtype=object)
+    return labels, inverse.reshape(-1).astype(np.int64)

@@ -1,0 +1,275 @@
+"""Trajectory metrics: path lengths, clearance to the scene, motion bounds; pure geometry.
+
+Cheap metrics (state-space and end-effector path length, tens of microseconds) are computed for
+every answer; clearance (FCL distances) costs milliseconds and is computed when a trajectory is
+stored, or when a request asks for it (`services.plan.quality`, which also times trajectories).
+
+Clearance is the smallest FCL distance between a robot collision element and a scene object over
+states sampled along the trajectory (at the validator's resolution). It is found by branch and
+bound: a bounding-sphere-to-box lower bound on every (state, element, object) distance orders the
+pairs, and FCL runs only until the next lower bound exceeds the best distance found.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import fcl
+import numpy as np
+
+from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.kinematics import link_motion_bounds
+from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import segment_deltas
+from trajcache.geometry.validation.validator import Resolution, interpolate
+
+MAX_DISTANCE_QUERIES = 20_000  # FCL calls per clearance; beyond it the result is an upper bound
+
+
+@dataclass(frozen=True)
+class MinClearance:
+    """The smallest distance to the scene, where it occurs, and whether it is exact."""
+
+    distance: float  # m; 0 when touching
+    link: str
+    object: str
+    state_index: int  # index into the sampled states
+    exact: bool = True  # False when MAX_DISTANCE_QUERIES cut the search short
+
+
+@dataclass(frozen=True)
+class Quality:
+    """Quality of one trajectory; None where a metric was not computed (or has no value)."""
+
+    path_length: float  # Σ‖Δstate‖ (state units, base angle the short way)
+    ee_path_length: float  # m, travelled by the end-effector link's origin
+    min_clearance: float | None = None  # m; None: not computed, or no obstacle in the scene
+    duration_s: float | None = None  # after time-optimal timing
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {
+            "path_length": self.path_length,
+            "ee_path_length": self.ee_path_length,
+            "min_clearance": self.min_clearance,
+            "duration_s": self.duration_s,
+        }
+
+
+_EE_LINKS: weakref.WeakKeyDictionary[RobotModel, int] = weakref.WeakKeyDictionary()
+
+
+def end_effector_link(model: RobotModel) -> int:
+    """Index of the end-effector link: the configured one, or the tip of the longest chain."""
+    cached = _EE_LINKS.get(model)
+    if cached is not None:
+        return cached
+    if model.end_effector_link is not None:
+        if model.end_effector_link not in model.link_names:
+            raise ValueError(f"end-effector link {model.end_effector_link!r} is not in the model")
+        link = model.link_names.index(model.end_effector_link)
+    else:
+        depth = {0: 0}
+        for joint in model.joints:  # topological order: parents first
+            depth[joint.child] = depth[joint.parent] + 1
+        # deepest link; among equals the one listed last (the tool, not a side branch)
+        link = max(depth, key=lambda k: (depth[k], k))
+    _EE_LINKS[model] = link
+    return link
+
+
+def ee_path_length(
+    model: RobotModel, states: FloatArray, *, step: float = 0.05, max_samples: int = 16
+) -> float:
+    """Length of the end-effector's path (m), sampled every `step` along the trajectory.
+
+    Samples are spaced at most `step` in every state value (rad or m), but no more than
+    `max_samples` in all (a chord sum; shorter than the true curve by a fraction of a percent).
+    """
+    array = np.asarray(states, dtype=float)
+    if len(array) < 2:
+        return 0.0
+    deltas = segment_deltas(array, planar=model.base is BaseType.PLANAR)
+    steps = np.abs(deltas).max(axis=1) / step
+    total = float(steps.sum())
+    scale = min(1.0, max_samples / total) if total > 0 else 1.0
+    counts = np.maximum(np.ceil(steps * scale), 1).astype(np.int64).tolist()
+    pieces = [
+        array[k] + np.linspace(0.0, 1.0, count, endpoint=False)[:, None] * deltas[k]
+        for k, count in enumerate(counts)
+    ]
+    dense = np.concatenate([*pieces, array[-1:]])
+    points = link_origins(model, dense, end_effector_link(model))
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+@dataclass(frozen=True)
+class _ChainStep:
+    """A movable joint on a link's chain to the root, with the fixed joints below it folded in.
+
+    Maps a point v in the joint's child frame to its parent frame: for a revolute joint,
+    O·R(q)·v + t = cos·(A v) + sin·(B v) + (1 − cos)·(C v) + t with A = O, B = O·[k]×,
+    C = O·k·kᵀ (Rodrigues); stacked as one (3, 9) matrix so that each joint is one matmul.
+    """
+
+    index: int  # state index, or -1 for a joint held at `default`
+    kind: str  # "revolute" | "continuous" | "prismatic"
+    default: float
+    stacked_t: FloatArray  # (3, 9): v @ stacked_t = [A v, B v, C v]
+    axis_world: FloatArray  # O·k, for prismatic joints
+    translation: FloatArray
+
+
+@dataclass(frozen=True)
+class _Chain:
+    tip: FloatArray  # the link origin in the frame of the first movable joint below it
+    steps: list[_ChainStep]
+    root: FloatArray  # 4×4 rigid transform above the last movable joint (fixed joints)
+
+
+_CHAINS: weakref.WeakKeyDictionary[RobotModel, dict[int, _Chain]] = weakref.WeakKeyDictionary()
+_SUM_OF_THREE = np.vstack([np.eye(3)] * 3)  # (9, 3): [a | b | c] ↦ a + b + c
+
+
+def _chain(model: RobotModel, link: int) -> _Chain:
+    chains = _CHAINS.setdefault(model, {})
+    if link in chains:
+        return chains[link]
+    by_child = {joint.child: joint for joint in model.joints}
+    pending = np.eye(4)  # fixed transforms met since the last movable joint
+    tip: FloatArray | None = None
+    steps: list[_ChainStep] = []
+    current = link
+    while current in by_child:
+        joint = by_child[current]
+        current = joint.parent
+        if joint.kind == "fixed":
+            pending = joint.origin @ pending
+            continue
+        if tip is None:
+            tip = pending[:3, 3].copy()
+        else:  # fold the fixed joints into the previous movable joint's output
+            prev = steps[-1]
+            rot, shift = pending[:3, :3], pending[:3, 3]
+            steps[-1] = _ChainStep(
+                prev.index,
+                prev.kind,
+                prev.default,
+                prev.stacked_t @ np.kron(np.eye(3), rot.T),
+                rot @ prev.axis_world,
+                rot @ prev.translation + shift,
+            )
+        rot, k = joint.origin[:3, :3], np.asarray(joint.axis, dtype=float)
+        skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        stacked = np.vstack([rot, rot @ skew, rot @ np.outer(k, k)])
+        steps.append(
+            _ChainStep(
+                joint.index, joint.kind, joint.default, stacked.T, rot @ k, joint.origin[:3, 3]
+            )
+        )
+        pending = np.eye(4)
+    chains[link] = _Chain(
+        tip if tip is not None else pending[:3, 3].copy(),
+        steps,
+        pending if tip is not None else np.eye(4),
+    )
+    return chains[link]
+
+
+def link_origins(model: RobotModel, states: FloatArray, link: int) -> FloatArray:
+    """World position (N, 3) of one link's origin: forward kinematics of its chain only.
+
+    Transforms a point rather than composing 4×4 matrices (same convention as
+    `link_transforms`: child = parent · origin · motion(q)); several times cheaper for one link.
+    """
+    q = np.asarray(states, dtype=float)
+    chain = _chain(model, link)
+    n = len(q)
+    values = np.empty((n, len(chain.steps)))
+    for k, step in enumerate(chain.steps):
+        values[:, k] = q[:, step.index] if step.index >= 0 else step.default
+    cos, sin = np.cos(values), np.sin(values)
+    # per step, the weights of [A v, B v, C v] spread over their 9 columns (N, steps, 9)
+    weights = np.stack([cos, cos, cos, sin, sin, sin, 1 - cos, 1 - cos, 1 - cos], axis=2)
+    point = np.broadcast_to(chain.tip, (n, 3))
+    for k, step in enumerate(chain.steps):
+        if step.kind == "prismatic":
+            point = point @ step.stacked_t[:, :3] + values[:, k, None] * step.axis_world
+        else:
+            point = ((point @ step.stacked_t) * weights[:, k]) @ _SUM_OF_THREE
+        point = point + step.translation
+    point = point @ chain.root[:3, :3].T + chain.root[:3, 3]
+    if model.base is BaseType.PLANAR:
+        c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+        x, y = point[:, 0].copy(), point[:, 1].copy()
+        point[:, 0] = c * x - s * y + q[:, 0]
+        point[:, 1] = s * x + c * y + q[:, 1]
+    return np.asarray(point)
+
+
+def min_clearance(
+    checker: CollisionChecker, states: FloatArray, *, resolution: Resolution | None = None
+) -> MinClearance | None:
+    """Smallest distance between the robot and the scene along `states`; None without obstacles.
+
+    States are sampled along the straight segments at `resolution` (the validator's default).
+    """
+    scene = checker.scene
+    if not scene.objects:
+        return None
+    samples = interpolate(
+        np.asarray(states, dtype=float), checker.model, resolution or Resolution()
+    )
+    poses = checker.element_poses(samples)  # (N, E, 4, 4)
+    n, e = poses.shape[:2]
+    centers = poses[:, :, :3, 3].reshape(-1, 3)
+    # Lower bound per (state, element, object): sphere around the element vs the object's box
+    # (object frame: Rᵀ(c − t), all objects in one matmul as in the collision checker).
+    local = (centers @ scene.rotation_cat).reshape(n, e, -1, 3) - scene.offset
+    outside = np.maximum(np.abs(local) - scene.half, 0.0)
+    bound = np.sqrt(np.sum(outside**2, axis=-1)) - checker.robot.radius[None, :, None]
+    flat = bound.ravel()
+    objects = checker.robot.objects()
+    request = fcl.DistanceRequest()
+
+    def distance(pair: int) -> float:
+        s, k, m = np.unravel_index(pair, bound.shape)
+        pose = poses[s, k]
+        objects[k].setTranslation(pose[:3, 3])
+        objects[k].setRotation(pose[:3, :3])
+        found = fcl.distance(objects[k], scene.objects[m], request, fcl.DistanceResult())
+        return max(float(found), 0.0)
+
+    first = int(np.argmin(flat))
+    best, where = distance(first), first
+    queries = 1
+    # Only pairs whose lower bound beats the first distance can hold the minimum.
+    candidates = np.flatnonzero(flat < best)
+    for pair in candidates[np.argsort(flat[candidates], kind="stable")].tolist():
+        if flat[pair] >= best or best == 0.0 or queries >= MAX_DISTANCE_QUERIES:
+            break
+        if pair == first:
+            continue
+        found = distance(pair)
+        queries += 1
+        if found < best:
+            best, where = found, pair
+    exact = queries < MAX_DISTANCE_QUERIES or best == 0.0
+    state, element, obj = (int(v) for v in np.unravel_index(where, bound.shape))
+    link = checker.model.link_names[int(checker.robot.element_link[element])]
+    return MinClearance(best, link, scene.ids[obj], state, exact)
+
+
+_MOTION_BOUNDS: weakref.WeakKeyDictionary[RobotModel, FloatArray] = weakref.WeakKeyDictionary()
+
+
+def motion_bound(model: RobotModel) -> FloatArray:
+    """Largest displacement of any point of the robot per unit change of each state value."""
+    cached = _MOTION_BOUNDS.get(model)
+    if cached is None:
+        cached = link_motion_bounds(model).max(axis=0)
+        _MOTION_BOUNDS[model] = cached
+    return cached

@@ -1,0 +1,130 @@
+"""`trajcache seed FILE` against a live service (uvicorn in a thread, real HTTP)."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+import uvicorn
+import yaml
+from typer.testing import CliRunner
+
+from tests.robots import TWO_JOINT_URDF
+from tests.waiting import wait_until
+from trajcache.cli import app
+from trajcache.core.config import Settings
+from trajcache.main import create_app
+
+SCENE = {
+    "objects": [{"id": "far", "type": "sphere", "size": [0.05], "pose": {"position": [2, 2, 2]}}]
+}
+
+
+class LiveService:
+    """The app served by uvicorn on a free local port."""
+
+    def __init__(self, settings: Settings) -> None:
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            self.port = probe.getsockname()[1]
+        config = uvicorn.Config(
+            create_app(settings), host="127.0.0.1", port=self.port, log_level="warning"
+        )
+        self.server = uvicorn.Server(config)
+        self.thread = threading.Thread(target=self.server.run, daemon=True)
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    def __enter__(self) -> LiveService:
+        self.thread.start()
+        assert wait_until(lambda: self.server.started, timeout_s=30), "the service did not start"
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.server.should_exit = True
+        self.thread.join(timeout=30)
+
+
+@pytest.fixture
+def service(tmp_path: Path) -> Iterator[tuple[LiveService, str]]:
+    settings = Settings(
+        database_url=f"sqlite:///{tmp_path / 'live.db'}",
+        worker_backend="none",
+        seed_heartbeat_s=0.1,
+        seed_poll_interval_s=0.1,
+    )
+    with LiveService(settings) as live:
+        model = httpx.post(f"{live.url}/v1/robot-models", json={"urdf": TWO_JOINT_URDF}).json()
+        stored = httpx.post(
+            f"{live.url}/v1/trajectories",
+            json={"model_id": model["model_id"], "states": [[0, 0], [0.5, 0.5]]},
+        )
+        assert stored.status_code == 201, stored.text
+        yield live, model["model_id"]
+
+
+def job_file(tmp_path: Path, goals: list[list[float]], suffix: str = ".json", **extra: Any) -> Path:
+    body = {"scenes": [SCENE], "queries": [{"start": [0, 0], "goal": g} for g in goals], **extra}
+    path = tmp_path / f"job{suffix}"
+    path.write_text(yaml.safe_dump(body) if suffix == ".yaml" else json.dumps(body))
+    return path
+
+
+def test_seed_follows_the_job_to_the_end(service: tuple[LiveService, str], tmp_path: Path) -> None:
+    live, model_id = service
+    path = job_file(tmp_path, [[0.5, 0.5], [0.51, 0.49], [-1.0, 1.0]], suffix=".yaml")
+    result = CliRunner().invoke(
+        app, ["seed", str(path), "--url", live.url, "--model", model_id, "--poll-s", "0.05"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "queued seed job 1: 3 requests" in result.output
+    assert "cache hits" in result.output and "2 (66.7%)" in result.output
+    assert "failed #2" in result.output and "miss" in result.output
+    job = httpx.get(f"{live.url}/v1/seed-jobs/1").json()
+    assert (job["state"], job["hits"], job["failed"]) == ("completed", 2, 1)
+
+
+def test_seed_without_waiting_prints_the_job_id(
+    service: tuple[LiveService, str], tmp_path: Path
+) -> None:
+    live, model_id = service
+    path = job_file(tmp_path, [[0.5, 0.5]], model_id=model_id)
+    result = CliRunner().invoke(
+        app, ["seed", str(path), "--no-wait"], env={"TRAJCACHE_URL": live.url}
+    )
+    assert result.exit_code == 0, result.output
+    assert result.stdout.strip().splitlines()[-1] == "1"
+
+
+def test_a_refused_job_exits_2_with_the_reason(
+    service: tuple[LiveService, str], tmp_path: Path
+) -> None:
+    live, model_id = service
+    path = job_file(tmp_path, [[0.5, 9.0]])
+    result = CliRunner().invoke(app, ["seed", str(path), "--url", live.url, "--model", model_id])
+    assert result.exit_code == 2
+    assert "422" in result.output and "queries[0].goal" in result.output
+
+
+def test_unreachable_service_and_bad_files(tmp_path: Path) -> None:
+    path = job_file(tmp_path, [[0.5, 0.5]], model_id="m")
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    result = CliRunner().invoke(app, ["seed", str(path), "--url", f"http://127.0.0.1:{port}"])
+    assert result.exit_code == 1
+    assert "cannot reach the service" in result.output
+    bad = tmp_path / "bad.json"
+    bad.write_text("[1, 2]")
+    result = CliRunner().invoke(app, ["seed", str(bad)])
+    assert result.exit_code == 2 and "one object" in result.output
+    result = CliRunner().invoke(app, ["seed", str(tmp_path / "missing.json")])
+    assert result.exit_code == 2 and "cannot read" in result.output

@@ -1,0 +1,209 @@
+"""The replica's index store: one query per sync, shared syncs, cached key states."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sqlalchemy as sa
+
+from tests.services.hit_setup import context, count_statements, store, two_joint
+from tests.waiting import CountingLock, wait_until
+from trajcache.db.models import Trajectory
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.services.catalog.index_store import StatesCache
+from trajcache.services.catalog.robots import ROBOT_SCENE, put_robot
+from trajcache.services.catalog.trajectories import delete_trajectory
+from trajcache.services.context import ServiceContext
+
+
+def robot(ctx: ServiceContext, model: RobotModel, robot_id: str = "r1") -> str:
+    with ctx.session() as session:
+        put_robot(session=session, robot_id=robot_id, model_id=model.model_id)
+    return robot_id
+
+
+def test_a_sync_is_one_query_and_sees_rows_and_deletions_of_another_replica(
+    database_url: str,
+) -> None:
+    with context(database_url) as a, context(database_url) as b:
+        model = two_joint(a)
+        kept = store(a, model, [[0.0, 0.0], [1.0, 0.5]])
+        with b.session() as session:
+            index = b.indexes.index(session, model)
+        assert kept in index
+        gone = store(a, model, [[0.2, 0.0], [1.0, 0.5]])
+        fresh = store(a, model, [[0.4, 0.0], [1.0, 0.5]])
+        with a.session() as session:
+            delete_trajectory(session=session, trajectory_id=gone)
+        with b.session() as session, count_statements(b.engine) as statements:
+            index = b.indexes.index(session, model)
+        assert len(statements) == 1, statements
+        assert fresh in index and kept in index and gone not in index
+
+
+def test_a_rider_reads_its_row_with_the_sync_and_the_index_then_needs_no_query(
+    database_url: str,
+) -> None:
+    with context(database_url) as a, context(database_url) as b:
+        model = two_joint(a)
+        rid = robot(a, model)
+        with b.session() as session:
+            b.indexes.index(session, model)  # b has loaded the model's index
+        fresh = store(a, model, [[0.4, 0.0], [1.0, 0.5]])  # committed before b's request
+        before = b.indexes.syncs
+        arrived = time.monotonic()
+        with b.session() as session, count_statements(b.engine) as statements:
+            row = b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived)
+            index = b.indexes.index(session, model, arrived=arrived)
+        assert len(statements) == 1, statements
+        assert b.indexes.syncs == before + 1
+        assert row is not None and row[0] == model.model_id
+        assert fresh in index
+        with b.session() as session:
+            ghost = {"robot_id": "ghost"}
+            assert (
+                b.indexes.read_with_sync(session, ROBOT_SCENE, ghost, arrived=time.monotonic())
+                is None
+            )
+        with b.session() as session:  # a later request syncs again (interval 0)
+            b.indexes.index(session, model)
+        assert b.indexes.syncs == before + 3
+        with b.session() as session:  # so does a later one in a reused session
+            arrived = time.monotonic()
+            b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived)
+            b.indexes.index(session, model, arrived=arrived)
+            assert wait_until(lambda: time.monotonic() > b.indexes._synced_from)  # a later arrival
+            b.indexes.index(session, model)
+        assert b.indexes.syncs == before + 5
+
+
+def test_a_rider_alone_is_read_when_no_sync_is_due(database_url: str) -> None:
+    with context(database_url, index_sync_interval_s=60.0) as ctx:
+        model = two_joint(ctx)
+        rid = robot(ctx, model)
+        with ctx.session() as session:
+            ctx.indexes.index(session, model)
+        before = ctx.indexes.syncs
+        with ctx.session() as session, count_statements(ctx.engine) as statements:
+            arrived = time.monotonic()
+            row = ctx.indexes.read_with_sync(
+                session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived
+            )
+            ctx.indexes.index(session, model, arrived=arrived)
+        assert ctx.indexes.syncs == before
+        assert len(statements) == 1 and "trajectory_tombstones" not in statements[0]
+        assert row is not None and row[0] == model.model_id
+
+
+def test_every_call_syncs_at_interval_zero_and_not_within_the_interval(database_url: str) -> None:
+    with context(database_url) as ctx:
+        model = two_joint(ctx)
+        with ctx.session() as session:
+            ctx.indexes.index(session, model)
+            before = ctx.indexes.syncs
+            ctx.indexes.index(session, model)
+            ctx.indexes.index(session, model)
+        assert ctx.indexes.syncs == before + 2
+    with context(database_url, index_sync_interval_s=60.0) as ctx, ctx.session() as session:
+        ctx.indexes.index(session, model)
+        before = ctx.indexes.syncs
+        ctx.indexes.index(session, model)
+        assert ctx.indexes.syncs == before
+
+
+def test_requests_that_arrive_during_a_sync_share_the_next_one(tmp_path: Path) -> None:
+    with context(f"sqlite:///{tmp_path / 'coalesce.db'}") as ctx:
+        model = two_joint(ctx)
+        with ctx.session() as session:
+            ctx.indexes.index(session, model)
+        before = ctx.indexes.syncs
+        asked = threading.Barrier(7)
+        done: list[int] = []
+
+        def request() -> None:
+            with ctx.session() as session:
+                asked.wait()
+                index = ctx.indexes.index(session, model)
+                done.append(len(index))
+
+        lock = ctx.indexes._lock = CountingLock()  # type: ignore[assignment]
+        with lock:  # a sync is running: every request arrives during it
+            threads = [threading.Thread(target=request) for _ in range(6)]
+            for t in threads:
+                t.start()
+            asked.wait()
+            assert wait_until(lambda: lock.asked == 1 + 6)  # all six wait for the lock
+            stored = store(ctx, model, [[0.0, 0.0], [1.0, 0.5]])  # committed before they run
+        for t in threads:
+            t.join()
+        assert ctx.indexes.syncs == before + 1  # one sync served all six
+        assert done == [1] * 6  # the shared sync began after the commit: all six see the row
+        with ctx.session() as session:
+            assert stored in ctx.indexes.index(session, model)
+
+
+@pytest.mark.postgres
+def test_a_row_committed_after_a_higher_id_is_still_picked_up(postgres_url: str) -> None:
+    """PostgreSQL hands out ids before commit: a lower id can become visible later (a gap)."""
+    with context(postgres_url) as ctx:
+        model = two_joint(ctx)
+        with ctx.session() as session:
+            ctx.indexes.index(session, model)
+        slow = ctx.sessions()
+        row = Trajectory(model_id=model.model_id, source="sim")
+        row.set_states([[0.3, 0.0], [1.0, 0.5]])
+        slow.add(row)
+        slow.flush()  # id taken, not committed
+        later = store(ctx, model, [[0.6, 0.0], [1.0, 0.5]])
+        assert later > row.id
+        with ctx.session() as session:
+            index = ctx.indexes.index(session, model)
+        assert later in index and row.id not in index
+        slow.commit()
+        slow.close()
+        with ctx.session() as session:
+            assert row.id in ctx.indexes.index(session, model)
+
+
+def test_key_states_are_loaded_once_and_dropped_with_their_tombstone(database_url: str) -> None:
+    with context(database_url) as ctx:
+        model = two_joint(ctx)
+        states = [[0.0, 0.0], [0.5, 0.2], [1.0, 0.5]]
+        first = store(ctx, model, states)
+        with ctx.session() as session:
+            ctx.indexes.index(session, model)
+            with count_statements(ctx.engine) as statements:
+                loaded = ctx.indexes.states(session, [first, 999_999])
+            assert len(statements) == 1
+            assert set(loaded) == {first} and np.array_equal(loaded[first], states)
+            assert not loaded[first].flags.writeable
+            with count_statements(ctx.engine) as statements:
+                again = ctx.indexes.states(session, [first])
+            assert statements == [] and again[first] is loaded[first]
+        with ctx.session() as session:
+            delete_trajectory(session=session, trajectory_id=first)
+        with ctx.session() as session:
+            ctx.indexes.index(session, model)  # reads the tombstone
+            assert ctx.indexes.states(session, [first]) == {}
+            assert session.scalar(sa.select(sa.func.count()).select_from(Trajectory)) == 0
+
+
+def test_the_states_cache_is_bounded_by_bytes() -> None:
+    cache = StatesCache(max_bytes=3 * 160)  # room for three 10×2 float64 arrays
+    arrays = {i: np.full((10, 2), float(i)) for i in range(5)}
+    for i, a in arrays.items():
+        cache.put(i, a)
+    found, missing = cache.get_many(range(5))
+    assert sorted(found) == [2, 3, 4] and missing == [0, 1]
+    cache.get_many([2])  # 2 is now the most recently used
+    cache.put(5, np.zeros((10, 2)))
+    found, missing = cache.get_many(range(6))
+    assert sorted(found) == [2, 4, 5]
+    big = np.zeros((100, 2))
+    assert cache.put(9, big) is big and cache.get_many([9]) == ({}, [9])  # larger than it all
+    cache.discard(2)
+    assert len(cache) == 2

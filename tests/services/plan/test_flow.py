@@ -1,0 +1,259 @@
+"""The plan flow's spine on a real service context (SQLite): each way a request ends, its
+bookkeeping through the ordered record writer only, and the time of each phase."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import sqlalchemy as sa
+
+from tests.services.hit_setup import context, count_statements, store, two_joint
+from trajcache.db.models import PlanEvent, Trajectory
+from trajcache.geometry.errors import CollisionStateError
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+from trajcache.services.catalog.robots import put_robot, put_scene
+from trajcache.services.context import ServiceContext
+from trajcache.services.errors import UnavailableError
+from trajcache.services.plan import flow
+from trajcache.services.plan.flow import PlanAnswer, PlanRequest, PlanSource, PlanStatus, plan
+from trajcache.services.plan.records import PlanRecord
+
+ARM_PATH = [[0.0, 0.0], [0.3, 0.2], [0.7, 0.2], [1.0, 0.0]]
+DETOUR = [[0.0, 0.0], [-1.0, 0.0], [1.0, 0.0]]  # swings back first: through shoulder −0.5
+AT = datetime(2030, 1, 2, 3, 4, 5, tzinfo=UTC)
+
+
+class FakePlanner:
+    """A planner pool answering every problem with `result` (after `delay_s`)."""
+
+    def __init__(self, result: PlanResult, delay_s: float = 0.0) -> None:
+        self.result = result
+        self.delay_s = delay_s
+        self.problems: list[PlanningProblem] = []
+
+    def submit(self, problem: PlanningProblem) -> PlanResult:
+        self.problems.append(problem)
+        time.sleep(self.delay_s)
+        return self.result
+
+
+class Recorded:
+    """The records a context's writer receives, in order."""
+
+    def __init__(self, ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.records: list[PlanRecord] = []
+        submit = ctx.records.submit
+
+        def spy(record: PlanRecord) -> int:
+            self.records.append(record)
+            return submit(record)
+
+        monkeypatch.setattr(ctx.records, "submit", spy)
+
+
+@pytest.fixture
+def ctx(tmp_path: Path) -> Iterator[ServiceContext]:
+    with context(f"sqlite:///{tmp_path / 'flow.db'}") as service:
+        service.records.clock = lambda: AT  # the writer's clock stamps every record
+        yield service
+
+
+def setup_robot(
+    ctx: ServiceContext,
+    objects: list[dict[str, Any]] | None = None,
+    path: list[list[float]] = ARM_PATH,
+) -> int:
+    """Robot r1 (the two-joint arm) in a scene of `objects`, and one cached trajectory."""
+    model = two_joint(ctx)
+    with ctx.session() as session:
+        put_robot(session=session, robot_id="r1", model_id=model.model_id)
+        if objects:
+            put_scene(
+                session=session,
+                scenes=ctx.scenes,
+                robot_id="r1",
+                scene=parse_scene({"objects": objects}),
+            )
+    return store(ctx, model, path)
+
+
+def blocker(shoulder: float = -0.5, size: float = 0.04) -> dict[str, Any]:
+    """A box in the sweep of the upper arm at `shoulder` (rad)."""
+    position = [0.25 * math.sin(shoulder), 0.0, 0.1 + 0.25 * math.cos(shoulder)]
+    return {"id": "blocker", "type": "box", "size": [size] * 3, "pose": {"position": position}}
+
+
+def ask(ctx: ServiceContext, start: list[float], goal: list[float], **options: Any) -> PlanAnswer:
+    request = PlanRequest(
+        start=np.asarray(start, float),
+        goal=np.asarray(goal, float),
+        **{"threshold": 0.2, "max_candidates": 3, "fallback": False, **options},
+    )
+    return plan(ctx=ctx, robot_id="r1", request=request)
+
+
+def use_planner(ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch, planner: object) -> None:
+    monkeypatch.setattr(ctx, "planner_pool", lambda: planner)
+
+
+def written(ctx: ServiceContext, trajectory_id: int) -> tuple[Trajectory, list[PlanEvent]]:
+    """The trajectory's row and every plan event, once the writer has caught up."""
+    assert ctx.records.flush(timeout=10)
+    with ctx.session() as session:
+        row = session.get(Trajectory, trajectory_id)
+        assert row is not None
+        events = list(session.scalars(sa.select(PlanEvent).order_by(PlanEvent.id)))
+        session.expunge_all()
+    return row, events
+
+
+def writes(statements: list[str]) -> list[str]:
+    """The statements that write usage counters or plan events."""
+    return [
+        s for s in statements
+        if s.lstrip().upper().startswith(("UPDATE", "INSERT INTO PLAN_EVENTS"))
+    ]  # fmt: skip
+
+
+def test_a_hit_is_answered_and_recorded_by_the_writer(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    stored = setup_robot(ctx)
+    recorded = Recorded(ctx, monkeypatch)
+    ctx.records.linger_s = 30.0  # nothing is written until someone waits
+    with count_statements(ctx.engine) as statements:
+        answer = ask(ctx, [0.02, 0.0], [0.98, 0.0])
+    assert (answer.status, answer.source, answer.trajectory_id) == (
+        PlanStatus.SUCCESS, PlanSource.CACHE, stored
+    )  # fmt: skip
+    assert answer.candidates_tried == 1 and answer.record is not None
+    assert not writes(statements)
+    [record] = recorded.records
+    assert (record.served, record.failed, record.at) == (stored, (), AT)
+    row, events = written(ctx, stored)
+    assert (row.hits, row.failures) == (1, 0)
+    [event] = events
+    assert (event.status, event.source, event.trajectory_id) == ("success", "cache", stored)
+    assert event.created_at.replace(tzinfo=UTC) == AT
+
+
+def test_a_rejected_candidate_then_the_planner(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    stored = setup_robot(ctx, [blocker()], DETOUR)
+    recorded = Recorded(ctx, monkeypatch)
+    path = np.array([[0.02, 0.0], [0.5, 0.1], [0.98, 0.0]])  # clear of the blocker
+    planner = FakePlanner(PlanResult(PlannerStatus.SOLVED, path, seed=7))
+    use_planner(ctx, monkeypatch, planner)
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True)
+    assert (answer.status, answer.source) == (PlanStatus.SUCCESS, PlanSource.PLANNER)
+    assert [r["trajectory_id"] for r in answer.rejected] == [stored]
+    assert "blocker" in str(answer.rejected[0]["reason"])
+    assert answer.candidates_tried == 1 and np.array_equal(answer.states, path)
+    [problem] = planner.problems
+    assert problem.start == (0.02, 0.0) and problem.goal == (0.98, 0.0)
+    [record] = recorded.records
+    assert (record.served, record.failed) == (None, (stored,))
+    assert record.quality is not None and record.quality.trajectory_id == answer.trajectory_id
+    row, events = written(ctx, stored)
+    assert (row.hits, row.failures, row.consecutive_failures) == (0, 1, 1)
+    [event] = events
+    assert (event.status, event.source, event.seed) == ("success", "planner", 7)
+    assert event.trajectory_id == answer.trajectory_id
+
+
+def test_a_miss_without_planning_is_recorded_by_the_writer(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    stored = setup_robot(ctx, [blocker()], DETOUR)
+    recorded = Recorded(ctx, monkeypatch)
+    ctx.records.linger_s = 30.0
+    with count_statements(ctx.engine) as statements:
+        answer = ask(ctx, [0.02, 0.0], [0.98, 0.0])
+    assert (answer.status, answer.source, answer.states) == (PlanStatus.MISS, None, None)
+    assert answer.message == "no valid cached trajectory; fallback planning disabled"
+    assert answer.record is not None and not writes(statements)
+    [record] = recorded.records
+    assert (record.served, record.failed, record.at) == (None, (stored,), AT)
+    row, events = written(ctx, stored)
+    assert (row.hits, row.failures) == (0, 1)
+    [event] = events
+    assert (event.status, event.source, event.candidates_tried) == ("miss", None, 1)
+    assert event.error == answer.message
+
+
+def test_an_endpoint_in_collision_is_refused_before_planning(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    setup_robot(ctx, [blocker(shoulder=1.0, size=0.06)])
+    planner = FakePlanner(PlanResult(PlannerStatus.TIMEOUT, message="never asked"))
+    use_planner(ctx, monkeypatch, planner)
+    with pytest.raises(CollisionStateError, match="goal state is in collision"):
+        ask(ctx, [0.0, 0.0], [1.0, 0.0], fallback=True)
+    assert not planner.problems
+
+
+def test_a_planner_failure_is_recorded_with_its_seed(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    stored = setup_robot(ctx, [blocker()], DETOUR)
+    recorded = Recorded(ctx, monkeypatch)
+    result = PlanResult(PlannerStatus.TIMEOUT, message="no path within 0.5 s", seed=11)
+    use_planner(ctx, monkeypatch, FakePlanner(result))
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True)
+    assert (answer.status, answer.message) == (PlanStatus.FAILURE, "timeout: no path within 0.5 s")
+    assert [r.failed for r in recorded.records] == [(stored,)]
+    row, events = written(ctx, stored)
+    assert row.failures == 1
+    [event] = events
+    assert (event.status, event.seed, event.error) == ("failure", 11, answer.message)
+
+
+def test_an_unavailable_planner_is_a_503_whose_event_is_written_first(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    stored = setup_robot(ctx, [blocker()], DETOUR)
+    ctx.records.linger_s = 30.0  # written because the flow waits for it, not on its own
+    result = PlanResult(PlannerStatus.ERROR, message="worker backend unavailable")
+    use_planner(ctx, monkeypatch, FakePlanner(result))
+    with pytest.raises(UnavailableError, match="worker backend unavailable"):
+        ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True)
+    with ctx.session() as session:
+        assert session.scalars(sa.select(PlanEvent.status)).all() == ["error"]
+        row = session.get(Trajectory, stored)
+        assert row is not None and row.failures == 1
+
+
+def test_the_clock_gives_each_phase_its_time(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """State checks and validation count as validation, the planner as planning, never as db."""
+    setup_robot(ctx, [blocker()], DETOUR)
+    check_states, validate_with_memo = flow.check_states, flow.validate_with_memo
+
+    def slow_check(*args: Any, **kwargs: Any) -> Any:
+        time.sleep(0.02)
+        return check_states(*args, **kwargs)
+
+    def slow_validate(*args: Any, **kwargs: Any) -> Any:
+        time.sleep(0.05)
+        return validate_with_memo(*args, **kwargs)
+
+    monkeypatch.setattr(flow, "check_states", slow_check)  # start and goal: 40 ms
+    monkeypatch.setattr(flow, "validate_with_memo", slow_validate)  # one candidate: 50 ms
+    result = PlanResult(PlannerStatus.TIMEOUT, message="no path", seed=1)
+    use_planner(ctx, monkeypatch, FakePlanner(result, delay_s=0.06))
+    timings = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True).timings_ms
+    assert set(timings) == {"lookup", "validate", "plan", "db", "total"}
+    assert timings["validate"] >= 90.0 and timings["plan"] >= 60.0
+    assert timings["db"] < 40.0 and timings["lookup"] < 40.0
+    parts = timings["lookup"] + timings["validate"] + timings["plan"] + timings["db"]
+    assert parts <= timings["total"] + 0.01
