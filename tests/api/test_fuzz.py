@@ -79,9 +79,9 @@ FUZZ_SETTINGS: dict[str, Any] = {
 
 
 @schemathesis.serializer(NDJSON)
-def _ndjson(_ctx: schemathesis.SerializationContext, value: Any) -> dict[str, Any]:
+def _ndjson(_ctx: schemathesis.SerializationContext, value: Any) -> bytes:
     """An import body: the generated text as it is."""
-    return {"data": value if isinstance(value, bytes) else str(value).encode()}
+    return value if isinstance(value, bytes) else str(value).encode()
 
 
 @dataclass(frozen=True)
@@ -276,8 +276,11 @@ def _seed_job_body(live: LiveApp) -> st.SearchStrategy[Any]:
 
 
 def _import_body(live: LiveApp) -> st.SearchStrategy[Any]:
-    lines = st.lists(st.sampled_from(live.export_lines) | st.text(max_size=20), max_size=6)
-    return st.builds("\n".join, lines)
+    """Whole exports, which import, or exports with stray text, which a strict import refuses."""
+    exported = st.sampled_from(live.export_lines)
+    whole = st.lists(exported, min_size=1, max_size=6)
+    stray = st.lists(exported | st.text(max_size=20), max_size=6)
+    return st.builds("\n".join, whole | stray)
 
 
 # Bodies the service can accept, for half of the positive cases: generated ones from the

@@ -1,7 +1,7 @@
 """POST /v1/robots/{robot_id}/motion-plan: MoveIt's MotionPlanRequest in, MotionPlanResponse out.
 
 The request is translated to the native plan request and answered by the native plan flow
-(`services.planning.plan`), so it shares the cache, the validation and the bookkeeping of
+(`services.plan.flow.answer_request`), so it shares the cache, the validation and the bookkeeping of
 POST /v1/robots/{robot_id}/plan; see `api.moveit` for the translation.
 """
 
@@ -12,10 +12,12 @@ from dataclasses import dataclass
 from typing import Annotated, Any
 
 import pydantic_core
+import yaml
 from fastapi import APIRouter, Depends, Path, Request, Response
 from starlette.background import BackgroundTask
 from starlette.exceptions import HTTPException
 
+from trajcache.api.answer_extras import answer_extras
 from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep
 from trajcache.api.moveit import (
@@ -29,12 +31,10 @@ from trajcache.api.moveit import (
     refused_body,
     state_error_code,
 )
-from trajcache.api.quality import answer_extras
 from trajcache.api.responses import COMMON, errors
 from trajcache.geometry.errors import StateError
-from trajcache.metrics import record_plan
-from trajcache.services.planning import plan
-from trajcache.services.robot_model import robot_model
+from trajcache.services.catalog.robot_model import robot_model
+from trajcache.services.plan.flow import answer_request
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
 
@@ -70,12 +70,13 @@ def _inlined(node: Any, defs: dict[str, Any]) -> Any:
 
 
 _SCHEMA = MotionPlanRequestIn.model_json_schema()
-_BODY: dict[str, Any] = {
+_REQUEST_SCHEMA = _inlined(_SCHEMA, _SCHEMA.get("$defs", {}))
+_BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSON one
     "requestBody": {
         "required": True,
         "content": {
-            "application/json": {"schema": _inlined(_SCHEMA, _SCHEMA.get("$defs", {}))},
-            "application/yaml": {"schema": {"type": "string"}, "example": _YAML_EXAMPLE},
+            "application/json": {"schema": _REQUEST_SCHEMA},
+            "application/yaml": {"schema": _REQUEST_SCHEMA, "example": yaml.safe_load(_YAML_EXAMPLE)},
         },
     }
 }
@@ -148,23 +149,18 @@ def motion_plan_route(
     model = robot_model(ctx=ctx, robot_id=robot_id)
     try:
         query = motion_plan_query(message, model=model, settings=ctx.settings)
-        answer = plan(ctx=ctx, robot_id=robot_id, request=query.request)
+        answer = answer_request(
+            ctx=ctx,
+            robot_id=robot_id,
+            request=query.request,
+            extras=answer_extras(query.timing, "basic"),
+        )
     except MotionPlanError as exc:
         return _json(refused_body(message=message, code=exc.code, text=str(exc), began=began))
     except StateError as exc:  # a start or goal in collision (the native endpoint's 422)
         code = state_error_code(exc)
         return _json(refused_body(message=message, code=code, text=str(exc), began=began))
-    record_plan(answer)
-    extras, extra_ms = answer_extras(
-        ctx=ctx,
-        model=answer.model,
-        scene=answer.scene,
-        states=answer.states,
-        timing=query.timing,
-        quality="basic",
-    )
-    answer.timings_ms.update(extra_ms)
-    content = answered_body(message=message, query=query, answer=answer, extras=extras, began=began)
+    content = answered_body(message=message, query=query, model=model, answer=answer, began=began)
     # The request's cycle ends (after the response is sent) once its bookkeeping is written.
     background = None
     if answer.record is not None:

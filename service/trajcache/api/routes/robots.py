@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass
 from typing import Annotated, Any
 
+import yaml
 from fastapi import APIRouter, Depends, Request, Response
 from starlette.exceptions import HTTPException
 
 from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, SessionDep
 from trajcache.api.responses import COMMON, errors
-from trajcache.api.schemas import (
+from trajcache.api.schemas.robots import (
     RobotIn,
     RobotOut,
     SceneIn,
@@ -20,15 +22,14 @@ from trajcache.api.schemas import (
     ScenePatchIn,
     SceneVersionOut,
 )
-from trajcache.db import models as tables
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
 from trajcache.geometry.scene.scene import Scene
-from trajcache.services.models import get_model
-from trajcache.services.robots import (
+from trajcache.services.catalog.models import get_model
+from trajcache.services.catalog.robots import (
+    RobotInfo,
     get_robot,
     get_scene,
-    held_values,
     patch_scene,
     put_robot,
     put_scene,
@@ -50,12 +51,13 @@ world:
       primitives: [{type: 1, dimensions: [1.2, 0.8, 0.75]}]
       primitive_poses: [{position: {x: 1.5, y: 0.0, z: 0.375}}]
 """
-_SCENE_BODY: dict[str, Any] = {
+_SCENE_SCHEMA = SceneIn.model_json_schema()
+_SCENE_BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSON one
     "requestBody": {
         "required": True,
         "content": {
-            "application/json": {"schema": SceneIn.model_json_schema()},
-            "application/yaml": {"schema": {"type": "string"}, "example": _YAML_EXAMPLE},
+            "application/json": {"schema": _SCENE_SCHEMA},
+            "application/yaml": {"schema": _SCENE_SCHEMA, "example": yaml.safe_load(_YAML_EXAMPLE)},
         },
     }
 }
@@ -70,16 +72,8 @@ _NOT_JSON_OR_YAML = (
 )
 
 
-def _robot_out(robot: tables.Robot) -> RobotOut:
-    return RobotOut(
-        robot_id=robot.id,
-        model_id=robot.model_id,
-        kind=robot.kind,
-        scene_version=robot.scene_version or 0,
-        created_at=robot.created_at,
-        updated_at=robot.updated_at,
-        joint_values=held_values(robot.joint_values) or {},
-    )
+def _robot_out(robot: RobotInfo) -> RobotOut:
+    return RobotOut(**dataclasses.asdict(robot))
 
 
 @router.put(
@@ -122,7 +116,7 @@ def put_robot_route(
     )
     if not created:
         response.status_code = 200
-    return _robot_out(robot)
+    return _robot_out(RobotInfo.of(robot))
 
 
 @router.get(
@@ -134,7 +128,7 @@ def put_robot_route(
 )
 def get_robot_route(robot_id: str, session: SessionDep) -> RobotOut:
     """The robot `robot_id`."""
-    return _robot_out(get_robot(session=session, robot_id=robot_id))
+    return _robot_out(RobotInfo.of(get_robot(session=session, robot_id=robot_id)))
 
 
 @dataclass(frozen=True)
