@@ -145,6 +145,23 @@ def test_scene_object_limit_applies_to_seed_job_scenes(client_factory: ClientFac
     assert client.get("/v1/seed-jobs").json()["total"] == 0
 
 
+def test_scene_extent_applies_to_seed_job_scenes(client_factory: ClientFactory) -> None:
+    client = client_factory(**FAST, max_scene_extent_m=20.0)
+    model_id = register(client)["model_id"]
+    far = {**BOX, "id": "far", "pose": {"position": [30.0, 0.0, 0.0]}}
+    job = {"model_id": model_id, "queries": [{"start": [0, 0], "goal": [0.3, 0.3]}]}
+    explicit = client.post("/v1/seed-jobs", json={**job, "scenes": [{"objects": [far]}]})
+    assert_detail(explicit, 422, "scenes[0]", "'far'", "max_scene_extent_m=20")
+    base = client.post("/v1/seed-jobs", json={**job, "base_scene": {"objects": [far]}})
+    assert_detail(base, 422, "base_scene", "'far'")
+    grown = client.post(
+        "/v1/seed-jobs",
+        json={**job, "base_scene": {"objects": []}, "variants": [{"upsert": [far]}]},
+    )
+    assert_detail(grown, 422, "variants[0]", "'far'")
+    assert client.get("/v1/seed-jobs").json()["total"] == 0
+
+
 LISTS = ["/v1/robot-models", "/v1/trajectories", "/v1/seed-jobs", "/v1/plan-events"]
 
 

@@ -175,6 +175,47 @@ def test_scene_object_limit_is_413(client_factory: ClientFactory) -> None:
     )
 
 
+def test_objects_reaching_beyond_the_scene_extent_are_422(client_factory: ClientFactory) -> None:
+    client = client_factory(max_scene_extent_m=50.0)
+    model_id = register(client)["model_id"]
+    client.put("/v1/robots/r", json={"model_id": model_id})
+    url = "/v1/robots/r/scene"
+    huge = {**TABLE, "id": "wall", "size": [1e300, 0.1, 0.1]}
+    assert_detail(client.put(url, json={"objects": [huge]}), 422, "'wall'", "max_scene_extent_m")
+    far = {**TABLE, "id": "crate", "pose": {"position": [60.0, 0.0, 0.0]}}
+    assert_detail(client.put(url, json={"objects": [far]}), 422, "'crate'", "6")
+    held = {"link": "tip", "object": {**huge, "id": "rod"}}
+    assert_detail(client.put(url, json={"objects": [], "attached_objects": [held]}), 422, "'rod'")
+    assert_detail(client.patch(url, json={"upsert": [far]}), 422, "max_scene_extent_m=50")
+    assert client.get(url).json()["version"] == 0  # nothing was stored
+    near = {**TABLE, "id": "crate", "pose": {"position": [40.0, 0.0, 0.0]}}
+    assert client.put(url, json={"objects": [near]}).json()["version"] == 1
+
+
+def test_identical_concurrent_first_puts_make_one_version(
+    app_client: TestClient, robot_id: str
+) -> None:
+    url = f"/v1/robots/{robot_id}/scene"
+    writers = 8
+    lined_up = threading.Barrier(writers)
+    answers: list[Any] = []
+
+    def put() -> None:
+        lined_up.wait()
+        answers.append(app_client.put(url, json={"objects": [TABLE], "env": {"e": 1.0}}))
+
+    threads = [threading.Thread(target=put) for _ in range(writers)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert [a.status_code for a in answers] == [200] * writers, [a.text for a in answers]
+    assert {(a.json()["version"], a.json()["hash"]) for a in answers} == {
+        (1, answers[0].json()["hash"])
+    }
+    assert app_client.get(url).json()["version"] == 1
+
+
 def test_current_scene_is_one_query_when_cached(app_client: TestClient, robot_id: str) -> None:
     put = app_client.put(f"/v1/robots/{robot_id}/scene", json={"objects": [TABLE]}).json()
     ctx = ctx_of(app_client)

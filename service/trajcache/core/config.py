@@ -171,6 +171,13 @@ class Settings(BaseSettings):
     max_scene_objects: int = Field(
         default=2000, ge=1, description="Most collision objects accepted in a scene."
     )
+    max_scene_extent_m: float = Field(
+        default=1000.0,
+        gt=0,
+        le=1e6,
+        description="How far (m) a scene object may reach from the origin of its frame (the "
+        "world, or an attached object's link): its position's distance plus its size.",
+    )
     max_trajectory_states: int = Field(
         default=5000, ge=2, description="Most states accepted in one trajectory."
     )

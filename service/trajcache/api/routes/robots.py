@@ -35,6 +35,7 @@ from trajcache.services.catalog.robots import (
     put_scene,
     scene_warnings,
 )
+from trajcache.services.catalog.scene_limits import SceneLimits
 
 router = APIRouter(
     prefix="/robots", tags=["robots"], responses=COMMON, route_class=BoundedBodyRoute
@@ -208,7 +209,7 @@ def put_scene_route(
         scenes=ctx.scenes,
         robot_id=robot_id,
         scene=scene,
-        max_objects=ctx.settings.max_scene_objects,
+        limits=SceneLimits.of(ctx.settings),
     )
     return SceneVersionOut(version=version, hash=scene_hash, warnings=warnings)
 
@@ -244,7 +245,7 @@ def patch_scene_route(
         scenes=ctx.scenes,
         robot_id=robot_id,
         patch=body.model_dump(),
-        max_objects=ctx.settings.max_scene_objects,
+        limits=SceneLimits.of(ctx.settings),
     )
     return SceneVersionOut(version=version, hash=scene_hash)
 

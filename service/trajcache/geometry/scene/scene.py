@@ -138,6 +138,23 @@ def scene_hash(
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def object_reach(obj: SceneObject) -> float:
+    """How far from the origin of its frame (the world, or an attached object's link) the object
+    can reach: its position's distance plus its shape's bounding radius (inf on overflow)."""
+    with np.errstate(over="ignore"):
+        return float(np.linalg.norm(obj.pose[:3, 3])) + obj.shape.bounding_radius()
+
+
+def farthest_object(scene: Scene) -> tuple[SceneObject, float] | None:
+    """The object (attached ones included) that reaches farthest, and its reach; None if empty."""
+    objects = (*scene.objects, *(a.object for a in scene.attached))
+    if not objects:
+        return None
+    reaches = [object_reach(obj) for obj in objects]
+    i = int(np.argmax(reaches))
+    return objects[i], reaches[i]
+
+
 def make_scene(
     objects: Iterable[SceneObject],
     env: Mapping[str, float] | None = None,

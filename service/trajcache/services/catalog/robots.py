@@ -21,11 +21,11 @@ from trajcache.geometry.scene.scene import Scene, make_scene
 from trajcache.geometry.scene.variant import model_in_scene
 from trajcache.services.catalog.models import ModelRegistry, get_model
 from trajcache.services.catalog.scene_cache import SceneCache
+from trajcache.services.catalog.scene_limits import SceneLimits, check_scene
 from trajcache.services.errors import (
     ConflictError,
     InvalidInputError,
     NotFoundError,
-    PayloadTooLargeError,
 )
 
 if TYPE_CHECKING:
@@ -290,20 +290,16 @@ def put_scene(
     scenes: SceneCache,
     robot_id: str,
     scene: Scene,
-    max_objects: int | None = None,
+    limits: SceneLimits | None = None,
 ) -> tuple[int, str]:
-    """Replace the robot's scene; return the new (version, hash), or the current ones if equal."""
-    _check_size(scene, max_objects)
-    _, current, version = current_scene(session=session, scenes=scenes, robot_id=robot_id)
-    if current.hash == scene.hash:
-        return version, scene.hash
-    new_version = _append_version(session, robot_id, scene, expected=None)
-    if new_version is None:
-        session.rollback()
-        raise NotFoundError(f"robot {robot_id!r} not found")
-    session.commit()
-    scenes.put(scene)
-    return new_version, scene.hash
+    """Replace the robot's scene; return the new (version, hash), or the current ones if equal.
+
+    Identical content keeps its version even when several writers send it at once: each one
+    compares with the current scene under the robot's lock (`_write_scene`).
+    """
+    if limits is not None:
+        check_scene(scene, limits)
+    return _write_scene(session, scenes, robot_id, lambda _current: scene, what="put")
 
 
 def patch_scene(
@@ -312,19 +308,40 @@ def patch_scene(
     scenes: SceneCache,
     robot_id: str,
     patch: Mapping[str, Any],
-    max_objects: int | None = None,
+    limits: SceneLimits | None = None,
 ) -> tuple[int, str]:
     """Upsert/remove objects and env values of the current scene; return (version, hash).
 
-    The robot row is locked before the current scene is read, so concurrent patches apply one
-    after the other instead of losing each other's changes.
+    Concurrent patches apply one after the other instead of losing each other's changes.
+    """
+
+    def patched(current: Scene) -> Scene:
+        scene = apply_patch(current, patch)
+        if limits is not None:
+            check_scene(scene, limits)
+        return scene
+
+    return _write_scene(session, scenes, robot_id, patched, what="patch")
+
+
+def _write_scene(
+    session: Session,
+    scenes: SceneCache,
+    robot_id: str,
+    make: Callable[[Scene], Scene],
+    *,
+    what: str,
+) -> tuple[int, str]:
+    """Store `make(current scene)` as the robot's next version, unless its content is current.
+
+    The robot row is locked before the current scene is read, so writers go one after the
+    other: the second of two identical writes finds the first's version and keeps it.
     """
     for _ in range(_PATCH_ATTEMPTS):
         try:
             _lock_robot(session, robot_id)
             _, current, version = current_scene(session=session, scenes=scenes, robot_id=robot_id)
-            scene = apply_patch(current, patch)
-            _check_size(scene, max_objects)
+            scene = make(current)
             if scene.hash == current.hash:
                 session.rollback()
                 return version, scene.hash
@@ -336,8 +353,8 @@ def patch_scene(
             session.commit()
             scenes.put(scene)
             return new_version, scene.hash
-        session.rollback()  # another writer got in between: patch its version instead
-    raise ConflictError(f"the scene of robot {robot_id!r} keeps changing; retry the patch")
+        session.rollback()  # another writer got in between: start again from its version
+    raise ConflictError(f"the scene of robot {robot_id!r} keeps changing; retry the {what}")
 
 
 def _lock_robot(session: Session, robot_id: str) -> None:
@@ -380,10 +397,3 @@ def _append_version(
     )
     session.flush()
     return int(version)
-
-
-def _check_size(scene: Scene, max_objects: int | None) -> None:
-    if max_objects is not None and len(scene.objects) > max_objects:
-        raise PayloadTooLargeError(
-            f"scene has {len(scene.objects)} objects, more than max_scene_objects={max_objects}"
-        )

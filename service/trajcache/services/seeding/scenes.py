@@ -17,6 +17,7 @@ from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.payload import apply_patch
 from trajcache.geometry.scene.scene import Scene
 from trajcache.reference.restroom import STALL_COUNT, restroom_scene
+from trajcache.services.catalog.scene_limits import SceneLimits, check_scene
 from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 from trajcache.services.seeding.spec import FiniteFloat, Sweep
 
@@ -77,15 +78,12 @@ def _pydantic_message(exc: ValidationError) -> str:
     return "; ".join(parts)
 
 
-def _explicit_scene(payload: Mapping[str, Any], where: str, max_objects: int) -> Scene:
+def _explicit_scene(payload: Mapping[str, Any], where: str, limits: SceneLimits) -> Scene:
     try:
         scene = parse_scene(payload)
     except GeometryError as exc:
         raise InvalidInputError(f"{where}: {exc}") from None
-    if len(scene.objects) > max_objects:
-        raise PayloadTooLargeError(
-            f"{where} has {len(scene.objects)} objects, more than max_scene_objects={max_objects}"
-        )
+    check_scene(scene, limits, where)
     return scene
 
 
@@ -130,7 +128,7 @@ def build_scenes(
     settings: Settings,
 ) -> list[Scene]:
     """A job's scenes (explicit, generated, or variants of a base), validated."""
-    max_objects = settings.max_scene_objects
+    limits = SceneLimits.of(settings)
     if scenes is not None:
         _check_count(len(scenes), settings)
         out = []
@@ -140,7 +138,7 @@ def build_scenes(
                 _check_generator(payload, where)
                 out.append(_build_restroom(payload, where))
             else:
-                out.append(_explicit_scene(payload, where, max_objects))
+                out.append(_explicit_scene(payload, where, limits))
         return out
     base = base_scene
     assert base is not None
@@ -162,7 +160,7 @@ def build_scenes(
         return [
             _build_restroom(_merged(base, v), where_fmt.format(i)) for i, v in enumerate(variants)
         ]
-    parsed_base = _explicit_scene(base, "base_scene", max_objects)
+    parsed_base = _explicit_scene(base, "base_scene", limits)
     out = []
     for i, patch in enumerate(variants):
         where = where_fmt.format(i)
@@ -170,11 +168,7 @@ def build_scenes(
             scene = apply_patch(parsed_base, patch)
         except GeometryError as exc:
             raise InvalidInputError(f"{where}: {exc}") from None
-        if len(scene.objects) > max_objects:
-            raise PayloadTooLargeError(
-                f"{where} has {len(scene.objects)} objects, more than "
-                f"max_scene_objects={max_objects}"
-            )
+        check_scene(scene, limits, where)
         out.append(scene)
     return out
 
