@@ -17,8 +17,16 @@ setup: $(BIN)/trajcache
 serve: setup
 	$(BIN)/trajcache serve
 
+# The suite runs on $(JOBS) processes; the tests that restart a shared server run alone after it.
+# PYTEST_ARGS (e.g. a test file) runs those tests in one process instead.
+JOBS ?= 2
 test: setup
+ifeq ($(strip $(PYTEST_ARGS)),)
+	$(BIN)/pytest -q -n $(JOBS) -m "not serial"
+	$(BIN)/pytest -q -m serial
+else
 	$(BIN)/pytest -q $(PYTEST_ARGS)
+endif
 
 lint: setup
 	$(BIN)/ruff check service client tests bench

@@ -14,6 +14,12 @@ POSTGRES_URL = os.environ.get(
     "TRAJCACHE_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 )
 REDIS_URL = os.environ.get("TRAJCACHE_TEST_REDIS_URL", "redis://127.0.0.1:6379/15")
+# Under pytest-xdist, worker gwN takes the Redis database N below the configured one, so that
+# parallel Celery tests never take each other's tasks. (PostgreSQL tests get a schema each.)
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw")
+if _WORKER.isdigit() and int(_WORKER) > 0:
+    _base, _, _db = REDIS_URL.rpartition("/")
+    REDIS_URL = f"{_base}/{(int(_db or 0) - int(_WORKER)) % 16}"
 
 
 def _port_open(host: str, port: int) -> bool:

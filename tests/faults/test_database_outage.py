@@ -29,7 +29,7 @@ from trajcache.jobs.pool import OVERHEAD_S
 from trajcache.main import create_app
 from trajcache.services.context import ServiceContext
 
-pytestmark = pytest.mark.postgres
+pytestmark = [pytest.mark.postgres, pytest.mark.serial]
 
 RESTART_ENV = "TRAJCACHE_FAULT_RESTART_POSTGRES"
 BUDGET_S = 2.0  # planning budget of the misses

@@ -421,7 +421,8 @@ def test_make_pool_picks_the_celery_backend() -> None:
 def test_recycling_lets_the_other_requests_finish(tmp_path: Path) -> None:
     with make_local_pool(grace=0.3) as pool:
         stuck = make_problem(tmp_path, scene="stuck", budget_s=0.3, sleep=6.0)
-        innocent = make_problem(tmp_path, scene="innocent", budget_s=4.0, sleep=2.5)
+        # a budget far above its 2.5 s, so that only the recycle could make it fail
+        innocent = make_problem(tmp_path, scene="innocent", budget_s=15.0, sleep=2.5)
         results = submit_all(pool, [stuck, innocent])
         assert results[0].status is PlannerStatus.TIMEOUT
         assert results[1].solved, results[1].message

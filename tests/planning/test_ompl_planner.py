@@ -160,8 +160,9 @@ def test_naive_baseline_solves_the_same_query(model: RobotModel, scene: Scene) -
 
 def test_same_seed_gives_the_same_path(model: RobotModel, scene: Scene) -> None:
     start, goal = arm_query()
-    first = plan_ompl(model, scene, start, goal, budget_s=2.0, seed=5)
-    second = plan_ompl(model, scene, start, goal, budget_s=2.0, seed=5)
+    # a budget that never binds, even on a loaded machine: a cut-short shortcut phase differs
+    first = plan_ompl(model, scene, start, goal, budget_s=30.0, seed=5)
+    second = plan_ompl(model, scene, start, goal, budget_s=30.0, seed=5)
     assert first.path is not None and second.path is not None
     assert first.path.shape == second.path.shape and np.allclose(first.path, second.path)
 
