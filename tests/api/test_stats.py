@@ -246,6 +246,9 @@ def test_plan_events_filters_and_cursor_pages(
     assert len(newer) + len(older) == 6 and all(e["created_at"] < middle for e in older)
     wide = _all_pages(app_client, since="0001-01-01T00:00:00", until="9999-12-31T23:59:59Z")
     assert len(wide) == 6  # a time without an offset is UTC
+    for number in ("1700000000", "2.5e-194", " -3 "):  # not read as Unix times
+        reply = app_client.get("/v1/plan-events", params={"since": number})
+        assert_detail(reply, 422, "query.since", "not an ISO 8601 date and time")
 
 
 def test_plan_event_pages_do_not_shift_when_events_arrive(

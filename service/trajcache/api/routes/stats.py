@@ -10,6 +10,7 @@ from fastapi import APIRouter, Query
 
 from trajcache.api.deps import PageSizeDep, SessionDep, SettingsDep, checked_page_size
 from trajcache.api.responses import COMMON, errors
+from trajcache.api.schemas.common import IsoDateTime
 from trajcache.api.schemas.stats import (
     BucketOut,
     EventSource,
@@ -131,8 +132,8 @@ def plan_events_route(
     ] = None,
     requester: RequesterFilter = None,
     trajectory_id: Annotated[int | None, Query(ge=1, le=2**63 - 1)] = None,
-    since: Annotated[datetime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
-    until: Annotated[datetime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
+    since: Annotated[IsoDateTime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
+    until: Annotated[IsoDateTime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
 ) -> PlanEventPageOut:
     """A page of plan events matching the filters."""
     page = list_plan_events(
