@@ -23,6 +23,7 @@ from trajcache_client._stats_models import (
     EventStatus,
     GroupBy,
     PlanEventPage,
+    Requester,
     Stats,
     TopTrajectory,
 )
@@ -73,10 +74,18 @@ class AdminMethods:
         group_by: GroupBy | None = None,
         robot_id: str | None = None,
         model_id: str | None = None,
+        requester: Requester | None = None,
     ) -> Stats:
-        """Hit rate, planner calls, time per step and time saved over a window ("24h")."""
+        """Hit rate, planner calls, time per step and time saved over a window ("24h"), of
+        robots' and seed jobs' requests (`requester`: only theirs)."""
         return self.call(
-            ops.stats(window=window, group_by=group_by, robot_id=robot_id, model_id=model_id)
+            ops.stats(
+                window=window,
+                group_by=group_by,
+                robot_id=robot_id,
+                model_id=model_id,
+                requester=requester,
+            )
         )
 
     def top_trajectories(
@@ -94,6 +103,7 @@ class AdminMethods:
         model_id: str | None = None,
         status: EventStatus | None = None,
         source: EventSource | None = None,
+        requester: Requester | None = None,
         trajectory_id: int | None = None,
         since: datetime | str | None = None,
         until: datetime | str | None = None,
@@ -107,6 +117,7 @@ class AdminMethods:
                 model_id=model_id,
                 status=status,
                 source=source,
+                requester=requester,
                 trajectory_id=trajectory_id,
                 since=since,
                 until=until,
@@ -196,10 +207,18 @@ class AsyncAdminMethods:
         group_by: GroupBy | None = None,
         robot_id: str | None = None,
         model_id: str | None = None,
+        requester: Requester | None = None,
     ) -> Stats:
-        """Hit rate, planner calls, time per step and time saved over a window ("24h")."""
+        """Hit rate, planner calls, time per step and time saved over a window ("24h"), of
+        robots' and seed jobs' requests (`requester`: only theirs)."""
         return await self.call(
-            ops.stats(window=window, group_by=group_by, robot_id=robot_id, model_id=model_id)
+            ops.stats(
+                window=window,
+                group_by=group_by,
+                robot_id=robot_id,
+                model_id=model_id,
+                requester=requester,
+            )
         )
 
     async def top_trajectories(
@@ -217,6 +236,7 @@ class AsyncAdminMethods:
         model_id: str | None = None,
         status: EventStatus | None = None,
         source: EventSource | None = None,
+        requester: Requester | None = None,
         trajectory_id: int | None = None,
         since: datetime | str | None = None,
         until: datetime | str | None = None,
@@ -230,6 +250,7 @@ class AsyncAdminMethods:
                 model_id=model_id,
                 status=status,
                 source=source,
+                requester=requester,
                 trajectory_id=trajectory_id,
                 since=since,
                 until=until,

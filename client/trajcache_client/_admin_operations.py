@@ -28,6 +28,7 @@ from trajcache_client._stats_models import (
     EventStatus,
     GroupBy,
     PlanEventPage,
+    Requester,
     Stats,
     TopTrajectory,
 )
@@ -99,9 +100,16 @@ def stats(
     group_by: GroupBy | None = None,
     robot_id: str | None = None,
     model_id: str | None = None,
+    requester: Requester | None = None,
 ) -> Operation[Stats]:
     """GET /v1/stats over a window such as "30m", "24h" or "7d" (None: the service's 24h)."""
-    params = _query(window=window, group_by=group_by, robot_id=robot_id, model_id=model_id)
+    params = _query(
+        window=window,
+        group_by=group_by,
+        robot_id=robot_id,
+        model_id=model_id,
+        requester=requester,
+    )
     return Operation("GET", "/v1/stats", _reader(Stats), idempotent=True, params=params)
 
 
@@ -122,6 +130,7 @@ def plan_events(
     model_id: str | None = None,
     status: EventStatus | None = None,
     source: EventSource | None = None,
+    requester: Requester | None = None,
     trajectory_id: int | None = None,
     since: datetime | str | None = None,
     until: datetime | str | None = None,
@@ -134,6 +143,7 @@ def plan_events(
         model_id=model_id,
         status=status,
         source=source,
+        requester=requester,
         trajectory_id=trajectory_id,
         since=_instant(since),
         until=_instant(until),

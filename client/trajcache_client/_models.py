@@ -15,6 +15,7 @@ RobotKind = Literal["real", "sim"]
 SkipReason = Literal["adjacent", "rigid", "proven", "srdf"]
 PlanStatus = Literal["success", "miss", "failure", "error"]
 PlanSource = Literal["cache", "planner"]
+Requester = Literal["robot", "seed_job"]  # who asked for a plan
 
 
 class _Answer(BaseModel):
@@ -256,6 +257,7 @@ class PlanEvent(_Answer):
     event_id: int
     created_at: datetime
     robot_id: str
+    requester: Requester | str = "robot"  # a seed job's robot_id is `seed-job-<id>`
     model_id: str
     scene_hash: str | None
     status: str

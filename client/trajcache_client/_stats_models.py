@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Literal
 
-from trajcache_client._models import PlanEvent, _Answer
+from trajcache_client._models import PlanEvent, Requester, _Answer
 
 GroupBy = Literal["robot", "model", "source"]
 EventStatus = Literal["success", "miss", "failure", "error"]
@@ -39,9 +39,11 @@ class Metrics(_Answer):
 
 
 class StatsGroup(Metrics):
-    """The statistics of one robot, model or source (`none`: no trajectory returned)."""
+    """The statistics of one robot, model or source (`none`: no trajectory returned); grouped by
+    robot, `requester` says whether `key` is a robot or a seed job (None otherwise)."""
 
     key: str
+    requester: Requester | str | None = None
 
 
 class StatsBucket(Metrics):

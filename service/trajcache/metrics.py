@@ -1,5 +1,9 @@
 """Prometheus metrics at `GET /metrics`: plan requests, step latencies, cache size, planner pool.
 
+Every answered plan request is counted, a robot's and a seed job's alike (label `requester`:
+`robot` or `seed_job`), by the plan flow where it records the request's plan event
+(`services.plan.answers`): the counts agree with `/v1/stats`.
+
 One process keeps its metrics in the default registry. Several uvicorn workers are one service
 only if their metrics are merged: when `PROMETHEUS_MULTIPROC_DIR` is set, every process writes
 its samples to files there and `/metrics`, whichever worker answers, merges all of them
@@ -56,8 +60,9 @@ if os.environ.get(MULTIPROC_ENV):  # each metric below opens its file there
 
 PLAN_REQUESTS = Counter(
     "trajcache_plan_requests",
-    "Plan requests answered, by where the trajectory came from (none: no trajectory) and status.",
-    ["source", "status"],
+    "Plan requests answered, by where the trajectory came from (none: no trajectory), status "
+    "and who asked (robot or seed_job).",
+    ["source", "status", "requester"],
 )
 LOOKUP_SECONDS = Histogram(
     "trajcache_plan_lookup_seconds", "Time to find cached candidates.", buckets=_BUCKETS
@@ -74,8 +79,8 @@ PLANNING_SECONDS = Histogram(
 )
 TOTAL_SECONDS = Histogram(
     "trajcache_plan_total_seconds",
-    "Time to answer a plan request, by source.",
-    ["source"],
+    "Time to answer a plan request, by source and who asked (robot or seed_job).",
+    ["source", "requester"],
     buckets=_BUCKETS,
 )
 POOL_QUEUE_DEPTH = Gauge(
@@ -99,15 +104,19 @@ _POOL_COUNTERS = {
 }
 
 
-def record_plan(*, status: str, source: str | None, timings: Mapping[str, float]) -> None:
+def record_plan(
+    *, status: str, source: str | None, requester: str, timings: Mapping[str, float]
+) -> None:
     """Count one answered plan request and observe the time (ms) of each of its steps."""
     source = source or "none"
-    PLAN_REQUESTS.labels(source=source, status=status).inc()
+    PLAN_REQUESTS.labels(source=source, status=status, requester=requester).inc()
     LOOKUP_SECONDS.observe(timings.get("lookup", 0.0) / 1e3)
     VALIDATE_SECONDS.observe(timings.get("validate", 0.0) / 1e3)
     if source == "planner" or status in _PLANNER_STATUSES:
         PLANNING_SECONDS.observe(timings.get("plan", 0.0) / 1e3)
-    TOTAL_SECONDS.labels(source=source).observe(timings.get("total", 0.0) / 1e3)
+    TOTAL_SECONDS.labels(source=source, requester=requester).observe(
+        timings.get("total", 0.0) / 1e3
+    )
 
 
 class PoolSampler:
@@ -202,10 +211,11 @@ def render(ctx: ServiceContext) -> bytes:
 
 _EXAMPLE = """\
 # HELP trajcache_plan_requests_total Plan requests answered, by where the trajectory came from \
-(none: no trajectory) and status.
+(none: no trajectory), status and who asked (robot or seed_job).
 # TYPE trajcache_plan_requests_total counter
-trajcache_plan_requests_total{source="cache",status="success"} 253.0
-trajcache_plan_requests_total{source="planner",status="success"} 19.0
+trajcache_plan_requests_total{requester="robot",source="cache",status="success"} 253.0
+trajcache_plan_requests_total{requester="robot",source="planner",status="success"} 19.0
+trajcache_plan_requests_total{requester="seed_job",source="planner",status="success"} 140.0
 # HELP trajcache_cache_trajectories Trajectories in the cache, by model.
 # TYPE trajcache_cache_trajectories gauge
 trajcache_cache_trajectories{model="5158592d…"} 1204.0
@@ -227,7 +237,8 @@ def install_metrics(app: FastAPI) -> None:
         methods=["GET"],
         tags=["health"],
         summary="Metrics in the Prometheus text format",
-        description="Plan requests by source and status, lookup/validation/planning latency "
+        description="Plan requests by source, status and requester (robots and seed jobs), "
+        "lookup/validation/planning latency "
         "histograms, cached trajectories per model, the planner pool's queue depth and worker "
         "failures. With several server processes every answer covers all of them.",
         response_class=Response,

@@ -19,7 +19,7 @@ from fastapi.testclient import TestClient
 from prometheus_client import multiprocess
 from prometheus_client.parser import text_string_to_metric_families
 
-from tests.api.conftest import ClientFactory, ctx_of
+from tests.api.conftest import ClientFactory, ctx_of, register
 from tests.jobs.test_pool import make_local_pool, make_problem
 from tests.robots import TWO_JOINT_URDF
 from tests.waiting import wait_until
@@ -73,21 +73,87 @@ def test_plan_requests_latencies_and_cache_size(
     def delta(name: str, **labels: str) -> float:
         return value(after, name, **labels) - value(before, name, **labels)
 
-    hits = delta("trajcache_plan_requests_total", source="cache", status="success")
+    robot = {"requester": "robot"}
+    hits = delta("trajcache_plan_requests_total", source="cache", status="success", **robot)
     assert hits == 3
-    assert delta("trajcache_plan_requests_total", source="none", status="miss") == 1
+    assert delta("trajcache_plan_requests_total", source="none", status="miss", **robot) == 1
     assert delta("trajcache_plan_lookup_seconds_count") == 4
     assert delta("trajcache_plan_validate_seconds_count") == 4
     lookup_s = sum(a["timings_ms"]["lookup"] for a in answers) / 1e3
     assert delta("trajcache_plan_lookup_seconds_sum") == pytest.approx(lookup_s, abs=1e-9)
     assert delta("trajcache_plan_planning_seconds_count") == 0  # the planner was never asked
-    assert delta("trajcache_plan_total_seconds_count", source="cache") == 3
-    assert delta("trajcache_plan_total_seconds_count", source="none") == 1
+    assert delta("trajcache_plan_total_seconds_count", source="cache", **robot) == 3
+    assert delta("trajcache_plan_total_seconds_count", source="none", **robot) == 1
     top = delta("trajcache_plan_lookup_seconds_bucket", le="+Inf")
     assert top == 4
     assert value(after, "trajcache_cache_trajectories", model=model_id) == 2
     assert value(after, "trajcache_database_up") == 1
     assert ("trajcache_pool_queue_depth", ()) in after
+
+
+def total(scrape: dict[Any, float], name: str, **labels: str) -> float:
+    """The sum of the samples of `name` that have these labels (and any others)."""
+    return sum(
+        v for (n, have), v in scrape.items() if n == name and set(labels.items()) <= set(have)
+    )
+
+
+SEED_FAST = {
+    "worker_backend": "none",  # a miss is answered at once, without planning
+    "seed_heartbeat_s": 0.1,
+    "seed_poll_interval_s": 0.1,
+}
+
+
+def test_robots_and_seed_jobs_are_counted_as_the_stats_count_them(
+    client_factory: ClientFactory,
+) -> None:
+    """Every answered plan is counted, a seed job's too, apart by requester: as /v1/stats."""
+    client = client_factory(**SEED_FAST)
+    model_id = register(client)["model_id"]
+    assert client.put("/v1/robots/robot-1", json={"model_id": model_id}).status_code == 201
+    reply = client.post("/v1/trajectories", json={"model_id": model_id, "states": PATH})
+    assert reply.status_code == 201
+    before = scrape(client)
+    _plan(client, [0.0, 0.0], [1.0, 0.0])
+    _plan(client, [0.02, 0.01], [0.98, 0.0])
+    _plan(client, [0.0, 0.9], [1.0, 0.9])  # nothing near: a miss
+    queries = [
+        {"start": [0.0, 0.0], "goal": [1.0, 0.0]},
+        {"start": [0.01, 0.0], "goal": [1.0, 0.0]},
+        {"start": [0.0, -0.9], "goal": [1.0, -0.9]},  # misses: the job's failed items
+        {"start": [0.0, 0.9], "goal": [1.0, 0.9]},
+    ]
+    spec = {"model_id": model_id, "scenes": [{"objects": []}], "queries": queries}
+    job = client.post("/v1/seed-jobs", json=spec).json()
+
+    def ended() -> bool:
+        return client.get(f"/v1/seed-jobs/{job['job_id']}").json()["state"] == "completed"
+
+    assert wait_until(ended, timeout_s=60)
+    ctx_of(client).records.flush()
+    after = scrape(client)
+
+    def delta(name: str, **labels: str) -> float:
+        return total(after, name, **labels) - total(before, name, **labels)
+
+    def stats(**params: str) -> dict[str, Any]:
+        reply = client.get("/v1/stats", params={"window": "1h", **params})
+        assert reply.status_code == 200, reply.text
+        body: dict[str, Any] = reply.json()
+        return body
+
+    counted = delta("trajcache_plan_requests_total")
+    assert counted == stats()["totals"]["requests"] == 7
+    for requester, requests, hits in (("robot", 3, 2), ("seed_job", 4, 2)):
+        totals = stats(requester=requester)["totals"]
+        assert (totals["requests"], totals["hits"]) == (requests, hits)
+        assert delta("trajcache_plan_requests_total", requester=requester) == requests
+        cached = {"requester": requester, "source": "cache", "status": "success"}
+        assert delta("trajcache_plan_requests_total", **cached) == hits
+        assert delta("trajcache_plan_total_seconds_count", requester=requester) == requests
+    groups = {(g["key"], g["requester"]): g["requests"] for g in stats()["groups"]}
+    assert groups == {("robot-1", "robot"): 3, (f"seed-job-{job['job_id']}", "seed_job"): 4}
 
 
 def test_the_grafana_dashboard_charts_exposed_metrics(
@@ -151,9 +217,9 @@ from trajcache.metrics import POOL_QUEUE_DEPTH, record_plan
 hits, depth = int(sys.argv[1]), int(sys.argv[2])
 timings = {"lookup": 0.5, "validate": 4.0, "plan": 0.0, "total": 6.0}
 for _ in range(hits):
-    record_plan(status="success", source="cache", timings=timings)
+    record_plan(status="success", source="cache", requester="robot", timings=timings)
 planned = {**timings, "plan": 70.0, "total": 80.0}
-record_plan(status="success", source="planner", timings=planned)
+record_plan(status="success", source="planner", requester="seed_job", timings=planned)
 POOL_QUEUE_DEPTH.set(depth)
 print(os.getpid())
 """
@@ -192,8 +258,10 @@ def test_multiprocess_mode_merges_every_process(
     monkeypatch.setenv(MULTIPROC_ENV, str(directory))
     reply = app_client.get("/metrics")
     merged = samples(reply.text)
-    assert value(merged, "trajcache_plan_requests_total", source="cache", status="success") == 7
-    assert value(merged, "trajcache_plan_requests_total", source="planner", status="success") == 2
+    cache = {"source": "cache", "status": "success", "requester": "robot"}
+    planner = {"source": "planner", "status": "success", "requester": "seed_job"}
+    assert value(merged, "trajcache_plan_requests_total", **cache) == 7
+    assert value(merged, "trajcache_plan_requests_total", **planner) == 2
     assert value(merged, "trajcache_plan_planning_seconds_count") == 2
     assert value(merged, "trajcache_plan_planning_seconds_sum") == pytest.approx(0.14)
     assert value(merged, "trajcache_plan_lookup_seconds_count") == 9
@@ -204,7 +272,7 @@ def test_multiprocess_mode_merges_every_process(
     multiprocess.mark_process_dead(first, str(directory))
     after = samples(app_client.get("/metrics").text)
     assert value(after, "trajcache_pool_queue_depth") == 5  # a finished process leaves the sum
-    assert value(after, "trajcache_plan_requests_total", source="cache", status="success") == 7
+    assert value(after, "trajcache_plan_requests_total", **cache) == 7
 
 
 def test_prepare_multiprocess_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -251,7 +319,13 @@ def test_every_worker_of_a_served_app_reports_every_request(tmp_path: Path) -> N
         for _ in range(8):
             merged = samples(httpx.get(f"{base}/metrics").text)
             seen.add(
-                value(merged, "trajcache_plan_requests_total", source="cache", status="success")
+                value(
+                    merged,
+                    "trajcache_plan_requests_total",
+                    source="cache",
+                    status="success",
+                    requester="robot",
+                )
             )
         assert seen == {12.0}
         # Both workers write their samples where every /metrics reads them.

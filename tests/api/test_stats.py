@@ -143,6 +143,7 @@ def test_long_windows_read_rollups_and_count_time_saved(
         ({"window": "soon"}, "query.window"),
         ({"window": "x" * 40}, "window"),
         ({"group_by": "scene"}, "group_by"),
+        ({"requester": "drone"}, "requester"),
         ({"robot_id": "r" * 200}, "robot_id"),
     ],
 )
@@ -150,6 +151,53 @@ def test_bad_stats_queries_are_422(
     app_client: TestClient, params: dict[str, str], needle: str
 ) -> None:
     assert_detail(app_client.get("/v1/stats", params=params), 422, needle)
+
+
+def test_a_seed_job_and_a_robot_of_the_same_name_stay_apart(
+    app_client: TestClient, fleet: dict[str, Any]
+) -> None:
+    """Grouped by robot, the pair (robot id, requester) is the group, in events and rollups."""
+    now = datetime.now(UTC)
+    # (minutes ago, requester): this hour's events and events of hours already rolled up
+    written = [(m, "seed_job") for m in (2, 3, 4, 190, 200)] + [(m, "robot") for m in (5, 210)]
+    with ctx_of(app_client).session() as session:
+        session.add_all(
+            PlanEvent(
+                created_at=now - timedelta(minutes=m),
+                robot_id="seed-job-1",
+                requester=requester,
+                model_id=fleet["model_id"],
+                status="miss",
+                lookup_ms=0.2,
+                validate_ms=1.0,
+                plan_ms=0.0,
+                total_ms=1.5,
+            )
+            for m, requester in written
+        )
+        session.commit()
+    for window, seed_job, robot in (("1h", 3, 1), ("7d", 5, 2)):  # 7d: from the rollups
+        body = app_client.get("/v1/stats", params={"window": window}).json()
+        groups = {(g["key"], g["requester"]): g["requests"] for g in body["groups"]}
+        assert groups == {
+            ("r1", "robot"): 4,
+            ("r2", "robot"): 2,
+            ("seed-job-1", "seed_job"): seed_job,
+            ("seed-job-1", "robot"): robot,
+        }, window
+        only = {"window": window, "requester": "seed_job"}
+        assert app_client.get("/v1/stats", params=only).json()["totals"]["requests"] == seed_job
+        robots = {"window": window, "requester": "robot"}
+        assert app_client.get("/v1/stats", params=robots).json()["totals"]["requests"] == 6 + robot
+    by_model = app_client.get("/v1/stats", params={"group_by": "model"}).json()["groups"]
+    assert [g["requester"] for g in by_model] == [None]
+    events = _all_pages(app_client, limit=100)
+    assert {e["requester"] for e in events if e["robot_id"] != "seed-job-1"} == {"robot"}
+    seed_events = _all_pages(app_client, requester="seed_job")
+    assert len(seed_events) == 5
+    assert {(e["robot_id"], e["requester"]) for e in seed_events} == {("seed-job-1", "seed_job")}
+    assert len(_all_pages(app_client, requester="robot", robot_id="seed-job-1")) == 2
+    assert_detail(app_client.get("/v1/plan-events", params={"requester": "x"}), 422, "requester")
 
 
 def _cursor(text: str) -> str:
@@ -198,6 +246,9 @@ def test_plan_events_filters_and_cursor_pages(
     assert len(newer) + len(older) == 6 and all(e["created_at"] < middle for e in older)
     wide = _all_pages(app_client, since="0001-01-01T00:00:00", until="9999-12-31T23:59:59Z")
     assert len(wide) == 6  # a time without an offset is UTC
+    for number in ("1700000000", "2.5e-194", " -3 "):  # not read as Unix times
+        reply = app_client.get("/v1/plan-events", params={"since": number})
+        assert_detail(reply, 422, "query.since", "not an ISO 8601 date and time")
 
 
 def test_plan_event_pages_do_not_shift_when_events_arrive(

@@ -89,6 +89,7 @@ ADDED_LATER = {
     ("TrajectoryQuality", "min_clearance"),
     ("TrajectoryQuality", "duration_s"),
     ("TrajectoryDetailOut", "usage_history"),
+    ("PlanEventOut", "requester"),
 }
 # Read from `detail` and `errors` by the exception classes, not as a model.
 ERROR_BODIES = {"ErrorOut", "FieldErrorOut"}

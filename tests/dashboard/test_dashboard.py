@@ -2,8 +2,9 @@
 
 The service runs as `trajcache serve` on loopback with a SQLite file; two cleaning runs of the
 reference robot in the restroom (the first fills the cache through the planner, the second reuses
-it) go through `POST /v1/robots/{id}/plan`. The page must load that data, draw every chart, fill
-every table and log no error. A screenshot is saved to `artifacts/dashboard.png`.
+it) go through `POST /v1/robots/{id}/plan`, then a small seed job plans some of the same calls.
+The page must load that data, draw every chart, fill every table (the seed job in its own, not
+among the robots) and log no error. A screenshot is saved to `artifacts/dashboard.png`.
 
 Needs Debian's chromium (`/usr/bin/chromium`, driven by Playwright): skipped without it, failed
 when TRAJCACHE_REQUIRE_SERVICES=1.
@@ -30,6 +31,7 @@ from tests.waiting import wait_until
 CHROMIUM = Path("/usr/bin/chromium")
 ARTIFACTS = Path(__file__).resolve().parents[2] / "artifacts"
 CALLS_PER_RUN = 60
+SEED_JOB_CALLS = 4
 WAIT_MS = 60_000  # generous: the machine running the tests may be busy
 CHARTS = ("chart-hit-rate", "chart-time-saved", "chart-calls", "chart-latency", "chart-joints")
 
@@ -61,6 +63,7 @@ class Seeded:
     requests: int = 0
     sources: dict[str, int] = field(default_factory=dict)
     robots: set[str] = field(default_factory=set)
+    job: dict[str, Any] = field(default_factory=dict)  # the seed job, once it ended
 
 
 def _free_port() -> int:
@@ -93,6 +96,7 @@ def _seed(client: httpx.Client, seeded: Seeded) -> None:
     )
     assert reply.status_code in (200, 201), reply.text
     model_id = reply.json()["model_id"]
+    replayable: list[tuple[object, Any, dict[str, Any]]] = []  # (scene key, scene, body)
     for robot, seed in (("cleaner-1", 11), ("cleaner-2", 12)):
         assert client.put(f"/v1/robots/{robot}", json={"model_id": model_id}).status_code == 201
         run = cleaning_run(seed)
@@ -109,7 +113,33 @@ def _seed(client: httpx.Client, seeded: Seeded) -> None:
             source = reply.json()["source"] or "none"
             seeded.sources[source] = seeded.sources.get(source, 0) + 1
             seeded.requests += 1
+            if robot == "cleaner-1" and source != "none":
+                replayable.append((key, payload, body))
         seeded.robots.add(robot)
+    _run_seed_job(client, seeded, model_id, replayable)
+
+
+def _run_seed_job(
+    client: httpx.Client,
+    seeded: Seeded,
+    model_id: str,
+    replayable: list[tuple[object, Any, dict[str, Any]]],
+) -> None:
+    """A seed job of calls the first robot got a path for in its first scene; waits for its end."""
+    first, scene, _ = replayable[0]
+    queries = [body for key, _, body in replayable if key == first][:SEED_JOB_CALLS]
+    assert len(queries) == SEED_JOB_CALLS, len(queries)
+    spec = {"model_id": model_id, "name": "replay", "scenes": [scene], "queries": queries}
+    reply = client.post("/v1/seed-jobs", json=spec)
+    assert reply.status_code == 202, reply.text
+    path = f"/v1/seed-jobs/{reply.json()['job_id']}"
+
+    def ended() -> bool:
+        seeded.job = client.get(path).json()
+        return seeded.job["state"] not in ("queued", "running")
+
+    assert wait_until(ended, timeout_s=120, interval_s=0.3), seeded.job
+    assert seeded.job["state"] == "completed" and seeded.job["failed"] == 0, seeded.job
 
 
 @contextmanager
@@ -191,14 +221,26 @@ def test_dashboard_shows_the_seeded_runs(page: tuple[Any, list[str]], seeded: Se
         assert points > 0 and shapes > 0, (chart, points, shapes)
     labels = tab.eval_on_selector_all("#kpis .kpi", "ks => ks.map(k => k.innerText)")
     kpis = {text.split("\n")[0].lower(): text.split("\n")[1] for text in labels}
-    assert kpis["requests"] == str(seeded.requests)
-    hit_rate = 100 * seeded.sources["cache"] / seeded.requests
+    job = seeded.job
+    assert kpis["requests"] == str(seeded.requests + job["total"])  # robots and the seed job
+    hit_rate = 100 * (seeded.sources["cache"] + job["hits"]) / (seeded.requests + job["total"])
     assert kpis["hit rate"] == f"{hit_rate:.1f} %"
     assert kpis["time saved"] not in ("–", "0.00 ms")
 
     robots = _rows(tab, "robots-table")
-    assert sorted(r[0] for r in robots) == sorted(seeded.robots)
+    assert sorted(r[0] for r in robots) == sorted(seeded.robots)  # the seed job is not a robot
     assert sum(int(r[1].replace(",", "")) for r in robots) == seeded.requests
+    total = job["total"]
+    assert _rows(tab, "seed-jobs-table") == [
+        [
+            f"#{job['job_id']} replay",
+            "completed",
+            f"{total} / {total} (100.0 %)",
+            str(total),
+            f"{100 * job['hits'] / total:.1f} %",
+            "0",
+        ]
+    ]
     top = _rows(tab, "top-table")
     assert top and all(r[0].startswith("#") for r in top)
     assert len(_rows(tab, "events-table")) == 15
@@ -260,6 +302,7 @@ def test_an_empty_service_shows_empty_charts_and_tables(
             assert tab.get_attribute(f"#{chart}", "data-points") == "0", chart
             assert tab.eval_on_selector(f"#{chart}", "s => s.textContent") != ""
         assert _rows(tab, "robots-table") == [["No robot planned in this window"]]
+        assert _rows(tab, "seed-jobs-table") == [["No seed jobs"]]
         assert _rows(tab, "top-table") == [["The cache is empty"]]
         assert _rows(tab, "events-table") == [["No plan events yet"]]
     assert not errors, errors

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -95,6 +96,74 @@ def test_downgrade_to_base_and_upgrade_again(database_url: str) -> None:
     migrate.upgrade(database_url)
     assert migrate.current_revision(database_url) == head_revision()
     assert schema_diff(database_url) == []
+
+
+def _columns(engine: sa.Engine, table: str) -> set[str]:
+    return {c["name"] for c in sa.inspect(engine).get_columns(table)}
+
+
+def _before_requesters(engine: sa.Engine, callers: list[str]) -> None:
+    """At revision 0007: seed job 3 and a plan event and a rollup row of each caller."""
+    metadata = sa.MetaData()
+    metadata.reflect(
+        engine, only=["robot_models", "seed_jobs", "plan_events", "plan_event_rollups"]
+    )
+    t = metadata.tables
+    now = datetime.now(UTC)
+    timings = {"lookup_ms": 0.1, "validate_ms": 1.0, "plan_ms": 0.0, "total_ms": 1.5}
+    with engine.begin() as conn:
+        conn.execute(
+            sa.insert(t["robot_models"]),
+            {"id": "m", "name": "m", "base": "fixed", "joint_names": [], "urdf": "<robot/>",
+             "allowed_pairs": [], "config": {}, "created_at": now},
+        )  # fmt: skip
+        conn.execute(
+            sa.insert(t["seed_jobs"]),
+            {"id": 3, "model_id": "m", "state": "completed", "spec": {}, "total": 1, "done": 1,
+             "hits": 1, "planned": 0, "failed": 0, "errors": [], "created_at": now,
+             "updated_at": now},
+        )  # fmt: skip
+        event = {"created_at": now, "model_id": "m", "status": "success", "source": "cache"}
+        conn.execute(
+            sa.insert(t["plan_events"]),
+            [{**event, **timings, "robot_id": c, "candidates_tried": 1} for c in callers],
+        )
+        rollup = {"bucket_start": now, "model_id": "m", "status": "success", "source": "cache"}
+        conn.execute(
+            sa.insert(t["plan_event_rollups"]),
+            [
+                {**rollup, **timings, "robot_id": c, "requests": 2, "histograms": b""}
+                for c in callers
+            ],
+        )
+
+
+def test_existing_plan_events_get_their_requester(database_url: str) -> None:
+    """Callers named after a seed job that exists were that job; every other caller a robot."""
+    expected = {
+        "robot-7": "robot",
+        "seed-job-3": "seed_job",
+        "seed-job-4": "robot",  # no such job: a robot of that name
+        "seed-job-03": "robot",
+        "seed-job-3x": "robot",
+    }
+    migrate.upgrade(database_url, "0007")
+    engine = sa.create_engine(database_url)
+    try:
+        _before_requesters(engine, list(expected))
+        migrate.upgrade(database_url)
+        with engine.connect() as conn:
+            for table in ("plan_events", "plan_event_rollups"):
+                query = sa.text(f"SELECT robot_id, requester FROM {table}")
+                assert dict(conn.execute(query).all()) == expected, table
+        migrate.downgrade(database_url, "0007")
+        for table in ("plan_events", "plan_event_rollups"):
+            assert "requester" not in _columns(engine, table)
+        assert "ix_plan_events_requester_created_at" not in {
+            i["name"] for i in sa.inspect(engine).get_indexes("plan_events")
+        }
+    finally:
+        engine.dispose()
 
 
 def test_sqlite_ids_are_never_reused(tmp_path: Path) -> None:

@@ -1,8 +1,9 @@
 """The admin dashboard: one static page (HTML, JS, CSS; no build step) served at /dashboard.
 
-The page reads the statistics API (`/v1/stats`, `/v1/plan-events`, `/v1/trajectories/{id}`) and
-draws its charts itself as SVG. It holds no data: when API keys are checked it asks for an admin
-key and sends it as `Authorization: Bearer <key>`.
+The page reads the statistics API (`/v1/stats`, `/v1/plan-events`, `/v1/seed-jobs`,
+`/v1/trajectories/{id}`) and draws its charts itself as SVG. Robots and seed jobs have tables of
+their own: the stats groups say which a robot id is (`requester`). It holds no data: when API
+keys are checked it asks for an admin key and sends it as `Authorization: Bearer <key>`.
 """
 
 from __future__ import annotations

@@ -246,6 +246,7 @@ class PlanEvent(Base):
         Index("ix_plan_events_robot_id_created_at", "robot_id", "created_at"),
         Index("ix_plan_events_model_id_created_at", "model_id", "created_at"),
         Index("ix_plan_events_status_created_at", "status", "created_at"),
+        Index("ix_plan_events_requester_created_at", "requester", "created_at"),
         Index("ix_plan_events_trajectory_id_created_at", "trajectory_id", "created_at"),
         Index("uq_plan_events_record_key", "record_key", unique=True),
         {"sqlite_autoincrement": True},
@@ -254,6 +255,8 @@ class PlanEvent(Base):
     id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow, index=True)
     robot_id: Mapped[str] = mapped_column(String(128))
+    # Who `robot_id` is: a robot, or a seed job (robot_id `seed-job-<id>`); ids never tell.
+    requester: Mapped[str] = mapped_column(String(16), server_default="robot")
     model_id: Mapped[str] = mapped_column(String(64))
     scene_hash: Mapped[str | None] = mapped_column(String(64))
     status: Mapped[str] = mapped_column(String(32))
@@ -273,7 +276,8 @@ class PlanEvent(Base):
 
 
 class PlanEventRollup(Base):
-    """Plan events of one hour with one robot, model, source and status, summarised.
+    """Plan events of one hour with one robot (and requester), model, source and status,
+    summarised.
 
     Sums of the timings and a sparse latency histogram per timing (`services/stats/rollups.py`), so
     statistics over long windows read one row per hour and group instead of every event.
@@ -284,6 +288,7 @@ class PlanEventRollup(Base):
     id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
     bucket_start: Mapped[datetime] = mapped_column(UTCDateTime(), index=True)
     robot_id: Mapped[str] = mapped_column(String(128))
+    requester: Mapped[str] = mapped_column(String(16), server_default="robot")
     model_id: Mapped[str] = mapped_column(String(64))
     source: Mapped[str | None] = mapped_column(String(16))
     status: Mapped[str] = mapped_column(String(32))

@@ -111,6 +111,7 @@ class Event:
     lookup: float
     validate: float
     plan: float
+    requester: str = "robot"
 
     @property
     def total(self) -> float:
@@ -127,8 +128,12 @@ KINDS = (
 
 
 def make_events(now: datetime, count: int, hours: float, seed: int) -> list[Event]:
-    """Seeded events over the last `hours`; model m-b never plans (its hits get no estimate)."""
+    """Seeded events over the last `hours`; model m-b never plans (its hits get no estimate).
+
+    A third of r1's requests are a seed job's that shares its name (requester seed_job).
+    """
     rng = np.random.default_rng(seed)
+    requesters = np.random.default_rng(seed + 1000)
     events = []
     for _ in range(count):
         robot = f"r{rng.integers(0, 3)}"
@@ -148,6 +153,7 @@ def make_events(now: datetime, count: int, hours: float, seed: int) -> list[Even
                 lookup=float(rng.lognormal(-1.0, 0.5)),
                 validate=float(rng.lognormal(1.5, 0.6)),
                 plan=plan,
+                requester="seed_job" if robot == "r1" and requesters.random() < 1 / 3 else "robot",
             )
         )
     return events
@@ -158,6 +164,7 @@ def store(session: Session, events: list[Event]) -> None:
         PlanEvent(
             created_at=e.at,
             robot_id=e.robot,
+            requester=e.requester,
             model_id=e.model,
             status=e.status,
             source=e.source,
@@ -203,10 +210,11 @@ def check_against_brute_force(
     assert basis["m-b"].median_plan_ms is None and basis["m-b"].planner_calls == 0
     assert close(basis["m-a"].median_plan_ms, median_a)
 
-    groups = dict(stats.groups)
-    assert sorted(groups) == sorted({e.robot for e in inside})
-    for robot, metrics in groups.items():
-        mine = [e for e in inside if e.robot == robot]
+    groups = {(g.key, g.requester): g.metrics for g in stats.groups}
+    assert sorted(groups) == sorted({(e.robot, e.requester) for e in inside})
+    assert ("r1", "seed_job") in groups and ("r1", "robot") in groups  # a pair is a group
+    for pair, metrics in groups.items():
+        mine = [e for e in inside if (e.robot, e.requester) == pair]
         assert metrics.requests == len(mine)
         assert metrics.hits == sum(e.source == "cache" for e in mine)
     assert sum(m.requests for _, m in stats.series) == t.requests
@@ -240,8 +248,11 @@ def test_group_by_model_and_source(sessions: sessionmaker[Session]) -> None:
     events = make_events(now, 400, hours=20, seed=2)
     with sessions() as session:
         store(session, events)
-        by_source = dict(plan_stats(session=session, window_s=86400, group_by="source").groups)
-        by_model = dict(plan_stats(session=session, window_s=86400, group_by="model").groups)
+        sources = plan_stats(session=session, window_s=86400, group_by="source").groups
+        models = plan_stats(session=session, window_s=86400, group_by="model").groups
+    assert {g.requester for g in sources + models} == {None}  # only a robot's group has one
+    by_source = {g.key: g.metrics for g in sources}
+    by_model = {g.key: g.metrics for g in models}
     assert by_source["cache"].requests == sum(e.source == "cache" for e in events)
     assert by_source["none"].requests == sum(e.source is None for e in events)
     assert by_source["planner"].time_saved_ms == 0.0
@@ -256,7 +267,12 @@ def test_filters_and_an_empty_window(sessions: sessionmaker[Session]) -> None:
         store(session, events)
         only = plan_stats(session=session, window_s=86400, robot_id="r1", now=now)
         assert only.totals.requests == sum(e.robot == "r1" for e in events)
-        assert [k for k, _ in only.groups] == ["r1"]
+        assert [(g.key, g.requester) for g in only.groups] == [("r1", "robot"), ("r1", "seed_job")]
+        for requester in ("robot", "seed_job"):
+            mine = plan_stats(session=session, window_s=86400, requester=requester, now=now)
+            assert mine.totals.requests == sum(e.requester == requester for e in events)
+        with pytest.raises(InvalidInputError, match=r"query\.requester"):
+            plan_stats(session=session, window_s=86400, requester="drone", now=now)
         later = now + timedelta(days=2)
         empty = plan_stats(session=session, window_s=3600, now=later)
     assert empty.totals.requests == 0 and empty.totals.hit_rate is None

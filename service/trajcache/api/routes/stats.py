@@ -10,6 +10,7 @@ from fastapi import APIRouter, Query
 
 from trajcache.api.deps import PageSizeDep, SessionDep, SettingsDep, checked_page_size
 from trajcache.api.responses import COMMON, errors
+from trajcache.api.schemas.common import IsoDateTime
 from trajcache.api.schemas.stats import (
     BucketOut,
     EventSource,
@@ -20,6 +21,7 @@ from trajcache.api.schemas.stats import (
     ModelBasisOut,
     PlanEventOut,
     PlanEventPageOut,
+    Requester,
     StatsOut,
     TopTrajectoryOut,
 )
@@ -31,13 +33,17 @@ router = APIRouter(tags=["stats"], responses=COMMON)
 
 RobotFilter = Annotated[str | None, Query(max_length=128, description="Only this robot.")]
 ModelFilter = Annotated[str | None, Query(max_length=64, description="Only this model.")]
+RequesterFilter = Annotated[
+    Requester | None, Query(description="Only the requests of robots, or of seed jobs.")
+]
 
 
 @router.get(
     "/stats",
     response_model=StatsOut,
     summary="Hit rate, planner calls, time per step and time saved over a window",
-    description="Totals, one entry per robot, model or source (`group_by`), and a time series "
+    description="Totals, one entry per robot, model or source (`group_by`; a robot's entry "
+    "says whether it is a robot or a seed job, `requester`), and a time series "
     "for charts (`bucket_s` grows with the window: 5 s up to 5 min, 15 s up to 15 min, 1 min "
     "up to 3 h, 5 min up to 12 h, 1 h up "
     "to 7 d, 6 h up to 30 d, 1 d up to 90 d, 7 d beyond). Time saved credits each cache hit "
@@ -53,6 +59,7 @@ def stats_route(
     group_by: Annotated[GroupBy, Query(description="Break the totals down by this.")] = "robot",
     robot_id: RobotFilter = None,
     model_id: ModelFilter = None,
+    requester: RequesterFilter = None,
 ) -> StatsOut:
     """Statistics of the plan requests of the last `window`."""
     stats = plan_stats(
@@ -61,6 +68,7 @@ def stats_route(
         group_by=group_by,
         robot_id=robot_id,
         model_id=model_id,
+        requester=requester,
     )
     return StatsOut(
         window=window.strip(),
@@ -70,7 +78,9 @@ def stats_route(
         group_by=group_by,
         percentile_max_relative_error=round(MAX_RELATIVE_ERROR, 4),
         totals=MetricsOut.model_validate(stats.totals),
-        groups=[GroupOut(key=key, **asdict(m)) for key, m in stats.groups],
+        groups=[
+            GroupOut(key=g.key, requester=g.requester, **asdict(g.metrics)) for g in stats.groups
+        ],
         series=[BucketOut(start=start, **asdict(m)) for start, m in stats.series],
         time_saved_basis=[ModelBasisOut.model_validate(b) for b in stats.time_saved_basis],
     )
@@ -100,7 +110,8 @@ def top_trajectories_route(
     "/plan-events",
     response_model=PlanEventPageOut,
     summary="Plan events, newest first, filtered, a page at a time",
-    description="Every plan request leaves an event. Filters combine; `since` is inclusive and "
+    description="Every plan request leaves an event, a robot's or a seed job's (`requester`). "
+    "Filters combine; `since` is inclusive and "
     "`until` exclusive. Pages follow a cursor: pass `next_cursor` as `cursor` to continue; "
     "events written meanwhile never shift a page. `next_cursor` is null on the last page.",
     responses=errors(
@@ -119,9 +130,10 @@ def plan_events_route(
     source: Annotated[
         EventSource | None, Query(description="`none`: no trajectory was returned.")
     ] = None,
+    requester: RequesterFilter = None,
     trajectory_id: Annotated[int | None, Query(ge=1, le=2**63 - 1)] = None,
-    since: Annotated[datetime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
-    until: Annotated[datetime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
+    since: Annotated[IsoDateTime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
+    until: Annotated[IsoDateTime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
 ) -> PlanEventPageOut:
     """A page of plan events matching the filters."""
     page = list_plan_events(
@@ -132,6 +144,7 @@ def plan_events_route(
         model_id=model_id,
         status=status,
         source=source,
+        requester=requester,
         trajectory_id=trajectory_id,
         since=_utc(since),
         until=_utc(until),

@@ -2,12 +2,25 @@
 
 from __future__ import annotations
 
+import re
+from datetime import datetime
 from typing import Annotated, Any
 
-from pydantic import Field
+from pydantic import BeforeValidator, Field
+
+_NUMBER = re.compile(r"\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*")
+
+
+def _not_a_number(value: Any) -> Any:
+    """Refuse the Unix times pydantic would read as datetimes: the schema says ISO 8601 text."""
+    if isinstance(value, str) and _NUMBER.fullmatch(value):
+        raise ValueError(f"{value!r} is a number, not an ISO 8601 date and time")
+    return value
+
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 ModelId = Annotated[str, Field(min_length=1, max_length=64)]
+IsoDateTime = Annotated[datetime, BeforeValidator(_not_a_number)]  # ISO 8601 text only
 
 # Answers of the request examples, as the service gives them (OpenAPI examples of the responses).
 MODEL_ID = "5158592d7f5559c728b6d23f76857a89890f358d7aa40994d9e2338ac93ec821"

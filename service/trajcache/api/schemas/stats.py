@@ -10,6 +10,7 @@ from pydantic import AliasChoices, BaseModel, ConfigDict, Field
 from trajcache.api.schemas.trajectories import TrajectoryOut
 
 GroupBy = Literal["robot", "model", "source"]
+Requester = Literal["robot", "seed_job"]
 
 _LATENCY = {"sum_ms": 1520.4, "p50": 5.6, "p95": 14.1, "p99": 21.7}
 _METRICS: dict[str, Any] = {
@@ -30,6 +31,7 @@ _EVENT: dict[str, Any] = {
     "event_id": 90211,
     "created_at": "2026-11-21T09:14:03.512Z",
     "robot_id": "robot-7",
+    "requester": "robot",
     "model_id": "5158592d…",
     "scene_hash": "c1a9…",
     "status": "success",
@@ -85,6 +87,12 @@ class GroupOut(MetricsOut):
     """The statistics of one robot, model or source (`none`: no trajectory returned)."""
 
     key: str
+    requester: Requester | None = Field(
+        default=None,
+        description="With group_by=robot, who `key` is: a robot, or a seed job (key "
+        "`seed-job-<id>`); a group is the pair, so a robot of that name is a group of its own. "
+        "Null for the other groupings.",
+    )
 
 
 class BucketOut(MetricsOut):
@@ -118,7 +126,7 @@ class StatsOut(BaseModel):
                     "group_by": "robot",
                     "percentile_max_relative_error": 0.0593,
                     "totals": _METRICS,
-                    "groups": [{"key": "robot-7", **_METRICS}],
+                    "groups": [{"key": "robot-7", "requester": "robot", **_METRICS}],
                     "series": [{"start": "2026-11-21T09:00:00Z", **_METRICS}],
                     "time_saved_basis": [
                         {
@@ -156,6 +164,9 @@ class PlanEventOut(BaseModel):
     event_id: int = Field(validation_alias=AliasChoices("event_id", "id"))
     created_at: datetime
     robot_id: str
+    requester: Requester = Field(
+        description="Who asked: a robot, or a seed job (its `robot_id` is `seed-job-<id>`)."
+    )
     model_id: str
     scene_hash: str | None
     status: str

@@ -1,5 +1,5 @@
-// The trajcache admin dashboard: reads /v1/stats, /v1/stats/top-trajectories, /v1/plan-events
-// and /v1/trajectories/{id}, and redraws everything on a timer.
+// The trajcache admin dashboard: reads /v1/stats, /v1/stats/top-trajectories, /v1/plan-events,
+// /v1/seed-jobs and /v1/trajectories/{id}, and redraws everything on a timer.
 "use strict";
 
 (() => {
@@ -35,6 +35,9 @@
     return `${seconds / 86400} d`;
   }
   const shortId = (id) => (id && id.length > 12 ? `${id.slice(0, 10)}…` : id || "–");
+  // The robot id of a seed job's plan events; its stats group has requester "seed_job".
+  const seedJobKey = (jobId) => `seed-job-${jobId}`;
+  const SEED_JOBS_LISTED = 20;
 
   function timeAxis(bucketS) {
     const format = (t) => {
@@ -204,7 +207,8 @@
   }
 
   function renderRobots(stats) {
-    const rows = stats.groups.map((g) => {
+    const robots = stats.groups.filter((g) => g.requester === "robot");
+    const rows = robots.map((g) => {
       const tr = document.createElement("tr");
       cell(tr, g.key);
       cell(tr, fmtInt(g.requests), "num");
@@ -217,6 +221,38 @@
       return tr;
     });
     fillTable($("robots-table"), rows, 8, "No robot planned in this window");
+  }
+
+  // The newest seed jobs, and any other seed job that planned in the window: state and progress
+  // from /v1/seed-jobs, requests, hit rate and failures in the window from the stats groups.
+  function renderSeedJobs(stats, jobs) {
+    const groups = new Map(stats.groups.filter((g) => g.requester === "seed_job").map((g) => [g.key, g]));
+    const rows = jobs.items.map((job) => {
+      const key = seedJobKey(job.job_id);
+      const g = groups.get(key);
+      groups.delete(key);
+      const tr = document.createElement("tr");
+      cell(tr, job.name ? `#${job.job_id} ${job.name}` : `#${job.job_id}`).title = key;
+      cell(tr, job.state, `state-${job.state}`).title = job.message || "";
+      cell(tr, `${fmtInt(job.done)} / ${fmtInt(job.total)} (${fmtPct(job.total ? job.done / job.total : null)})`, "num");
+      seedJobStats(tr, g);
+      return tr;
+    });
+    for (const g of groups.values()) { // older than the jobs listed
+      const tr = document.createElement("tr");
+      cell(tr, g.key);
+      cell(tr, "–");
+      cell(tr, "–", "num");
+      seedJobStats(tr, g);
+      rows.push(tr);
+    }
+    fillTable($("seed-jobs-table"), rows, 6, "No seed jobs");
+  }
+
+  function seedJobStats(tr, g) {
+    cell(tr, fmtInt(g ? g.requests : 0), "num");
+    cell(tr, fmtPct(g ? g.hit_rate : null), "num");
+    cell(tr, fmtInt(g ? g.failures : 0), "num");
   }
 
   function renderTop(top) {
@@ -305,15 +341,17 @@
     clearTimeout(state.timer);
     const window_ = $("window").value;
     try {
-      const [stats, top, events] = await Promise.all([
+      const [stats, top, events, jobs] = await Promise.all([
         api(`/v1/stats?window=${encodeURIComponent(window_)}&group_by=robot`),
         api("/v1/stats/top-trajectories?limit=10"),
         api("/v1/plan-events?limit=15"),
+        api(`/v1/seed-jobs?limit=${SEED_JOBS_LISTED}`),
       ]);
       state.stats = stats;
       renderKpis(stats);
       renderCharts(stats);
       renderRobots(stats);
+      renderSeedJobs(stats, jobs);
       renderTop(top);
       renderEvents(events);
       const pick = state.inspected || (top.length ? top[0].trajectory_id : null);

@@ -1,15 +1,22 @@
-"""The answers of a plan attempt, each with its bookkeeping queued on the ordered record writer.
+"""The answers of a plan attempt, each with its bookkeeping: a record and the metrics.
 
 Whatever the outcome — a hit, a miss, a planner failure, a planned trajectory — the usage
 counters of the candidates and the plan event go to `ctx.records` (`services.plan.records`) as
-one :class:`PlanRecord`, stamped with the writer's clock; nothing here writes to the database.
+one :class:`PlanRecord`, stamped with the writer's clock, and the answer is counted in the
+Prometheus metrics (`trajcache.metrics.record_plan`) with the same status, source, requester and
+timings as its plan event: `_record` is the one place of the plan flow that does both, whoever
+asked (a robot or a seed job), so `/metrics` and `/v1/stats` count the same requests. Nothing
+here writes to the database.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from trajcache.cache.memo import MemoUse
+from trajcache.metrics import record_plan
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
 from trajcache.services.plan.records import PlanRecord, QualityJob
 
@@ -22,10 +29,14 @@ def answer_hit(
     """Answer with a validated cached trajectory; its bookkeeping is queued, not awaited."""
     attempt.tried = len(attempt.failed) + 1
     timings = attempt.clock.timings()
-    event = attempt.event(
-        PlanStatus.SUCCESS, source=PlanSource.CACHE, trajectory_id=trajectory_id, timings=timings
+    record = _record(
+        attempt,
+        PlanStatus.SUCCESS,
+        timings,
+        source=PlanSource.CACHE,
+        trajectory_id=trajectory_id,
+        served=trajectory_id,
     )
-    record = _submit(attempt, event, served=trajectory_id)
     return PlanAnswer(
         PlanStatus.SUCCESS,
         PlanSource.CACHE,
@@ -49,14 +60,15 @@ def answer_planned(
 ) -> PlanAnswer:
     """Answer with the trajectory the planner found (stored); its quality is written later."""
     timings = attempt.clock.timings()
-    event = attempt.event(
+    record = _record(
+        attempt,
         PlanStatus.SUCCESS,
+        timings,
         source=PlanSource.PLANNER,
         trajectory_id=trajectory_id,
-        timings=timings,
         seed=seed,
+        quality=quality,
     )
-    record = _submit(attempt, event, quality=quality)
     return PlanAnswer(
         PlanStatus.SUCCESS,
         PlanSource.PLANNER,
@@ -74,8 +86,7 @@ def answer_without_path(
 ) -> PlanAnswer:
     """Answer a miss, a failure or an error: no trajectory, and why."""
     timings = attempt.clock.timings()
-    event = attempt.event(status, timings=timings, error=message, seed=seed)
-    record = _submit(attempt, event)
+    record = _record(attempt, status, timings, error=message, seed=seed)
     return PlanAnswer(
         status,
         None,
@@ -89,14 +100,28 @@ def answer_without_path(
     )
 
 
-def _submit(
+def _record(
     attempt: PlanAttempt,
-    event: dict[str, object],
+    status: PlanStatus,
+    timings: Mapping[str, float],
     *,
+    source: PlanSource | None = None,
+    trajectory_id: int | None = None,
+    error: str | None = None,
+    seed: int | None = None,
     served: int | None = None,
     quality: QualityJob | None = None,
 ) -> int:
-    """Queue the attempt's record; a served candidate also updates the ranking facts now."""
+    """Queue the answer's record and count it in the metrics; a served candidate also updates
+    the ranking facts now."""
+    event = attempt.event(
+        status,
+        source=source,
+        trajectory_id=trajectory_id,
+        timings=timings,
+        error=error,
+        seed=seed,
+    )
     records = attempt.ctx.records
     at = records.now()
     real = attempt.origin.real and served is not None
@@ -104,4 +129,10 @@ def _submit(
     record = records.submit(PlanRecord(at, served, failed, event, real=real, quality=quality))
     if served is not None:
         attempt.ctx.facts.record(served=served, failed=attempt.failed, real=real, at=at)
+    record_plan(
+        status=status.value,
+        source=source.value if source is not None else None,
+        requester=attempt.origin.requester.value,
+        timings=timings,
+    )
     return record

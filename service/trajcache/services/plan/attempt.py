@@ -34,6 +34,7 @@ __all__ = [
     "PlanRequest",
     "PlanSource",
     "PlanStatus",
+    "Requester",
 ]
 
 PHASES = ("lookup", "validate", "plan", "db")
@@ -46,6 +47,13 @@ class PlanStatus(str, Enum):
     MISS = "miss"  # no valid cached candidate and no fallback planning asked for or available
     FAILURE = "failure"  # the planner found no path within its budget
     ERROR = "error"  # the planner could not run (pool broken, backend down): answered with 503
+
+
+class Requester(str, Enum):
+    """Who asked for a plan: a robot, or a seed job planning for the simulated fleet."""
+
+    ROBOT = "robot"
+    SEED_JOB = "seed_job"
 
 
 class PlanSource(str, Enum):
@@ -72,12 +80,14 @@ class PlanRequest:
 
 @dataclass(frozen=True)
 class Origin:
-    """Where a request comes from: what a planned trajectory is stored as, and if it is real."""
+    """Where a request comes from: who asked, what a planned trajectory is stored as, and if
+    it is real."""
 
     store_source: str  # source of a trajectory the planner finds for this request
     store_robot_id: str | None
     real: bool  # a real robot: a hit counts as a validation of the trajectory in the real world
     held: Mapping[str, float] | None = None  # the robot's own held joint values, if it set any
+    requester: Requester = Requester.ROBOT  # recorded in the plan event and the metrics
 
 
 @dataclass
@@ -171,6 +181,7 @@ class PlanAttempt:
         """The plan_events column values of this request's outcome."""
         return {
             "robot_id": self.caller,
+            "requester": self.origin.requester.value,
             "model_id": self.model.model_id,
             "scene_hash": self.scene.hash,
             "status": status.value,

@@ -36,7 +36,8 @@ Bookkeeping of every answer (usage counters of the served and the rejected candi
 event) goes to `ctx.records` (`services.plan.records`), the only writer of those counters and
 events: written in order by a background writer, many per transaction, flushed at shutdown. The
 HTTP layer keeps the request's cycle open, after sending the answer, until its record is
-committed.
+committed. The same step counts the answer in the Prometheus metrics (`services.plan.answers`),
+so robots' requests and seed jobs' are counted alike.
 """
 
 from __future__ import annotations
@@ -64,7 +65,6 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.scene.variant import model_in_scene
 from trajcache.geometry.validation.validator import ValidationResult
-from trajcache.metrics import record_plan
 from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
@@ -78,6 +78,7 @@ from trajcache.services.plan.attempt import (
     PlanRequest,
     PlanSource,
     PlanStatus,
+    Requester,
 )
 from trajcache.services.plan.fallback import plan_fallback
 from trajcache.services.plan.options import PlanOptions, resolve_request
@@ -124,13 +125,8 @@ def answer_plan(
 def answer_request(
     *, ctx: ServiceContext, robot_id: str, request: PlanRequest, extras: AnswerExtras
 ) -> PlanAnswer:
-    """Answer a robot's plan request, count it in the metrics, and add the extras it asks for."""
+    """Answer a robot's plan request and add the extras it asks for."""
     answer, attempt = _plan_robot(ctx, robot_id, request)
-    record_plan(
-        status=answer.status.value,
-        source=answer.source.value if answer.source is not None else None,
-        timings=answer.timings_ms,
-    )
     return describe_answer(
         ctx=ctx, answer=answer, model=attempt.model, scene=attempt.scene, extras=extras
     )
@@ -152,14 +148,14 @@ def plan_in_scene(
 ) -> PlanAnswer:
     """Answer a plan request in a given scene (a seed job's simulated robot).
 
-    The flow is the robots' one; `caller` is recorded in the plan event, and a trajectory the
-    planner finds is stored with source `store_as`.
+    The flow is the robots' one; `caller` is recorded in the plan event with requester
+    `seed_job`, and a trajectory the planner finds is stored with source `store_as`.
     """
     clock = PhaseClock()
     with ctx.sessions() as session:
         with clock.measure("db"):
             model = get_model(session=session, registry=ctx.models, model_id=model_id)
-        origin = Origin(store_as, None, real=False)
+        origin = Origin(store_as, None, real=False, requester=Requester.SEED_JOB)
         attempt = _open(ctx, session, caller, origin, model, scene, request, clock)
         return _answer(attempt)
 

@@ -112,7 +112,7 @@ class JobRun:
         self.ctx = ctx
         self.job_id = job_id
         self.owner = owner
-        self.caller = f"seed-job-{job_id}"  # the "robot" of the job's plan events
+        self.caller = f"seed-job-{job_id}"  # robot_id of its plan events (requester seed_job)
         self._on_exit = on_exit
         self._wake = threading.Event()
         self._halt = threading.Event()  # set with `_stop`: ends waits between retries

@@ -26,6 +26,7 @@ class EventRows:
 
     t: npt.NDArray[np.int64]  # epoch seconds of the event, or of the rollup's hour
     robot: ObjArray
+    requester: ObjArray  # who `robot` is: "robot" or "seed_job"
     model: ObjArray
     source: ObjArray  # None when no trajectory was returned
     status: ObjArray
@@ -46,6 +47,7 @@ class EventRows:
         return EventRows(
             t=np.concatenate([p.t for p in parts]),
             robot=np.concatenate([p.robot for p in parts]),
+            requester=np.concatenate([p.requester for p in parts]),
             model=np.concatenate([p.model for p in parts]),
             source=np.concatenate([p.source for p in parts]),
             status=np.concatenate([p.status for p in parts]),
@@ -78,12 +80,14 @@ def fetch_events(
     *,
     robot_id: str | None = None,
     model_id: str | None = None,
+    requester: str | None = None,
 ) -> EventRows:
     """Plan events with `begin` ≤ created_at < `end`, as columns."""
     e = PlanEvent
     query = sa.select(
         epoch_seconds(session, e.created_at),
         e.robot_id,
+        e.requester,
         e.model_id,
         e.source,
         e.status,
@@ -96,17 +100,20 @@ def fetch_events(
         query = query.where(e.robot_id == robot_id)
     if model_id is not None:
         query = query.where(e.model_id == model_id)
+    if requester is not None:
+        query = query.where(e.requester == requester)
     rows = session.connection().execute(query).all()  # core rows: no ORM overhead
     count = len(rows)
-    cols = list(zip(*rows, strict=True)) if rows else [()] * 9
-    sums = np.array(cols[5:9], dtype=np.float64).T.reshape(count, len(histograms.METRICS))
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 10
+    sums = np.array(cols[6:10], dtype=np.float64).T.reshape(count, len(histograms.METRICS))
     metrics = len(histograms.METRICS)
     return EventRows(
         t=np.array(cols[0], dtype=np.int64),
         robot=np.array(cols[1], dtype=object),
-        model=np.array(cols[2], dtype=object),
-        source=np.array(cols[3], dtype=object),
-        status=np.array(cols[4], dtype=object),
+        requester=np.array(cols[2], dtype=object),
+        model=np.array(cols[3], dtype=object),
+        source=np.array(cols[4], dtype=object),
+        status=np.array(cols[5], dtype=object),
         n=np.ones(count, dtype=np.int64),
         sums=sums,
         entries=(
@@ -125,12 +132,14 @@ def fetch_rollups(
     *,
     robot_id: str | None = None,
     model_id: str | None = None,
+    requester: str | None = None,
 ) -> EventRows:
     """Rollups of the hours `begin` ≤ hour < `end`, as columns."""
     r = PlanEventRollup
     query = sa.select(
         epoch_seconds(session, r.bucket_start),
         r.robot_id,
+        r.requester,
         r.model_id,
         r.source,
         r.status,
@@ -145,18 +154,21 @@ def fetch_rollups(
         query = query.where(r.robot_id == robot_id)
     if model_id is not None:
         query = query.where(r.model_id == model_id)
+    if requester is not None:
+        query = query.where(r.requester == requester)
     rows = session.connection().execute(query).all()  # core rows: no ORM overhead
     count = len(rows)
-    cols = list(zip(*rows, strict=True)) if rows else [()] * 11
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 12
     return EventRows(
         t=np.array(cols[0], dtype=np.int64),
         robot=np.array(cols[1], dtype=object),
-        model=np.array(cols[2], dtype=object),
-        source=np.array(cols[3], dtype=object),
-        status=np.array(cols[4], dtype=object),
-        n=np.array(cols[5], dtype=np.int64),
-        sums=np.array(cols[6:10], dtype=np.float64).T.reshape(count, len(histograms.METRICS)),
-        entries=histograms.decode(list(cols[10])),
+        requester=np.array(cols[2], dtype=object),
+        model=np.array(cols[3], dtype=object),
+        source=np.array(cols[4], dtype=object),
+        status=np.array(cols[5], dtype=object),
+        n=np.array(cols[6], dtype=np.int64),
+        sums=np.array(cols[7:11], dtype=np.float64).T.reshape(count, len(histograms.METRICS)),
+        entries=histograms.decode(list(cols[11])),
     )
 
 

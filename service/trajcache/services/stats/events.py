@@ -21,6 +21,7 @@ from trajcache.services.errors import InvalidInputError
 
 STATUSES = ("success", "miss", "failure", "error")
 SOURCES = ("cache", "planner", "none")  # none: no trajectory was returned
+REQUESTERS = ("robot", "seed_job")  # who asked: a robot, or a seed job
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
@@ -61,6 +62,7 @@ def list_plan_events(
     model_id: str | None = None,
     status: str | None = None,
     source: str | None = None,
+    requester: str | None = None,
     trajectory_id: int | None = None,
     since: datetime | None = None,
     until: datetime | None = None,
@@ -74,7 +76,12 @@ def list_plan_events(
         raise InvalidInputError(f"query.status: {status!r} is not one of {', '.join(STATUSES)}")
     if source is not None and source not in SOURCES:
         raise InvalidInputError(f"query.source: {source!r} is not one of {', '.join(SOURCES)}")
-    for column, value in ((e.robot_id, robot_id), (e.model_id, model_id), (e.status, status)):
+    if requester is not None and requester not in REQUESTERS:
+        raise InvalidInputError(
+            f"query.requester: {requester!r} is not one of {', '.join(REQUESTERS)}"
+        )
+    filters = ((e.robot_id, robot_id), (e.model_id, model_id), (e.status, status))
+    for column, value in (*filters, (e.requester, requester)):
         if value is not None:
             conditions.append(column == value)
     if source is not None:

@@ -1,8 +1,9 @@
 """Hourly rollups of plan events, kept current by whoever asks for statistics.
 
 An hour is summarised once it is `SETTLE_S` in the past (events are written off the request
-path, a little after they happened): one `PlanEventRollup` row per robot, model, source and
-status, with the timing sums and their histograms. `PlanEventRollupState.rolled_until` says how
+path, a little after they happened): one `PlanEventRollup` row per robot and requester, model,
+source and status, with the timing sums and their histograms (a robot and a seed job that share
+a name stay apart). `PlanEventRollupState.rolled_until` says how
 far that has gone; replicas advance it with a compare-and-set, so each hour is summarised by
 exactly one of them. An event written later than that into an hour already summarised is picked
 up by `heal_rollups`, which compares event and rollup counts over the last `RECHECK_S` and
@@ -35,7 +36,7 @@ def summarise(rows: EventRows, hour_start: int) -> list[dict[str, object]]:
     if not len(rows):
         return []
     hour = (rows.t - hour_start) // ROLLUP_S
-    columns = [codes(c) for c in (rows.robot, rows.model, rows.source, rows.status)]
+    columns = [codes(c) for c in (rows.robot, rows.requester, rows.model, rows.source, rows.status)]
     dims = (int(hour.max()) + 1, *(len(labels) for labels, _ in columns))
     flat = np.ravel_multi_index((hour, *(inverse for _, inverse in columns)), dims)
     unique, inverse = np.unique(flat, return_inverse=True)
@@ -46,14 +47,15 @@ def summarise(rows: EventRows, hour_start: int) -> list[dict[str, object]]:
     )
     blobs = _histogram_blobs(rows, inverse, groups)
     keys = np.unravel_index(unique, dims)
-    (robots, _), (models, _), (sources, _), (statuses, _) = columns
+    (robots, _), (requesters, _), (models, _), (sources, _), (statuses, _) = columns
     return [
         {
             "bucket_start": datetime.fromtimestamp(hour_start + int(keys[0][i]) * ROLLUP_S, UTC),
             "robot_id": robots[keys[1][i]],
-            "model_id": models[keys[2][i]],
-            "source": sources[keys[3][i]],
-            "status": statuses[keys[4][i]],
+            "requester": requesters[keys[2][i]],
+            "model_id": models[keys[3][i]],
+            "source": sources[keys[4][i]],
+            "status": statuses[keys[5][i]],
             "requests": int(n[i]),
             "lookup_ms": float(sums[i, 0]),
             "validate_ms": float(sums[i, 1]),

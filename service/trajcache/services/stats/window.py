@@ -5,6 +5,9 @@ Counts and sums are exact. Percentiles come from log-spaced histograms and are w
 longer read whole hours from the hourly rollups and only the partial hours at either end from
 the events; shorter windows read their events.
 
+Groups by robot are keyed by the robot id and the requester together: a seed job's requests
+(robot id `seed-job-<id>`, requester `seed_job`) are never merged with a robot of that name.
+
 Definitions: a hit is a trajectory served from the cache; a planner call is a request that
 reached the fallback planner (whether it found a path, failed or could not run); failures are
 requests that ended `failure` or `error`; misses ended without planning. Lookup and validation
@@ -28,7 +31,14 @@ from sqlalchemy.orm import Session
 
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.stats import histograms
-from trajcache.services.stats.event_rows import EventRows, codes, fetch_events, fetch_rollups
+from trajcache.services.stats.event_rows import (
+    EventRows,
+    ObjArray,
+    codes,
+    fetch_events,
+    fetch_rollups,
+)
+from trajcache.services.stats.events import REQUESTERS
 from trajcache.services.stats.rollups import (
     ROLLUP_S,
     floor_hour,
@@ -113,6 +123,15 @@ class ModelBasis:
 
 
 @dataclass(frozen=True)
+class Group:
+    """The statistics of one robot, model or source; a robot's group says who it is."""
+
+    key: str
+    requester: str | None  # "robot" or "seed_job" when grouped by robot; None otherwise
+    metrics: Metrics
+
+
+@dataclass(frozen=True)
 class PlanStats:
     """Statistics of a window: totals, one entry per group, one per time bucket."""
 
@@ -122,7 +141,7 @@ class PlanStats:
     bucket_s: int
     group_by: str
     totals: Metrics
-    groups: list[tuple[str, Metrics]]
+    groups: list[Group]
     series: list[tuple[datetime, Metrics]]
     time_saved_basis: list[ModelBasis]
 
@@ -134,20 +153,31 @@ def plan_stats(
     group_by: str = "robot",
     robot_id: str | None = None,
     model_id: str | None = None,
+    requester: str | None = None,
     now: datetime | None = None,
 ) -> PlanStats:
     """Statistics of the plan requests of the last `window_s` seconds, grouped by `group_by`."""
     if group_by not in GROUP_BY:
         raise InvalidInputError(f"query.group_by: {group_by!r} is not one of {GROUP_BY}")
+    if requester is not None and requester not in REQUESTERS:
+        raise InvalidInputError(f"query.requester: {requester!r} is not one of {REQUESTERS}")
     until = now or datetime.now(UTC)
     since = until - timedelta(seconds=window_s)
     bucket_s = bucket_seconds(window_s)
-    rows = _window_rows(session, since, until, bucket_s, robot_id=robot_id, model_id=model_id)
+    rows = _window_rows(
+        session,
+        since,
+        until,
+        bucket_s,
+        robot_id=robot_id,
+        model_id=model_id,
+        requester=requester,
+    )
 
     category = categories(rows.status, rows.source)
     models, model = codes(rows.model)
     medians, planned = _median_plan_ms(rows, category, model, len(models))
-    keys, group = codes(_group_column(rows, group_by))
+    keys, requesters, group = _group_codes(rows, group_by)
     first = int(since.timestamp()) // bucket_s * bucket_s
     slots = (math.ceil(until.timestamp()) - 1 - first) // bucket_s + 1
     slot = np.clip((rows.t - first) // bucket_s, 0, slots - 1)
@@ -156,7 +186,10 @@ def plan_stats(
     by_group = _metrics(groups, medians)
     totals = _metrics(groups.total(), medians)
     by_slot = _metrics(_accumulate(rows, category, slot, slots, model, len(models)), medians)
-    order = sorted(range(len(keys)), key=lambda i: (-by_group[i].requests, str(keys[i])))
+    order = sorted(
+        range(len(keys)),
+        key=lambda i: (-by_group[i].requests, str(keys[i]), str(requesters[i])),
+    )
     is_hit = category == HIT
     hits = np.bincount(model[is_hit], weights=rows.n[is_hit], minlength=len(models))
     return PlanStats(
@@ -166,7 +199,10 @@ def plan_stats(
         bucket_s=bucket_s,
         group_by=group_by,
         totals=totals[0],
-        groups=[(str(keys[i]) if keys[i] is not None else "none", by_group[i]) for i in order],
+        groups=[
+            Group(str(keys[i]) if keys[i] is not None else "none", requesters[i], by_group[i])
+            for i in order
+        ],
         series=[
             (datetime.fromtimestamp(first + i * bucket_s, UTC), by_slot[i]) for i in range(slots)
         ],
@@ -218,12 +254,20 @@ def _window_rows(
     )
 
 
-def _group_column(rows: EventRows, group_by: str) -> npt.NDArray[np.object_]:
-    if group_by == "robot":
-        return rows.robot
-    if group_by == "model":
-        return rows.model
-    return rows.source
+def _group_codes(rows: EventRows, group_by: str) -> tuple[ObjArray, ObjArray, np.ndarray]:
+    """Each group's key and requester (None unless grouped by robot), and each row's group.
+
+    A robot's group is the pair (robot id, requester), so a seed job and a robot that share a
+    name are two groups.
+    """
+    if group_by != "robot":
+        keys, group = codes(rows.model if group_by == "model" else rows.source)
+        return keys, np.full(len(keys), None, dtype=object), group
+    robots, robot = codes(rows.robot)
+    requesters, requester = codes(rows.requester)
+    width = max(len(requesters), 1)
+    pairs, group = np.unique(robot * width + requester, return_inverse=True)
+    return robots[pairs // width], requesters[pairs % width], group.reshape(-1).astype(np.int64)
 
 
 def _median_plan_ms(
