@@ -15,10 +15,9 @@ import pydantic_core
 import yaml
 from fastapi import APIRouter, Depends, Path, Request, Response
 from starlette.background import BackgroundTask
-from starlette.exceptions import HTTPException
 
 from trajcache.api.answer_extras import answer_extras
-from trajcache.api.bounded import BoundedBodyRoute
+from trajcache.api.bounded import BoundedBodyRoute, media_type, unsupported_media
 from trajcache.api.deps import CtxDep
 from trajcache.api.moveit import (
     MotionPlanError,
@@ -76,7 +75,10 @@ _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSO
         "required": True,
         "content": {
             "application/json": {"schema": _REQUEST_SCHEMA},
-            "application/yaml": {"schema": _REQUEST_SCHEMA, "example": yaml.safe_load(_YAML_EXAMPLE)},
+            "application/yaml": {
+                "schema": _REQUEST_SCHEMA,
+                "example": yaml.safe_load(_YAML_EXAMPLE),
+            },
         },
     }
 }
@@ -92,11 +94,9 @@ class RawBody:
 
 async def read_raw_body(request: Request) -> RawBody:
     """The body (bounded by max_body_bytes while read); it is parsed in the worker thread."""
-    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    media = media_type(request)
     if not is_supported(media):
-        raise HTTPException(
-            415, f"unsupported content type {media!r}; send application/json or application/yaml"
-        )
+        raise unsupported_media(media, "application/json or application/yaml")
     return RawBody(media, await request.body())
 
 

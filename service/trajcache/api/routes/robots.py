@@ -9,9 +9,13 @@ from typing import Annotated, Any
 
 import yaml
 from fastapi import APIRouter, Depends, Request, Response
-from starlette.exceptions import HTTPException
 
-from trajcache.api.bounded import BoundedBodyRoute
+from trajcache.api.bounded import (
+    BoundedBodyRoute,
+    is_json_media,
+    media_type,
+    unsupported_media,
+)
 from trajcache.api.deps import CtxDep, SessionDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.robots import (
@@ -40,7 +44,6 @@ router = APIRouter(
     prefix="/robots", tags=["robots"], responses=COMMON, route_class=BoundedBodyRoute
 )
 
-JSON_TYPES = frozenset({"", "application/json"})
 YAML_TYPES = frozenset(
     {"application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml", "text/plain"}
 )  # text: YAML or JSON
@@ -141,11 +144,9 @@ class SceneBody:
 
 async def read_scene_body(request: Request) -> SceneBody:
     """The request body (bounded by max_body_bytes); parsing happens in the worker thread."""
-    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if media not in JSON_TYPES and media not in YAML_TYPES and not media.endswith("+json"):
-        raise HTTPException(
-            415, f"unsupported content type {media!r}; send application/json or application/yaml"
-        )
+    media = media_type(request)
+    if not is_json_media(media) and media not in YAML_TYPES:
+        raise unsupported_media(media, "application/json or application/yaml")
     return SceneBody(media, await request.body())  # bounded while read (BoundedBodyRoute)
 
 
