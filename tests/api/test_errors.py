@@ -54,3 +54,11 @@ def test_a_json_body_without_a_content_type_or_in_a_json_type_is_read(
     assert merge.status_code == 200, merge.text
     assert merge.json()["version"] == 2
     assert app_client.get(url).json()["objects"] == []
+
+
+def test_a_405_allows_every_method_of_the_path(app_client: TestClient) -> None:
+    reply = app_client.delete("/v1/robots/robot-1/scene")
+    assert_detail(reply, 405, "DELETE", "allowed: GET, PUT, PATCH")
+    assert reply.headers["allow"] == "GET, PUT, PATCH"
+    assert app_client.post("/v1/trajectories/7").headers["allow"] == "GET, DELETE"
+    assert app_client.put("/v1/robots/robot-1/plan").headers["allow"] == "POST"

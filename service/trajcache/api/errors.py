@@ -8,8 +8,9 @@ from collections.abc import Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from sqlalchemy.exc import (
     DataError,
     DBAPIError,
@@ -18,6 +19,8 @@ from sqlalchemy.exc import (
     OperationalError,
 )
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
+from starlette.exceptions import HTTPException
+from starlette.routing import Match, Mount
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from trajcache.geometry.errors import GeometryError
@@ -44,6 +47,7 @@ _STATUS: tuple[tuple[type[Exception], int], ...] = (
     (UnavailableError, 503),
 )
 _MAX_LISTED_ERRORS = 10
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -53,11 +57,37 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(DBAPIError, _database_error)
     app.add_exception_handler(PoolTimeoutError, _pool_timeout)
     app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(Exception, _unexpected_error)
 
 
 def _detail(status: int, message: str, **extra: Any) -> JSONResponse:
     return JSONResponse(status_code=status, content={"detail": message, **extra})
+
+
+def allowed_methods(request: Request) -> list[str]:
+    """The methods some route of the app answers on the request's path."""
+    routes = [r for r in request.app.router.routes if not isinstance(r, Mount)]
+    probe = {k: request.scope[k] for k in ("type", "path", "root_path") if k in request.scope}
+    return [
+        method
+        for method in _METHODS
+        if any(r.matches({**probe, "method": method})[0] is Match.FULL for r in routes)
+    ]
+
+
+async def _http_error(request: Request, exc: Exception) -> Response:
+    # A 405 lists every method of the path: the router names only those of one of its routes.
+    assert isinstance(exc, HTTPException)
+    if exc.status_code != 405 or not (allowed := allowed_methods(request)):
+        return await http_exception_handler(request, exc)
+    response = _detail(
+        405,
+        f"method {request.method} is not allowed on {request.url.path}; "
+        f"allowed: {', '.join(allowed)}",
+    )
+    response.headers["Allow"] = ", ".join(allowed)
+    return response
 
 
 async def _geometry_error(_request: Request, exc: Exception) -> JSONResponse:
