@@ -25,6 +25,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from trajcache.geometry.errors import GeometryError
 from trajcache.services.errors import (
+    DATABASE_UNAVAILABLE,
     AuthenticationError,
     ConflictError,
     InvalidInputError,
@@ -117,14 +118,14 @@ async def _database_error(_request: Request, exc: Exception) -> JSONResponse:
         return _detail(422, f"value not accepted by the database: {_db_message(exc)}")
     if isinstance(exc, OperationalError | InterfaceError) or exc.connection_invalidated:
         logger.warning("database unavailable: %s", _db_message(exc))
-        return _detail(503, f"database unavailable: {_db_message(exc)}")
+        return _detail(503, DATABASE_UNAVAILABLE)
     logger.error("database error", exc_info=exc)
     return _detail(500, "internal database error")
 
 
 async def _pool_timeout(_request: Request, exc: Exception) -> JSONResponse:
     logger.warning("database connection pool exhausted: %s", exc)
-    return _detail(503, "database unavailable: no free connection in the pool")
+    return _detail(503, f"{DATABASE_UNAVAILABLE}: no free connection in the pool")
 
 
 def _location(loc: Sequence[Any]) -> str:
