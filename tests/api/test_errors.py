@@ -62,3 +62,23 @@ def test_a_405_allows_every_method_of_the_path(app_client: TestClient) -> None:
     assert reply.headers["allow"] == "GET, PUT, PATCH"
     assert app_client.post("/v1/trajectories/7").headers["allow"] == "GET, DELETE"
     assert app_client.put("/v1/robots/robot-1/plan").headers["allow"] == "POST"
+
+
+def test_a_robot_id_of_only_dots_is_a_422_naming_it_on_every_robot_route(
+    app_client: TestClient, model_id: str
+) -> None:
+    paths = openapi_document()["paths"]
+    operations = [(m.upper(), p) for p, ops in paths.items() if "{robot_id}" in p for m in ops]
+    assert len(operations) == 7
+    for method, path in operations:
+        for robot_id in (".", "..", "..."):
+            encoded = robot_id.replace(".", "%2E")  # a client would resolve the dot segments
+            url = path.replace("{robot_id}", encoded)
+            reply = app_client.request(method, url, json={"model_id": model_id})
+            assert_detail(reply, 422, "path.robot_id", f"robot id {robot_id!r}", "only dots")
+    store = {"model_id": model_id, "states": [[0, 0], [0.1, 0]], "robot_id": ".."}
+    assert_detail(app_client.post("/v1/trajectories", json=store), 422, "robot id '..'")
+    for robot_id in ("..a", "v1.2", ".arm"):
+        assert (
+            app_client.put(f"/v1/robots/{robot_id}", json={"model_id": model_id}).status_code == 201
+        )

@@ -6,9 +6,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Annotated
 
-from fastapi import Depends, Query, Request
+from fastapi import Depends, Path, Query, Request
+from pydantic import AfterValidator
 from sqlalchemy.orm import Session
 
+from trajcache.api.schemas.common import ROBOT_ID_SCHEMA, checked_robot_id
 from trajcache.core.config import Settings
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
@@ -41,6 +43,16 @@ def get_session(ctx: CtxDep) -> Iterator[Session]:
 
 
 SessionDep = Annotated[Session, Depends(get_session)]
+
+
+RobotIdPath = Annotated[
+    str,
+    AfterValidator(checked_robot_id),
+    Path(
+        description="The robot's id: 1-128 letters, digits, `.`, `_`, `:` or `-`, not only dots.",
+        json_schema_extra=ROBOT_ID_SCHEMA,
+    ),
+]
 
 
 @dataclass(frozen=True)

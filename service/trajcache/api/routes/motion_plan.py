@@ -13,12 +13,12 @@ from typing import Annotated, Any
 
 import pydantic_core
 import yaml
-from fastapi import APIRouter, Depends, Path, Request, Response
+from fastapi import APIRouter, Depends, Request, Response
 from starlette.background import BackgroundTask
 
 from trajcache.api.answer_extras import answer_extras
 from trajcache.api.bounded import BoundedBodyRoute, media_type, unsupported_media
-from trajcache.api.deps import CtxDep
+from trajcache.api.deps import CtxDep, RobotIdPath
 from trajcache.api.moveit import (
     MotionPlanError,
     MotionPlanRequestIn,
@@ -140,9 +140,7 @@ RawBodyDep = Annotated[RawBody, Depends(read_raw_body)]
         }
     ),
 )
-def motion_plan_route(
-    ctx: CtxDep, body: RawBodyDep, robot_id: Annotated[str, Path(max_length=128)]
-) -> Response:
+def motion_plan_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> Response:
     """Answer a MoveIt motion plan request from the cache or the planner."""
     began = time.perf_counter()
     message = parse_motion_plan_request(body.media_type, body.data)

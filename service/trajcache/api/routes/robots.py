@@ -16,7 +16,7 @@ from trajcache.api.bounded import (
     media_type,
     unsupported_media,
 )
-from trajcache.api.deps import CtxDep, SessionDep
+from trajcache.api.deps import CtxDep, RobotIdPath, SessionDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.robots import (
     RobotIn,
@@ -85,10 +85,11 @@ def _robot_out(robot: RobotInfo) -> RobotOut:
     response_model=RobotOut,
     summary="Create a robot, or re-point it to another model",
     response_description="Robot created",
-    description="Creates the robot `robot_id` (1-128 letters, digits, `.`, `_`, `:` or `-`) as an "
-    "instance of a registered model, or re-points an existing robot (201 when new, 200 when it "
-    "existed). Robots of one model share one cache. `kind` marks a robot `real` (the default) or "
-    "`sim`, so validation statistics can tell real-robot use of a trajectory apart. "
+    description="Creates the robot `robot_id` (1-128 letters, digits, `.`, `_`, `:` or `-`, not "
+    "only dots) as an instance of a registered model, or re-points an existing robot (201 when "
+    "new, 200 when it existed). Robots of one model share one cache. `kind` marks a robot "
+    "`real` (the default) or `sim`, so validation statistics can tell real-robot use of a "
+    "trajectory apart. "
     "`joint_values` holds joints outside the planning joints otherwise than the model does "
     "(e.g. the gripper open): the robot's plans are checked with those values.",
     responses={
@@ -98,15 +99,15 @@ def _robot_out(robot: RobotInfo) -> RobotOut:
                 404: ("Unknown model", "robot model '5158592d' not found"),
                 422: (
                     "Malformed robot id or body",
-                    "robot id 'robot 7' must match ^[A-Za-z0-9._:-]{1,128}$ "
-                    "(1-128 letters, digits, '.', '_', ':' or '-')",
+                    "path.robot_id: robot id '..' must be 1-128 letters, digits, '.', '_', "
+                    "':' or '-', and not only dots",
                 ),
             }
         ),
     },
 )
 def put_robot_route(
-    robot_id: str, body: RobotIn, ctx: CtxDep, session: SessionDep, response: Response
+    robot_id: RobotIdPath, body: RobotIn, ctx: CtxDep, session: SessionDep, response: Response
 ) -> RobotOut:
     """201 when the robot is new, 200 when it existed."""
     robot, created = put_robot(
@@ -129,7 +130,7 @@ def put_robot_route(
     description="The robot's model and its current scene version (0 = no scene uploaded yet).",
     responses=errors({404: _UNKNOWN_ROBOT}),
 )
-def get_robot_route(robot_id: str, session: SessionDep) -> RobotOut:
+def get_robot_route(robot_id: RobotIdPath, session: SessionDep) -> RobotOut:
     """The robot `robot_id`."""
     return _robot_out(RobotInfo.of(get_robot(session=session, robot_id=robot_id)))
 
@@ -197,7 +198,7 @@ def parse_scene_body(body: SceneBody) -> Scene:
     ),
 )
 def put_scene_route(
-    robot_id: str, body: SceneBodyDep, ctx: CtxDep, session: SessionDep
+    robot_id: RobotIdPath, body: SceneBodyDep, ctx: CtxDep, session: SessionDep
 ) -> SceneVersionOut:
     """A new scene version (or the current one when the content is unchanged)."""
     scene = parse_scene_body(body)
@@ -237,7 +238,7 @@ def put_scene_route(
     ),
 )
 def patch_scene_route(
-    robot_id: str, body: ScenePatchIn, ctx: CtxDep, session: SessionDep
+    robot_id: RobotIdPath, body: ScenePatchIn, ctx: CtxDep, session: SessionDep
 ) -> SceneVersionOut:
     """A new scene version with the patch applied."""
     version, scene_hash = patch_scene(
@@ -258,7 +259,7 @@ def patch_scene_route(
     "and content hash.",
     responses=errors({404: _UNKNOWN_ROBOT}),
 )
-def get_scene_route(robot_id: str, ctx: CtxDep, session: SessionDep) -> SceneOut:
+def get_scene_route(robot_id: RobotIdPath, ctx: CtxDep, session: SessionDep) -> SceneOut:
     """The current scene in native form with its version and hash."""
     info = get_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
     return SceneOut(
