@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,9 @@ from typer.testing import CliRunner
 
 from trajcache.cli import app as cli
 from trajcache.cli.docs import openapi_document, openapi_text
+from trajcache.core.config import MAX_PAGE_SIZE
+from trajcache.services.errors import InvalidInputError
+from trajcache.services.stats.window import WINDOW_PATTERN, parse_window
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCUMENT = ROOT / "openapi" / "openapi.json"
@@ -103,6 +107,43 @@ def test_every_operation_declares_its_errors_with_the_error_body(
         media = response["content"]["application/json"]
         assert media["schema"] == {"$ref": "#/components/schemas/ErrorOut"}, f"{path} {code}"
         assert isinstance(media["example"]["detail"], str) and response["description"]
+
+
+def _query_parameters(name: str) -> list[tuple[str, dict[str, Any]]]:
+    return [
+        (f"{method.upper()} {path}", parameter["schema"])
+        for method, path, op in _operations()
+        for parameter in op.get("parameters", [])
+        if parameter["in"] == "query" and parameter["name"] == name
+    ]
+
+
+def test_every_page_size_states_its_maximum() -> None:
+    limits = dict(_query_parameters("limit"))
+    pages = {"GET /v1/robot-models", "GET /v1/trajectories", "GET /v1/seed-jobs"}
+    assert pages | {"GET /v1/plan-events", "GET /v1/stats/top-trajectories"} == set(limits)
+    for operation, schema in limits.items():
+        (bound,) = [s for s in schema.get("anyOf", [schema]) if s.get("type") == "integer"]
+        assert bound["minimum"] == 1, operation
+        top = operation == "GET /v1/stats/top-trajectories"
+        assert bound["maximum"] == (100 if top else MAX_PAGE_SIZE), operation
+
+
+WINDOWS = ["30m", "24h", "7d", "1m", "366d", " 5 m ", "0m", "999999d"]
+NOT_WINDOWS = ["2w", "soon", "30", "h", "1.5h", "-1h", "1000000m", "30m\n", "\t30m", "٣m", ""]
+
+
+def test_the_stats_window_states_the_parsers_pattern() -> None:
+    ((_, schema),) = _query_parameters("window")
+    pattern = re.compile(schema["pattern"])  # ECMA and Python read this one alike
+    assert schema["pattern"] == WINDOW_PATTERN
+    for text in WINDOWS:
+        assert pattern.fullmatch(text), text
+    for text in NOT_WINDOWS:
+        assert not pattern.fullmatch(text), text
+        with pytest.raises(InvalidInputError):
+            parse_window(text)
+    assert [parse_window(t) for t in ("30m", " 5 m ", "366d")] == [1800, 300, 366 * 86400]
 
 
 def test_the_openapi_command_writes_and_checks(tmp_path: Path) -> None:

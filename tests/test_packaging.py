@@ -41,6 +41,9 @@ def test_the_wheel_holds_both_packages_typed(tmp_path: Path) -> None:
     for module in ("cli/__main__", "cli/launch", "cli/demo", "cli/demo_play", "reference/robot"):
         assert f"trajcache/{module}.py" in names, module
     assert not [n for n in names if n.startswith(("trajcache/protocol/", "harness/", "bench/"))]
+    for asset in ("swagger-ui/swagger-ui-bundle.js", "swagger-ui/swagger-ui.css", "redoc/LICENSE"):
+        assert f"trajcache/api/static/{asset}" in names, asset  # /docs works offline
+    assert "trajcache/api/static/NOTICE.md" in names
     entry_points = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
     assert "trajcache = trajcache.cli:app" in zipfile.ZipFile(wheel).read(entry_points).decode()
 

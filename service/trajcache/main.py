@@ -11,6 +11,7 @@ from fastapi import FastAPI
 from starlette.concurrency import run_in_threadpool
 
 from trajcache import __version__
+from trajcache.api.docs import install_docs
 from trajcache.api.errors import UnexpectedErrorMiddleware, install_error_handlers
 from trajcache.api.router import api_router
 from trajcache.api.routes import health
@@ -62,7 +63,10 @@ def create_app(settings: Settings | None = None, *, migrate: bool | None = None)
         version=__version__,
         summary="A shared, collision-validated trajectory cache for mobile manipulators.",
         lifespan=lifespan,
+        docs_url=None,  # install_docs serves them from the package's files
+        redoc_url=None,
     )
+    install_docs(app)
     install_error_handlers(app)
     app.include_router(api_router, prefix="/v1")
     app.include_router(health.router)

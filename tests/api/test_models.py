@@ -11,7 +11,16 @@ import trimesh
 from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
-from tests.robots import MESH_URDF, ONE_LINK_URDF, TWO_JOINT_URDF
+from tests.robots import (
+    MESH_URDF,
+    ONE_LINK_URDF,
+    TWO_JOINT_URDF,
+    box,
+    collision,
+    joint,
+    link,
+    robot,
+)
 from trajcache.services.catalog.models import get_model
 
 
@@ -186,6 +195,23 @@ def test_bad_urdf_and_fields_are_422(app_client: TestClient) -> None:
         415,
         "text/csv",
     )
+
+
+def test_a_model_with_nothing_to_plan_is_422(app_client: TestClient) -> None:
+    cart = robot(
+        "cart",
+        link("base", collision(box(0.5, 0.4, 0.3))),
+        link("mast", collision(box(0.1, 0.1, 1.0))),
+        joint("mast_mount", "fixed", "base", "mast", xyz=(0, 0, 0.6)),
+    )
+    for urdf in (cart, ONE_LINK_URDF):
+        reply = app_client.post("/v1/robot-models", json={"urdf": urdf})
+        assert_detail(reply, 422, "nothing to plan", "only fixed joints", "base 'planar'")
+    held = app_client.post("/v1/robot-models", json={"urdf": TWO_JOINT_URDF, "joint_names": []})
+    assert_detail(held, 422, "nothing to plan", "every movable joint is held")
+    mobile = register(app_client, urdf=cart, base="planar")  # the base is what moves
+    assert mobile["state_names"] == ["base_x", "base_y", "base_theta"]
+    assert app_client.get("/v1/robot-models").json()["total"] == 1
 
 
 def test_missing_mesh_and_escaping_archive_are_422(app_client: TestClient) -> None:

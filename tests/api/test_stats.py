@@ -270,7 +270,7 @@ def test_plan_event_pages_do_not_shift_when_events_arrive(
         ({"cursor": _cursor("1:99999999999999999999")}, "query.cursor"),  # id beyond BIGINT
         ({"cursor": _cursor("99999999999999999999:5")}, "query.cursor"),  # time beyond year 9999
         ({"cursor": _cursor("1:-4")}, "query.cursor"),
-        ({"limit": 5000}, "max_page_size"),
+        ({"limit": 5000}, "query.limit"),
         ({"limit": 0}, "limit"),
         ({"status": "great"}, "status"),
         ({"source": "sim"}, "source"),

@@ -219,7 +219,7 @@ def test_service_errors_arrive_as_exceptions_naming_the_problem(client: Client) 
         client.put_scene("robot-1", {"objects": [{"id": "a", "type": "box"}]})
     with pytest.raises(tc.PayloadTooLargeError, match="max_trajectory_states"):
         client.store_trajectory(model.model_id, [[0.0, 0.0]] * 5001)
-    with pytest.raises(tc.ValidationError, match="max_page_size"):
+    with pytest.raises(tc.ValidationError, match="less than or equal to 1000"):
         client.list_trajectories(limit=100_000)
 
 

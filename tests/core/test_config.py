@@ -86,6 +86,7 @@ def test_database_url_normalisation(
         ("log_level", "loud"),
         ("database_url", " "),
         ("max_page_size", "0"),
+        ("max_page_size", "1001"),  # above the page size the API document states
         ("lookup_threshold", "nan"),
     ],
 )

@@ -6,10 +6,12 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Annotated
 
-from fastapi import Depends, Query, Request
+from fastapi import Depends, Path, Query, Request
+from pydantic import AfterValidator
 from sqlalchemy.orm import Session
 
-from trajcache.core.config import Settings
+from trajcache.api.schemas.common import ROBOT_ID_SCHEMA, checked_robot_id
+from trajcache.core.config import MAX_PAGE_SIZE, Settings
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 
@@ -43,6 +45,16 @@ def get_session(ctx: CtxDep) -> Iterator[Session]:
 SessionDep = Annotated[Session, Depends(get_session)]
 
 
+RobotIdPath = Annotated[
+    str,
+    AfterValidator(checked_robot_id),
+    Path(
+        description="The robot's id: 1-128 letters, digits, `.`, `_`, `:` or `-`, not only dots.",
+        json_schema_extra=ROBOT_ID_SCHEMA,
+    ),
+]
+
+
 @dataclass(frozen=True)
 class Page:
     """Validated `limit` and `offset` query parameters."""
@@ -65,7 +77,13 @@ def checked_page_size(limit: int | None, settings: Settings) -> int:
 def get_page_size(
     settings: SettingsDep,
     limit: Annotated[
-        int | None, Query(ge=1, description="Page size (at most the service's max_page_size).")
+        int | None,
+        Query(
+            ge=1,
+            le=MAX_PAGE_SIZE,
+            description=f"Page size: at most the service's max_page_size ({MAX_PAGE_SIZE} unless "
+            "set lower).",
+        ),
     ] = None,
 ) -> int:
     """The page size asked for (default 100, or max_page_size when that is smaller)."""

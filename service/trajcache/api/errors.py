@@ -8,8 +8,9 @@ from collections.abc import Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from sqlalchemy.exc import (
     DataError,
     DBAPIError,
@@ -18,10 +19,13 @@ from sqlalchemy.exc import (
     OperationalError,
 )
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
+from starlette.exceptions import HTTPException
+from starlette.routing import Match, Mount
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from trajcache.geometry.errors import GeometryError
 from trajcache.services.errors import (
+    DATABASE_UNAVAILABLE,
     AuthenticationError,
     ConflictError,
     InvalidInputError,
@@ -44,6 +48,7 @@ _STATUS: tuple[tuple[type[Exception], int], ...] = (
     (UnavailableError, 503),
 )
 _MAX_LISTED_ERRORS = 10
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -53,11 +58,37 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(DBAPIError, _database_error)
     app.add_exception_handler(PoolTimeoutError, _pool_timeout)
     app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(Exception, _unexpected_error)
 
 
 def _detail(status: int, message: str, **extra: Any) -> JSONResponse:
     return JSONResponse(status_code=status, content={"detail": message, **extra})
+
+
+def allowed_methods(request: Request) -> list[str]:
+    """The methods some route of the app answers on the request's path."""
+    routes = [r for r in request.app.router.routes if not isinstance(r, Mount)]
+    probe = {k: request.scope[k] for k in ("type", "path", "root_path") if k in request.scope}
+    return [
+        method
+        for method in _METHODS
+        if any(r.matches({**probe, "method": method})[0] is Match.FULL for r in routes)
+    ]
+
+
+async def _http_error(request: Request, exc: Exception) -> Response:
+    # A 405 lists every method of the path: the router names only those of one of its routes.
+    assert isinstance(exc, HTTPException)
+    if exc.status_code != 405 or not (allowed := allowed_methods(request)):
+        return await http_exception_handler(request, exc)
+    response = _detail(
+        405,
+        f"method {request.method} is not allowed on {request.url.path}; "
+        f"allowed: {', '.join(allowed)}",
+    )
+    response.headers["Allow"] = ", ".join(allowed)
+    return response
 
 
 async def _geometry_error(_request: Request, exc: Exception) -> JSONResponse:
@@ -87,14 +118,14 @@ async def _database_error(_request: Request, exc: Exception) -> JSONResponse:
         return _detail(422, f"value not accepted by the database: {_db_message(exc)}")
     if isinstance(exc, OperationalError | InterfaceError) or exc.connection_invalidated:
         logger.warning("database unavailable: %s", _db_message(exc))
-        return _detail(503, f"database unavailable: {_db_message(exc)}")
+        return _detail(503, DATABASE_UNAVAILABLE)
     logger.error("database error", exc_info=exc)
     return _detail(500, "internal database error")
 
 
 async def _pool_timeout(_request: Request, exc: Exception) -> JSONResponse:
     logger.warning("database connection pool exhausted: %s", exc)
-    return _detail(503, "database unavailable: no free connection in the pool")
+    return _detail(503, f"{DATABASE_UNAVAILABLE}: no free connection in the pool")
 
 
 def _location(loc: Sequence[Any]) -> str:

@@ -5,12 +5,13 @@ from __future__ import annotations
 from typing import Any
 
 from trajcache.api.schemas.errors import ErrorOut
+from trajcache.services.errors import DATABASE_UNAVAILABLE
 
 Responses = dict[int | str, dict[str, Any]]
 
 DB_UNAVAILABLE = (
     "The database is unreachable; the service recovers by itself when it is back",
-    "database unavailable: connection refused",
+    DATABASE_UNAVAILABLE,
 )
 UNAUTHENTICATED = (
     "No API key, or an unknown or revoked one (when key checks are on)",

@@ -12,6 +12,7 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from trajcache.planning.problem import PLANNER_NAMES
 
 MIB = 1024 * 1024
+MAX_PAGE_SIZE = 1000  # the `limit` maximum the API document states; max_page_size may lower it
 
 
 class Settings(BaseSettings):
@@ -181,7 +182,12 @@ class Settings(BaseSettings):
     max_trajectory_states: int = Field(
         default=5000, ge=2, description="Most states accepted in one trajectory."
     )
-    max_page_size: int = Field(default=1000, ge=1, description="Largest page of a list endpoint.")
+    max_page_size: int = Field(
+        default=MAX_PAGE_SIZE,
+        ge=1,
+        le=MAX_PAGE_SIZE,
+        description=f"Largest page of a list endpoint (at most {MAX_PAGE_SIZE}).",
+    )
 
     # Security
     auth_mode: Literal["auto", "on", "off"] = Field(

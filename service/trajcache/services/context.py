@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -23,9 +24,11 @@ from trajcache.services.catalog.index_store import IndexStore
 from trajcache.services.catalog.keys import KeyCache
 from trajcache.services.catalog.models import ModelRegistry
 from trajcache.services.catalog.scene_cache import SceneCache
-from trajcache.services.errors import UnavailableError
+from trajcache.services.errors import DATABASE_UNAVAILABLE, UnavailableError
 from trajcache.services.plan.ranking_facts import RankingFactsCache
 from trajcache.services.plan.records import PlanRecorder
+
+_log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -91,10 +94,10 @@ class ServiceContext:
         try:
             with self.engine.connect() as conn:
                 conn.execute(sa.text("SELECT 1"))
-        except DBAPIError as exc:
-            raise UnavailableError(f"database unavailable: {_first_line(exc.orig)}") from exc
         except SQLAlchemyError as exc:
-            raise UnavailableError(f"database unavailable: {_first_line(exc)}") from exc
+            cause = exc.orig if isinstance(exc, DBAPIError) else exc
+            _log.warning("database unavailable: %s", _first_line(cause))
+            raise UnavailableError(DATABASE_UNAVAILABLE) from exc
 
     def planner_pool(self) -> PlannerPool | None:
         """The fallback planner pool, started on first use; None when planning is off."""

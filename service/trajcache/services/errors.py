@@ -59,3 +59,8 @@ class InvalidInputError(ServiceError):
 
 class UnavailableError(ServiceError):
     """The database (or another backing service) cannot be reached."""
+
+
+# What a client is told when the database cannot be reached: never its host, port or driver's
+# words (those go to the log).
+DATABASE_UNAVAILABLE = "the database is unavailable"

@@ -13,16 +13,16 @@ import yaml
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
+from trajcache.api.bounded import is_json_media
 from trajcache.api.moveit._messages import MotionPlanRequestIn
 
-JSON_TYPES = frozenset({"", "application/json"})
 YAML_TYPES = frozenset({"application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml"})
 _LOADER: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def is_supported(media_type: str) -> bool:
     """Whether a body of this media type (lower case, no parameters) is read."""
-    return media_type in JSON_TYPES or media_type in YAML_TYPES or media_type.endswith("+json")
+    return is_json_media(media_type) or media_type in YAML_TYPES
 
 
 def parse_motion_plan_request(media_type: str, data: bytes) -> MotionPlanRequestIn:

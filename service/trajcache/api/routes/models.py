@@ -15,7 +15,12 @@ from pydantic import ValidationError
 from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException
 
-from trajcache.api.bounded import BoundedBodyRoute
+from trajcache.api.bounded import (
+    BoundedBodyRoute,
+    is_json_media,
+    media_type,
+    unsupported_media,
+)
 from trajcache.api.deps import CtxDep, PageDep, SessionDep, SettingsDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.models import (
@@ -214,14 +219,12 @@ async def _from_form(request: Request, settings: Settings) -> Registration:
 
 async def read_registration(request: Request, settings: SettingsDep) -> Registration:
     """Parse a registration sent as JSON or as a form (multipart, or URL-encoded without files)."""
-    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    media = media_type(request)
     if media in ("multipart/form-data", "application/x-www-form-urlencoded"):
         return await _from_form(request, settings)
-    if media in ("", "application/json") or media.endswith("+json"):
+    if is_json_media(media):
         return _from_json(await request.body(), settings)
-    raise HTTPException(
-        415, f"unsupported content type {media!r}; send application/json or multipart/form-data"
-    )
+    raise unsupported_media(media, "application/json or multipart/form-data")
 
 
 RegistrationDep = Annotated[Registration, Depends(read_registration)]

@@ -13,13 +13,12 @@ from typing import Annotated, Any
 
 import pydantic_core
 import yaml
-from fastapi import APIRouter, Depends, Path, Request, Response
+from fastapi import APIRouter, Depends, Request, Response
 from starlette.background import BackgroundTask
-from starlette.exceptions import HTTPException
 
 from trajcache.api.answer_extras import answer_extras
-from trajcache.api.bounded import BoundedBodyRoute
-from trajcache.api.deps import CtxDep
+from trajcache.api.bounded import BoundedBodyRoute, media_type, unsupported_media
+from trajcache.api.deps import CtxDep, RobotIdPath
 from trajcache.api.moveit import (
     MotionPlanError,
     MotionPlanRequestIn,
@@ -95,11 +94,9 @@ class RawBody:
 
 async def read_raw_body(request: Request) -> RawBody:
     """The body (bounded by max_body_bytes while read); it is parsed in the worker thread."""
-    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    media = media_type(request)
     if not is_supported(media):
-        raise HTTPException(
-            415, f"unsupported content type {media!r}; send application/json or application/yaml"
-        )
+        raise unsupported_media(media, "application/json or application/yaml")
     return RawBody(media, await request.body())
 
 
@@ -143,9 +140,7 @@ RawBodyDep = Annotated[RawBody, Depends(read_raw_body)]
         }
     ),
 )
-def motion_plan_route(
-    ctx: CtxDep, body: RawBodyDep, robot_id: Annotated[str, Path(max_length=128)]
-) -> Response:
+def motion_plan_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> Response:
     """Answer a MoveIt motion plan request from the cache or the planner."""
     began = time.perf_counter()
     message = parse_motion_plan_request(body.media_type, body.data)

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import time
-from typing import Annotated
 
 import numpy as np
 import pydantic_core
-from fastapi import APIRouter, Path, Response
+from fastapi import APIRouter, Response
 from starlette.background import BackgroundTask
 
 from trajcache.api.answer_extras import (
@@ -15,7 +14,7 @@ from trajcache.api.answer_extras import (
     extras_body,
 )
 from trajcache.api.bounded import BoundedBodyRoute
-from trajcache.api.deps import CtxDep
+from trajcache.api.deps import CtxDep, RobotIdPath
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.plan import PlanBody, PlanResponse
 from trajcache.geometry.model.kinematics import StateInput
@@ -49,9 +48,7 @@ def _state(value: list[float] | dict[str, float] | str) -> StateInput:
         }
     ),
 )
-def plan_route(
-    ctx: CtxDep, body: PlanBody, robot_id: Annotated[str, Path(max_length=128)]
-) -> Response:
+def plan_route(ctx: CtxDep, body: PlanBody, robot_id: RobotIdPath) -> Response:
     """Answer a plan request from the cache or the planner."""
     o = body.options
     answer = answer_plan(

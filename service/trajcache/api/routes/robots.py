@@ -9,10 +9,14 @@ from typing import Annotated, Any
 
 import yaml
 from fastapi import APIRouter, Depends, Request, Response
-from starlette.exceptions import HTTPException
 
-from trajcache.api.bounded import BoundedBodyRoute
-from trajcache.api.deps import CtxDep, SessionDep
+from trajcache.api.bounded import (
+    BoundedBodyRoute,
+    is_json_media,
+    media_type,
+    unsupported_media,
+)
+from trajcache.api.deps import CtxDep, RobotIdPath, SessionDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.robots import (
     RobotIn,
@@ -41,7 +45,6 @@ router = APIRouter(
     prefix="/robots", tags=["robots"], responses=COMMON, route_class=BoundedBodyRoute
 )
 
-JSON_TYPES = frozenset({"", "application/json"})
 YAML_TYPES = frozenset(
     {"application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml", "text/plain"}
 )  # text: YAML or JSON
@@ -83,10 +86,11 @@ def _robot_out(robot: RobotInfo) -> RobotOut:
     response_model=RobotOut,
     summary="Create a robot, or re-point it to another model",
     response_description="Robot created",
-    description="Creates the robot `robot_id` (1-128 letters, digits, `.`, `_`, `:` or `-`) as an "
-    "instance of a registered model, or re-points an existing robot (201 when new, 200 when it "
-    "existed). Robots of one model share one cache. `kind` marks a robot `real` (the default) or "
-    "`sim`, so validation statistics can tell real-robot use of a trajectory apart. "
+    description="Creates the robot `robot_id` (1-128 letters, digits, `.`, `_`, `:` or `-`, not "
+    "only dots) as an instance of a registered model, or re-points an existing robot (201 when "
+    "new, 200 when it existed). Robots of one model share one cache. `kind` marks a robot "
+    "`real` (the default) or `sim`, so validation statistics can tell real-robot use of a "
+    "trajectory apart. "
     "`joint_values` holds joints outside the planning joints otherwise than the model does "
     "(e.g. the gripper open): the robot's plans are checked with those values.",
     responses={
@@ -96,15 +100,15 @@ def _robot_out(robot: RobotInfo) -> RobotOut:
                 404: ("Unknown model", "robot model '5158592d' not found"),
                 422: (
                     "Malformed robot id or body",
-                    "robot id 'robot 7' must match ^[A-Za-z0-9._:-]{1,128}$ "
-                    "(1-128 letters, digits, '.', '_', ':' or '-')",
+                    "path.robot_id: robot id '..' must be 1-128 letters, digits, '.', '_', "
+                    "':' or '-', and not only dots",
                 ),
             }
         ),
     },
 )
 def put_robot_route(
-    robot_id: str, body: RobotIn, ctx: CtxDep, session: SessionDep, response: Response
+    robot_id: RobotIdPath, body: RobotIn, ctx: CtxDep, session: SessionDep, response: Response
 ) -> RobotOut:
     """201 when the robot is new, 200 when it existed."""
     robot, created = put_robot(
@@ -127,7 +131,7 @@ def put_robot_route(
     description="The robot's model and its current scene version (0 = no scene uploaded yet).",
     responses=errors({404: _UNKNOWN_ROBOT}),
 )
-def get_robot_route(robot_id: str, session: SessionDep) -> RobotOut:
+def get_robot_route(robot_id: RobotIdPath, session: SessionDep) -> RobotOut:
     """The robot `robot_id`."""
     return _robot_out(RobotInfo.of(get_robot(session=session, robot_id=robot_id)))
 
@@ -142,11 +146,9 @@ class SceneBody:
 
 async def read_scene_body(request: Request) -> SceneBody:
     """The request body (bounded by max_body_bytes); parsing happens in the worker thread."""
-    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if media not in JSON_TYPES and media not in YAML_TYPES and not media.endswith("+json"):
-        raise HTTPException(
-            415, f"unsupported content type {media!r}; send application/json or application/yaml"
-        )
+    media = media_type(request)
+    if not is_json_media(media) and media not in YAML_TYPES:
+        raise unsupported_media(media, "application/json or application/yaml")
     return SceneBody(media, await request.body())  # bounded while read (BoundedBodyRoute)
 
 
@@ -197,7 +199,7 @@ def parse_scene_body(body: SceneBody) -> Scene:
     ),
 )
 def put_scene_route(
-    robot_id: str, body: SceneBodyDep, ctx: CtxDep, session: SessionDep
+    robot_id: RobotIdPath, body: SceneBodyDep, ctx: CtxDep, session: SessionDep
 ) -> SceneVersionOut:
     """A new scene version (or the current one when the content is unchanged)."""
     scene = parse_scene_body(body)
@@ -237,7 +239,7 @@ def put_scene_route(
     ),
 )
 def patch_scene_route(
-    robot_id: str, body: ScenePatchIn, ctx: CtxDep, session: SessionDep
+    robot_id: RobotIdPath, body: ScenePatchIn, ctx: CtxDep, session: SessionDep
 ) -> SceneVersionOut:
     """A new scene version with the patch applied."""
     version, scene_hash = patch_scene(
@@ -258,7 +260,7 @@ def patch_scene_route(
     "and content hash.",
     responses=errors({404: _UNKNOWN_ROBOT}),
 )
-def get_scene_route(robot_id: str, ctx: CtxDep, session: SessionDep) -> SceneOut:
+def get_scene_route(robot_id: RobotIdPath, ctx: CtxDep, session: SessionDep) -> SceneOut:
     """The current scene in native form with its version and hash."""
     info = get_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
     return SceneOut(

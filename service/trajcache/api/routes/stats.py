@@ -27,7 +27,7 @@ from trajcache.api.schemas.stats import (
 )
 from trajcache.services.stats.events import list_plan_events, top_trajectories
 from trajcache.services.stats.histograms import MAX_RELATIVE_ERROR
-from trajcache.services.stats.window import parse_window, plan_stats
+from trajcache.services.stats.window import WINDOW_PATTERN, parse_window, plan_stats
 
 router = APIRouter(tags=["stats"], responses=COMMON)
 
@@ -54,7 +54,12 @@ RequesterFilter = Annotated[
 def stats_route(
     session: SessionDep,
     window: Annotated[
-        str, Query(max_length=16, description="Length of the window: 30m, 24h, 7d (1m to 366d).")
+        str,
+        Query(
+            max_length=16,
+            description="Length of the window: 30m, 24h, 7d (1m to 366d).",
+            json_schema_extra={"pattern": WINDOW_PATTERN},  # parse_window checks it (and more)
+        ),
     ] = "24h",
     group_by: Annotated[GroupBy, Query(description="Break the totals down by this.")] = "robot",
     robot_id: RobotFilter = None,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
 from pydantic import AliasChoices, BaseModel, ConfigDict, Field
 
@@ -13,12 +13,11 @@ from trajcache.api.schemas.common import (
     WHEN,
     FiniteFloat,
     ModelId,
+    RobotId,
     examples,
 )
-from trajcache.services.catalog.robots import ROBOT_ID_PATTERN
 
 SourceName = Literal["real", "sim", "import", "planner"]
-RobotId = Annotated[str, Field(pattern=ROBOT_ID_PATTERN)]
 
 _TRAJECTORY_SUMMARY: dict[str, Any] = {
     "trajectory_id": 1,

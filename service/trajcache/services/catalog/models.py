@@ -14,6 +14,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
 from trajcache.db import models as tables
+from trajcache.geometry.errors import RobotModelError
 from trajcache.geometry.model.files import MeshResolver, unpack_archive
 from trajcache.geometry.model.robot import BASE_STATE_NAMES, BaseType, RobotModel
 from trajcache.geometry.model.urdf import load_robot_model
@@ -166,6 +167,7 @@ def register_model(
         joint_values=joint_values,
         name=name,
     )
+    check_plannable(model)
     model = replace(model, name=model.name[:NAME_MAX])
     config = _model_config(model, acceleration_limits, jerk_limits, end_effector_link)
     existing = _stored(session, model.model_id)
@@ -181,6 +183,18 @@ def register_model(
         session.flush()
         return config.apply(model), True
     return _insert_model(session=session, registry=registry, model=model, config=config, row=row)
+
+
+def check_plannable(model: RobotModel) -> None:
+    """RobotModelError (a 422) when the model has nothing to plan: no joint and a fixed base."""
+    if model.dof > 0:
+        return
+    held = sorted(model.held_values)
+    why = f"every movable joint is held ({held})" if held else "its URDF has only fixed joints"
+    raise RobotModelError(
+        f"the model has nothing to plan: {why} and its base is fixed "
+        "(register a mobile base with base 'planar')"
+    )
 
 
 def _check_size(what: str, text: str | None, max_bytes: int | None) -> None:

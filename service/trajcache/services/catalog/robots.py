@@ -31,7 +31,9 @@ from trajcache.services.errors import (
 if TYPE_CHECKING:
     from trajcache.services.catalog.index_store import AnySelect
 
-ROBOT_ID_PATTERN = r"^[A-Za-z0-9._:-]{1,128}$"
+# Letters, digits and `._:-`, not only dots: "." and ".." are path segments no URL can carry.
+ROBOT_ID_PATTERN = r"^\.*[A-Za-z0-9_:-][A-Za-z0-9._:-]*$"
+ROBOT_ID_MAX_LENGTH = 128
 _ROBOT_ID = re.compile(ROBOT_ID_PATTERN)
 EMPTY_SCENE = make_scene([], {})
 _PATCH_ATTEMPTS = 5
@@ -72,11 +74,11 @@ class SceneInfo:
 
 
 def check_robot_id(robot_id: str) -> str:
-    """`robot_id` if it is 1–128 characters of letters, digits and `._:-`."""
-    if not _ROBOT_ID.fullmatch(robot_id):
+    """`robot_id` if it is 1–128 characters of letters, digits and `._:-`, not only dots."""
+    if len(robot_id) > ROBOT_ID_MAX_LENGTH or not _ROBOT_ID.fullmatch(robot_id):
         raise InvalidInputError(
-            f"robot id {robot_id[:140]!r} must match {ROBOT_ID_PATTERN} "
-            "(1-128 letters, digits, '.', '_', ':' or '-')"
+            f"robot id {robot_id[:140]!r} must be 1-{ROBOT_ID_MAX_LENGTH} letters, digits, "
+            "'.', '_', ':' or '-', and not only dots"
         )
     return robot_id
 

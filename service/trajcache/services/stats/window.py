@@ -48,7 +48,8 @@ from trajcache.services.stats.rollups import (
 
 GROUP_BY = ("robot", "model", "source")
 MAX_WINDOW_S = 366 * 86400
-_WINDOW = re.compile(r"^\s*(\d{1,6})\s*([mhd])\s*$")
+WINDOW_PATTERN = r"^ *([0-9]{1,6}) *([mhd]) *$"  # also the API document's (an ECMA regex)
+_WINDOW = re.compile(WINDOW_PATTERN)
 _UNIT_S = {"m": 60, "h": 3600, "d": 86400}
 # (longest window, bucket): about 60 to 180 buckets per window.
 _BUCKETS = (
@@ -70,7 +71,7 @@ _PLAN = _METRICS.index("plan")
 
 def parse_window(text: str) -> int:
     """`30m`, `24h`, `7d` → seconds; anything else, or longer than a year, is a 422."""
-    match = _WINDOW.match(text)
+    match = _WINDOW.fullmatch(text)
     seconds = int(match[1]) * _UNIT_S[match[2]] if match else 0
     if not match or not 60 <= seconds <= MAX_WINDOW_S:
         raise InvalidInputError(
