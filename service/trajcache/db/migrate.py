@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from alembic import command
 from alembic.config import Config
 from alembic.runtime.migration import MigrationContext
@@ -13,10 +11,9 @@ from sqlalchemy.exc import DBAPIError
 
 from trajcache.db.session import make_engine, shown_url, sqlite_file
 
-# service/trajcache/db/migrate.py -> repository root
-REPO_ROOT = Path(__file__).resolve().parents[3]
-MIGRATIONS_DIR = REPO_ROOT / "migrations"
-ALEMBIC_INI = REPO_ROOT / "alembic.ini"
+# The migrations ship inside the package (trajcache/db/migrations/), found as a package resource
+# wherever it is installed: an editable install, a wheel, a container image.
+SCRIPT_LOCATION = "trajcache.db:migrations"
 
 
 class DatabaseNotReady(Exception):
@@ -31,9 +28,10 @@ def database_error(exc: DBAPIError) -> str:
 
 
 def alembic_config(url: str) -> Config:
-    """An Alembic Config for the repository's migrations, targeting `url`."""
-    config = Config(str(ALEMBIC_INI)) if ALEMBIC_INI.is_file() else Config()
-    config.set_main_option("script_location", str(MIGRATIONS_DIR))
+    """An Alembic Config for the package's migrations, targeting `url`."""
+    config = Config()
+    config.set_main_option("script_location", SCRIPT_LOCATION)
+    config.set_main_option("path_separator", "os")
     config.attributes["url"] = url
     return config
 
