@@ -1,20 +1,27 @@
 # Two commands: `make serve` sets up and runs the service; `make test` sets up and runs the tests.
+# `make serve` installs the package alone; `make test` (and lint, bench-smoke) adds the dev extras.
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
+RUNTIME := $(VENV)/.installed-runtime
+DEV := $(VENV)/.installed-dev
 
 .PHONY: setup serve test lint bench-smoke clean
 
-$(BIN)/trajcache: pyproject.toml
+$(RUNTIME): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e ".[dev]"
+	$(BIN)/pip install --quiet -e .
 	$(BIN)/python -c "from trajcache.geometry.warm import warm; warm()"  # numba's cache
-	touch $(BIN)/trajcache
+	touch $(RUNTIME)
 
-setup: $(BIN)/trajcache
+$(DEV): $(RUNTIME)
+	$(BIN)/pip install --quiet -e ".[dev]"
+	touch $(DEV)
 
-serve: setup
+setup: $(DEV)
+
+serve: $(RUNTIME)
 	$(BIN)/trajcache serve
 
 # The suite runs on $(JOBS) processes; the tests that restart a shared server run alone after it.

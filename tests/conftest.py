@@ -85,6 +85,15 @@ def redis_url() -> str:
 
 
 @pytest.fixture(scope="session", autouse=True)
+def data_dir_of_tests(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """TRAJCACHE_DATA_DIR in a temporary directory: a default database is never the user's."""
+    with pytest.MonkeyPatch.context() as patch:
+        path = tmp_path_factory.mktemp("data")
+        patch.setenv("TRAJCACHE_DATA_DIR", str(path))
+        yield path
+
+
+@pytest.fixture(scope="session", autouse=True)
 def compiled_kernels() -> None:
     """The compiled kernels in numba's on-disk cache before any test starts a server (a server
     compiling them inside a request would time out)."""

@@ -15,11 +15,13 @@ import uvicorn
 import yaml
 from typer.testing import CliRunner
 
+from tests.client.conftest import LiveServer, make_app
 from tests.robots import TWO_JOINT_URDF
 from tests.waiting import wait_until
 from trajcache.cli import app
 from trajcache.core.config import Settings
 from trajcache.main import create_app
+from trajcache.reference.robot import reference_urdf
 
 SCENE = {
     "objects": [{"id": "far", "type": "sphere", "size": [0.05], "pose": {"position": [2, 2, 2]}}]
@@ -128,3 +130,47 @@ def test_unreachable_service_and_bad_files(tmp_path: Path) -> None:
     assert result.exit_code == 2 and "one object" in result.output
     result = CliRunner().invoke(app, ["seed", str(tmp_path / "missing.json")])
     assert result.exit_code == 2 and "cannot read" in result.output
+
+
+def test_a_job_may_name_its_model(service: tuple[LiveService, str], tmp_path: Path) -> None:
+    live, model_id = service
+    path = job_file(tmp_path, [[0.5, 0.5]], suffix=".yaml", model="two_joint")
+    result = CliRunner().invoke(app, ["seed", str(path), "--url", live.url, "--poll-s", "0.05"])
+    assert result.exit_code == 0, result.output
+    assert httpx.get(f"{live.url}/v1/seed-jobs/1").json()["model_id"] == model_id
+    for extra, message in [
+        ({"model": "nobody"}, "no model named 'nobody'"),
+        ({"model": "two_joint", "model_id": model_id}, "not both"),
+    ]:
+        path = job_file(tmp_path, [[0.5, 0.5]], **extra)
+        result = CliRunner().invoke(app, ["seed", str(path), "--url", live.url])
+        assert result.exit_code == 2 and message in " ".join(result.output.split())
+    assert len(httpx.get(f"{live.url}/v1/seed-jobs").json()["items"]) == 1
+
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "sweep.yaml"
+
+
+@pytest.mark.slow
+def test_the_shipped_example_runs_as_it_is(tmp_path: Path) -> None:
+    """`trajcache seed examples/sweep.yaml` against a service that knows nothing yet: the
+    command registers the reference robot, and every request of the sweep succeeds."""
+    app_ = make_app(
+        f"sqlite:///{tmp_path / 'seed.db'}",
+        worker_processes=1,
+        seed_heartbeat_s=0.1,
+        seed_poll_interval_s=0.1,
+    )
+    with LiveServer(app_) as server:
+        result = CliRunner().invoke(
+            app, ["seed", str(EXAMPLE), "--url", server.url, "--poll-s", "0.1"]
+        )
+        assert result.exit_code == 0, result.output
+        job = httpx.get(f"{server.url}/v1/seed-jobs/1").json()
+        reference = httpx.post(
+            f"{server.url}/v1/robot-models", json={"urdf": reference_urdf(), "base": "planar"}
+        ).json()
+        stored = httpx.get(f"{server.url}/v1/trajectories", params={"source": "sim"}).json()
+    assert (job["state"], job["done"], job["total"], job["failed"]) == ("completed", 9, 9, 0)
+    assert job["model_id"] == reference["model_id"] and not reference["created"]
+    assert job["planned"] == stored["total"] > 0

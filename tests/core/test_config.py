@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import sys
+from pathlib import Path
+
 import pytest
 from pydantic import ValidationError
 
@@ -20,7 +24,10 @@ def clean_env(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_defaults() -> None:
     settings = Settings()
-    assert settings.database_url == "sqlite:///./trajcache.db"
+    data_dir = Path.home() / ".local" / "share" / "trajcache"
+    if sys.platform == "linux" and "XDG_DATA_HOME" not in os.environ:
+        assert settings.data_dir == data_dir
+    assert settings.database_url == f"sqlite:///{settings.data_dir}/trajcache.db"
     assert (settings.lookup_threshold, settings.max_candidates) == (0.2, 3)
     assert (settings.step_position_m, settings.step_joint_rad) == (0.04, 0.035)
     assert settings.worker_backend == "local"
@@ -69,8 +76,36 @@ def test_database_url_normalisation(
 
 
 @pytest.mark.parametrize(
+    ("given", "expected"),
+    [
+        ("sqlite:///trajcache.db", "sqlite:////srv/tc/trajcache.db"),
+        ("sqlite:///./caches/a.db?timeout=5", "sqlite:////srv/tc/caches/a.db?timeout=5"),
+        ("sqlite:////var/lib/trajcache.db", "sqlite:////var/lib/trajcache.db"),
+        ("sqlite://", "sqlite://"),
+        ("sqlite:///:memory:", "sqlite:///:memory:"),
+        ("postgresql://u@db/t", "postgresql+psycopg://u@db/t"),
+    ],
+)
+def test_a_relative_sqlite_path_is_in_the_data_dir_wherever_the_command_runs(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, given: str, expected: str
+) -> None:
+    monkeypatch.setenv("TRAJCACHE_DATA_DIR", "/srv/tc")
+    monkeypatch.setenv("TRAJCACHE_DATABASE_URL", given)
+    monkeypatch.chdir(tmp_path)
+    assert Settings().database_url == expected
+    assert Settings(database_url=given).database_url == expected
+
+
+def test_the_data_dir_expands_the_home_directory(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("TRAJCACHE_DATA_DIR", "~/tc")
+    assert Settings().data_dir == Path.home() / "tc"
+
+
+@pytest.mark.parametrize(
     ("name", "value"),
     [
+        ("data_dir", "relative/dir"),
+        ("database_url", "not a url"),
         ("lookup_threshold", "0"),
         ("lookup_threshold", "-0.1"),
         ("lookup_threshold", "0.6"),  # above lookup_threshold_max

@@ -53,7 +53,7 @@ def list_command(
     """List keys (never their secrets); times are ISO 8601 to the second with their offset."""
     from trajcache.services.catalog.keys import format_time, list_keys
 
-    with open_session(load_settings(database_url), migrate=True) as session:
+    with open_session(load_settings(database_url)) as session:
         keys = list_keys(session=session, include_revoked=all_keys)
     table = Table(
         *(Column(name, no_wrap=True) for name in ("id", "prefix", "role")),
@@ -88,7 +88,7 @@ def revoke(
     """Revoke a key; services stop accepting it within auth_cache_ttl_s."""
     from trajcache.services.catalog.keys import revoke_key
 
-    with open_session(load_settings(database_url), migrate=True) as session:
+    with open_session(load_settings(database_url)) as session:
         try:
             info = revoke_key(session=session, key=key)
         except ServiceError as exc:

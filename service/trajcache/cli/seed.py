@@ -4,7 +4,10 @@ The job runs in the service (where the shared cache and the worker pool are), so
 talks to it over HTTP: `--url` (or TRAJCACHE_URL, default http://127.0.0.1:8000) and, when the
 service checks keys, `--api-key` (or TRAJCACHE_API_KEY; a `seeder` or `admin` key). FILE is the
 job in JSON or YAML, in the format of `POST /v1/seed-jobs` (documented in
-`trajcache.services.seeding.spec`); `--model` fills in or replaces its `model_id`.
+`trajcache.services.seeding.spec`), except that it may name its model instead of giving its
+`model_id`: `model: reference` is the reference robot (registered by the command if the service
+lacks it, as `trajcache reference robot` writes it, with a planar base), any other name that of a
+model registered in the service. `--model` fills in or replaces the `model_id`.
 
 A Rich progress bar follows the job until it ends. Ctrl-C stops following (the job keeps
 running in the service) unless `--cancel-on-interrupt` is given. Exit status: 0 when the job
@@ -36,6 +39,7 @@ from trajcache_client import NO_RETRY, APIError, Client, SeedJob, TransportError
 
 DEFAULT_URL = "http://127.0.0.1:8000"
 ACTIVE = ("queued", "running")
+REFERENCE = "reference"  # `model: reference`: the reference robot
 
 UrlOption = Annotated[
     str,
@@ -98,6 +102,44 @@ def _call(client: Client, call: Callable[[], SeedJob]) -> SeedJob:
         raise ServiceError(
             f"{request.method} {request.url.path}: {status} {exc.detail}", code
         ) from None
+
+
+def _named_model(client: Client, name: str) -> str:
+    """The id of the one model of the service named `name` (the reference robot registered)."""
+    if name == REFERENCE:
+        from trajcache.reference.robot import REFERENCE_BASE, reference_urdf
+
+        return client.register_model(reference_urdf(), base=REFERENCE_BASE).model_id
+    ids, offset = [], 0
+    while True:
+        page = client.list_models(offset=offset)
+        ids += [m.model_id for m in page.items if m.name == name]
+        offset += len(page.items)
+        if not page.items or offset >= page.total:
+            break
+    if len(ids) != 1:
+        found = "no model" if not ids else f"{len(ids)} models ({', '.join(ids)})"
+        raise ServiceError(
+            f"model: {found} named {name!r} in the service; give its model_id, "
+            f"or `model: {REFERENCE}` for the reference robot",
+            exit_code=2,
+        )
+    return ids[0]
+
+
+def resolve_model(client: Client, body: dict[str, Any]) -> dict[str, Any]:
+    """The job with `model: NAME` replaced by the model's `model_id`."""
+    if "model" not in body:
+        return body
+    name = body.pop("model")
+    if "model_id" in body:
+        raise ServiceError("give the job's model_id or its model (a name), not both", 2)
+    if not isinstance(name, str) or not name.strip():
+        raise ServiceError(f"model must be a model's name, got {name!r}", 2)
+    try:
+        return {"model_id": _named_model(client, name.strip()), **body}
+    except APIError as exc:
+        raise ServiceError(f"model {name!r}: {exc.status_code} {exc.detail}", 2) from None
 
 
 def _progress(console: Console) -> Progress:
@@ -175,11 +217,12 @@ def seed(
     """Submit a seed job to the running service and show its progress until it ends."""
     body = read_job_file(file)
     if model is not None:
+        body.pop("model", None)
         body["model_id"] = model
     console = Console(stderr=True)
     with make_client(url, api_key) as client:
         try:
-            job = _call(client, lambda: client.create_seed_job(body))
+            job = _call(client, lambda: client.create_seed_job(resolve_model(client, body)))
             console.print(f"queued seed job [bold]{job.job_id}[/bold]: {job.total} requests")
             if not wait:
                 typer.echo(job.job_id)

@@ -2,13 +2,37 @@
 
 from __future__ import annotations
 
+import errno
 import os
+import socket
 from typing import Annotated
 
 import typer
 from rich.console import Console
 
-from trajcache.cli.common import DatabaseUrlOption, err_console, load_settings
+from trajcache.cli.common import (
+    DatabaseUrlOption,
+    err_console,
+    fail,
+    load_settings,
+    require_database,
+    upgrade_database,
+)
+
+
+def check_port(host: str, port: int) -> None:
+    """Exit 2 with one line unless `host:port` can be bound now, as uvicorn will bind it."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            shown = f"[{host}]" if ":" in host else host
+            reason = exc.strerror or str(exc)
+            if exc.errno == errno.EADDRINUSE:
+                reason += " (another service listens there; choose --port or TRAJCACHE_PORT)"
+            raise fail(RuntimeError(f"cannot serve on {shown}:{port}: {reason}")) from None
 
 
 def serve(
@@ -29,18 +53,20 @@ def serve(
 
     from trajcache.metrics_dir import prepare_multiprocess_dir
 
-    prepare_multiprocess_dir(workers)  # before any metric exists: workers merge /metrics there
-    from trajcache.db import migrate
-    from trajcache.main import AUTO_MIGRATE_ENV
-
     settings = load_settings(database_url)
     host = host or settings.host
     port = port or settings.port
-    if not no_migrate:
-        migrate.upgrade(settings.database_url)  # once here rather than once per worker
+    check_port(host, port)  # before anything is said or done: a busy port is one line
+    prepare_multiprocess_dir(workers)  # before any metric exists: workers merge /metrics there
+    from trajcache.main import AUTO_MIGRATE_ENV
+
+    if no_migrate:
+        require_database(settings.database_url)
+    else:
+        upgrade_database(settings.database_url)  # once here rather than once per worker
     os.environ[AUTO_MIGRATE_ENV] = "0"
     if database_url is not None:
-        os.environ["TRAJCACHE_DATABASE_URL"] = database_url  # the app's workers read it there
+        os.environ["TRAJCACHE_DATABASE_URL"] = settings.database_url  # the app's workers read it
     os.environ["TRAJCACHE_HOST"] = host  # the app decides from it whether keys are required
     shown = f"[{host}]" if ":" in host else host
     err_console().print(
@@ -62,12 +88,12 @@ def migrate_command(
     database_url: DatabaseUrlOption = None,
 ) -> None:
     """Upgrade the database (default: TRAJCACHE_DATABASE_URL) to a revision."""
-    from sqlalchemy.engine import make_url
-
     from trajcache.db import migrate
+    from trajcache.db.session import shown_url
 
-    settings = load_settings(database_url)
-    url = settings.database_url
-    migrate.upgrade(url, revision)
-    shown = make_url(url).render_as_string(hide_password=True)
-    Console().print(f"{shown} is at revision [bold]{migrate.current_revision(url)}[/bold]")
+    url = load_settings(database_url).database_url
+    upgrade_database(url, revision)
+    Console().print(
+        f"{shown_url(url)} is at revision [bold]{migrate.current_revision(url)}[/bold]",
+        soft_wrap=True,
+    )

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from pathlib import Path
 from typing import Literal, Self
 
+import platformdirs
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import ArgumentError
 
 from trajcache.planning.problem import PLANNER_NAMES
 
@@ -25,10 +29,17 @@ class Settings(BaseSettings):
     )
 
     # Database
+    data_dir: Path | None = Field(
+        default=None,
+        description="Directory of a relative SQLite path in database_url, whichever directory "
+        "a command runs in (created with the database). Unset: the user's data directory, "
+        "`~/.local/share/trajcache` on Linux.",
+    )
     database_url: str = Field(
-        default="sqlite:///./trajcache.db",
+        default="sqlite:///trajcache.db",
         description="SQLAlchemy URL of the cache database (SQLite file, or PostgreSQL for a "
-        "fleet; `postgresql://` is read as `postgresql+psycopg://`).",
+        "fleet; `postgresql://` is read as `postgresql+psycopg://`). A relative SQLite path is "
+        "in data_dir.",
     )
     db_pool_size: int = Field(
         default=10, ge=1, description="Connection pool size per service process."
@@ -312,6 +323,35 @@ class Settings(BaseSettings):
             if value.startswith(prefix):
                 return "postgresql+psycopg://" + value[len(prefix) :]
         return value
+
+    @field_validator("data_dir")
+    @classmethod
+    def _absolute_data_dir(cls, value: Path | None) -> Path | None:
+        if value is None:
+            return None
+        value = value.expanduser()
+        if not value.is_absolute():
+            raise ValueError(f"data_dir must be an absolute path, got {str(value)!r}")
+        return value
+
+    @model_validator(mode="after")
+    def _sqlite_in_data_dir(self) -> Self:
+        """A relative SQLite path names a file in data_dir, not in the current directory."""
+        if self.data_dir is None:
+            self.data_dir = Path(platformdirs.user_data_dir("trajcache", appauthor=False))
+        try:
+            url = make_url(self.database_url)
+        except ArgumentError:
+            raise ValueError(f"database_url {self.database_url!r} is not a database URL") from None
+        path = url.database
+        if url.get_backend_name() != "sqlite" or not path or path == ":memory:":
+            return self
+        if path.startswith("file:") or Path(path).is_absolute():
+            return self
+        self.database_url = url.set(database=str(self.data_dir / path)).render_as_string(
+            hide_password=False
+        )
+        return self
 
     @field_validator("default_planner")
     @classmethod

@@ -1,4 +1,4 @@
-"""ORM tables of the trajectory cache (schema changes go through `migrations/`)."""
+"""ORM tables of the trajectory cache (schema changes go through `db/migrations/`)."""
 
 from __future__ import annotations
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import Engine, create_engine, event
@@ -25,6 +26,22 @@ def _set_sqlite_pragmas(dbapi_connection: Any, _connection_record: Any) -> None:
             cursor.execute(pragma)
     finally:
         cursor.close()
+
+
+def sqlite_file(url: str) -> Path | None:
+    """The file of a SQLite URL; None for another database or an in-memory one."""
+    sa_url = make_url(url)
+    path = sa_url.database
+    if sa_url.get_backend_name() != "sqlite" or not path or path == ":memory:":
+        return None
+    if path.startswith("file:"):  # a URI filename (`?uri=true`): memory or otherwise, leave it
+        return None
+    return Path(path)
+
+
+def shown_url(url: str) -> str:
+    """`url` as printed to people: the password hidden."""
+    return make_url(url).render_as_string(hide_password=True)
 
 
 def make_engine(url: str, *, pool_size: int = 10, echo: bool = False) -> Engine:
