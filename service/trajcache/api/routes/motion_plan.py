@@ -76,7 +76,10 @@ _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSO
         "required": True,
         "content": {
             "application/json": {"schema": _REQUEST_SCHEMA},
-            "application/yaml": {"schema": _REQUEST_SCHEMA, "example": yaml.safe_load(_YAML_EXAMPLE)},
+            "application/yaml": {
+                "schema": _REQUEST_SCHEMA,
+                "example": yaml.safe_load(_YAML_EXAMPLE),
+            },
         },
     }
 }

@@ -78,6 +78,7 @@ class Origin:
     store_robot_id: str | None
     real: bool  # a real robot: a hit counts as a validation of the trajectory in the real world
     held: Mapping[str, float] | None = None  # the robot's own held joint values, if it set any
+    scene_stored: bool = False  # the scene is a stored scene version (a robot's uploaded one)
 
 
 @dataclass
