@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import os
+import signal
+import sys
+from types import FrameType
 from typing import Annotated
 
 import typer
 from rich.console import Console
 
 from trajcache.cli.common import DatabaseUrlOption, err_console, load_settings
+
+
+def _stop_on_sigterm(_signum: int, _frame: FrameType | None) -> None:
+    sys.exit(0)
 
 
 def serve(
@@ -43,6 +50,11 @@ def serve(
         os.environ["TRAJCACHE_DATABASE_URL"] = database_url  # the app's workers read it there
     os.environ["TRAJCACHE_HOST"] = host  # the app decides from it whether keys are required
     shown = f"[{host}]" if ":" in host else host
+    # SIGTERM is how a service is asked to stop (Docker, systemd, Kubernetes). uvicorn shuts down
+    # gracefully, then raises the signal again for the handler it found: this one ends the
+    # process with status 0, through the interpreter's exit handlers (multiprocessing's release
+    # the planner pool's semaphores), instead of the default handler killing it.
+    signal.signal(signal.SIGTERM, _stop_on_sigterm)
     err_console().print(
         f"trajcache serving on [bold]http://{shown}:{port}[/bold] "
         f"(API docs at /docs, {workers} worker{'s' if workers > 1 else ''})"
