@@ -228,14 +228,20 @@ class LocalBackend:
         """Let the old executor's other requests finish (within their deadlines), then kill it."""
         # Private attribute, but the only handle on the workers; a stuck one must be killed.
         workers = list((getattr(old.executor, "_processes", None) or {}).values())
-        old.executor.shutdown(wait=False, cancel_futures=True)
-        with self._lock:
-            others = {f: d for f, d in old.running.items() if f is not stuck}
-        if others and patient:
-            wait(others, timeout=max(0.0, max(others.values()) - time.monotonic()))
+        if patient:
+            old.executor.shutdown(wait=False, cancel_futures=True)
+            with self._lock:
+                others = {f: d for f, d in old.running.items() if f is not stuck}
+            if others:
+                wait(others, timeout=max(0.0, max(others.values()) - time.monotonic()))
         for process in workers:
             with contextlib.suppress(OSError, ValueError, AttributeError):  # already gone
                 process.kill()
+        if not patient:
+            # Wait for the executor's thread to see its workers gone and end: then its queues,
+            # and their semaphores, are released now, not reported leaked if this process is
+            # then killed (as uvicorn's workers are by the SIGTERM they re-raise).
+            old.executor.shutdown(wait=True, cancel_futures=True)
 
     def counters(self) -> dict[str, int]:
         """Crashes and recycles so far."""
