@@ -22,7 +22,9 @@ class SeedJobError(_Answer):
 class SeedJob(_Answer):
     """A seed job's state and progress (the counters cover the first `done` items).
 
-    `state` is one of `SeedJobState`; `eta_s` estimates the time left while it runs.
+    `state` is one of `SeedJobState`; `eta_s` estimates the time left while it runs. `stale`
+    says a `running` job's claim (`lease_expires_at`) ran out: its replica stopped without
+    handing it back, and another one takes it over at its next look for jobs.
     """
 
     job_id: int
@@ -37,6 +39,8 @@ class SeedJob(_Answer):
     hit_rate: float | None
     eta_s: float | None
     runner: str | None
+    lease_expires_at: datetime | None
+    stale: bool
     message: str | None
     errors: list[SeedJobError]
     created_at: datetime

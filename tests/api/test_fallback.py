@@ -239,15 +239,17 @@ def test_rris_is_selectable(client_factory: ClientFactory) -> None:
 
 @pytest.mark.redis
 def test_celery_worker_plans_a_miss_sent_through_the_api(
-    client_factory: ClientFactory, tmp_path: Path
+    client_factory: ClientFactory, database_url: str, tmp_path: Path
 ) -> None:
+    """The worker reads the model and the robot's scene from the service's database."""
     from tests.jobs.test_celery import Worker
 
     require_service("Redis", "127.0.0.1", 6379)
     queue = f"plan-api-{uuid.uuid4().hex[:8]}"
     code = "import typer; from trajcache.cli.worker import worker; typer.run(worker)"
     command = [sys.executable, "-c", code, "--concurrency", "1", "--queues", queue]
-    worker = Worker(command, queue, tmp_path / "worker.log", REDIS_URL, task_fn=None)
+    log = tmp_path / "worker.log"
+    worker = Worker(command, queue, log, REDIS_URL, task_fn=None, database_url=database_url)
     try:
         client = client_factory(
             worker_backend="celery",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from datetime import datetime, timedelta
 from typing import Any
 
 import pytest
@@ -12,7 +13,7 @@ from fastapi.testclient import TestClient
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
 from tests.waiting import wait_until
 from trajcache.core.config import Settings
-from trajcache.db.models import PlanEvent, SeedJob
+from trajcache.db.models import PlanEvent, SeedJob, utcnow
 from trajcache.main import create_app
 
 FAST = {
@@ -304,3 +305,27 @@ def test_robot_kind_real_or_sim(client_factory: ClientFactory) -> None:
     assert_detail(
         client.put("/v1/robots/r", json={"model_id": model_id, "kind": "robotic"}), 422, "body.kind"
     )
+
+
+def test_a_running_job_whose_lease_ran_out_is_shown_stale(database_url: str) -> None:
+    settings = Settings(database_url=database_url, **FAST)  # type: ignore[arg-type]
+    with TestClient(create_app(settings)) as client:
+        model_id = register(client)["model_id"]
+        client.app.state.background.seeds.stop()  # type: ignore[attr-defined]
+        job_id = submit(client, model_id)["job_id"]  # queued: this replica no longer runs jobs
+        assert (job_of(client, job_id)["lease_expires_at"], job_of(client, job_id)["stale"]) == (
+            None,
+            False,
+        )
+        now = utcnow()
+        for lease_ends, stale in ((now + timedelta(minutes=1), False), (now, True)):
+            with ctx_of(client).session() as session:  # a replica that holds the job, or held it
+                session.execute(
+                    sa.update(SeedJob)
+                    .where(SeedJob.id == job_id)
+                    .values(state="running", lease_owner="gone:1", lease_expires_at=lease_ends)
+                )
+                session.commit()
+            job = job_of(client, job_id)
+            assert (job["state"], job["runner"], job["stale"]) == ("running", "gone:1", stale)
+            assert datetime.fromisoformat(job["lease_expires_at"]) == lease_ends

@@ -27,6 +27,10 @@ def test_demo_prints_both_tables_and_finds_no_collision(tmp_path: object) -> Non
            "--no-arm", "--json", f"{tmp_path}/demo.json"]  # fmt: skip
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=280, check=False)
     assert done.returncode == 0, done.stderr[-3000:]
+    # A line for each of the 4 services (caches none, sim, seeded, real) as it becomes ready,
+    # and the services stop without warnings.
+    assert done.stderr.count("cache ready at http://127.0.0.1:") == 4, done.stderr[-3000:]
+    assert "leaked" not in done.stderr and "resource_tracker" not in done.stderr, done.stderr
     lines = done.stdout.strip().splitlines()
     assert any(line.startswith("Table 1: simulation (6 calls per run") for line in lines)
     assert any(line.startswith("Table 2: pre-seeding and the real robot") for line in lines)

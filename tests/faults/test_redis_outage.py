@@ -38,7 +38,11 @@ BUDGET_S = 3.0
 def worker(redis_url: str, tmp_path: Path) -> Iterator[Worker]:
     """`trajcache worker` on a queue of its own, connected to Redis directly."""
     queue = f"plan-fault-{uuid.uuid4().hex[:8]}"
-    started = Worker(worker_command(queue), queue, tmp_path / "worker.log", redis_url, HELD_TASK)
+    log = tmp_path / "worker.log"
+    database_url = f"sqlite:///{tmp_path / 'faults.db'}"  # the app's, below
+    started = Worker(
+        worker_command(queue), queue, log, redis_url, HELD_TASK, database_url=database_url
+    )
     try:
         wait_ready(started)
         yield started

@@ -105,7 +105,10 @@ def test_killed_celery_worker_is_a_clear_503_then_a_new_worker_plans(
 ) -> None:
     queue = f"plan-fault-{uuid.uuid4().hex[:8]}"
     command = worker_command(queue)
-    first = Worker(command, queue, tmp_path / "first.log", redis_url, HELD_TASK)
+    database_url = f"sqlite:///{tmp_path / 'faults.db'}"
+    first = Worker(
+        command, queue, tmp_path / "first.log", redis_url, HELD_TASK, database_url=database_url
+    )
     second: Worker | None = None
     hold: Hold | None = None
     settings = {
@@ -116,7 +119,7 @@ def test_killed_celery_worker_is_a_clear_503_then_a_new_worker_plans(
     }
     try:
         wait_ready(first)
-        with app_client(f"sqlite:///{tmp_path / 'faults.db'}", **settings) as client:
+        with app_client(database_url, **settings) as client:
             hold = Hold(setup_robot(client, unique_scene()))
             hold.hold()
             thread, replies = ask_in_background(client, GOAL, budget_s=CELERY_BUDGET_S)
@@ -133,7 +136,14 @@ def test_killed_celery_worker_is_a_clear_503_then_a_new_worker_plans(
             reply = plan(client, budget_s=0.5)
             assert_detail(reply, 503, "no Celery worker started", f"within {0.5 + OVERHEAD_S:g} s")
 
-            second = Worker(command, queue, tmp_path / "second.log", redis_url, HELD_TASK)
+            second = Worker(
+                command,
+                queue,
+                tmp_path / "second.log",
+                redis_url,
+                HELD_TASK,
+                database_url=database_url,
+            )
             wait_ready(second)
             body = plan(client, budget_s=CELERY_BUDGET_S).json()  # the same query as the lost one
             assert (body["status"], body["source"]) == ("success", "planner"), body

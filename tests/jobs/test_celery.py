@@ -27,9 +27,12 @@ from tests.jobs.test_pool import (
 from tests.proxy import TcpProxy
 from tests.waiting import wait_until
 from trajcache.core.config import Settings
-from trajcache.jobs.celery_app import TASK_FN_ENV, CeleryBackend
+from trajcache.db import migrate
+from trajcache.db import models as tables
+from trajcache.db.session import make_engine, make_sessionmaker
+from trajcache.jobs.celery_app import TASK_FN_ENV, CeleryBackend, make_celery
 from trajcache.jobs.pool import PlannerPool
-from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+from trajcache.planning.problem import ModelSource, PlannerStatus, PlanningProblem, PlanResult
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPTED = "tests.jobs.test_pool:scripted_task"
@@ -37,25 +40,34 @@ pytestmark = pytest.mark.redis
 
 
 class Worker:
-    """A Celery worker in its own process, consuming a queue of its own."""
+    """A Celery worker in its own process, consuming a queue of its own, reading models and
+    scenes from `database_url`; with Celery's default settings otherwise, as the user the tests
+    run as (root in CI containers: nothing allows it more than any other user)."""
 
     def __init__(
-        self, command: list[str], queue: str, log: Path, redis_url: str, task_fn: str | None
+        self,
+        command: list[str],
+        queue: str,
+        log: Path,
+        redis_url: str,
+        task_fn: str | None,
+        *,
+        database_url: str,
     ) -> None:
         self.queue = queue
         self.log = log
         self.redis_url = redis_url
         env = {
             **os.environ,
+            "TRAJCACHE_DATABASE_URL": database_url,
             "TRAJCACHE_CELERY_BROKER_URL": redis_url,
             "TRAJCACHE_CELERY_RESULT_BACKEND": redis_url,
             "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
         }
-        env.pop(TASK_FN_ENV, None)
+        for name in (TASK_FN_ENV, "C_FORCE_ROOT"):
+            env.pop(name, None)
         if task_fn is not None:
             env[TASK_FN_ENV] = task_fn
-        if os.geteuid() == 0:  # CI containers run as root; Celery refuses pickle as root
-            env["C_FORCE_ROOT"] = "1"
         with log.open("wb") as out:
             self.process = subprocess.Popen(
                 command, cwd=ROOT, env=env, stdout=out, stderr=subprocess.STDOUT
@@ -102,15 +114,40 @@ def wait_for_worker(pool: PlannerPool, worker: Worker, ping: PlanningProblem) ->
     assert answered, f"the Celery worker did not answer within 30 s:\n{worker.log_tail()}"
 
 
+def store_models(database_url: str, *sources: ModelSource) -> str:
+    """Migrate `database_url` and store `sources` under their ids, where a worker reads them."""
+    migrate.upgrade(database_url)
+    engine = make_engine(database_url)
+    try:
+        with make_sessionmaker(engine)() as session:
+            for source in sources:
+                row = tables.RobotModel(
+                    id=source.model_id,
+                    name=source.model_id,
+                    base=source.base,
+                    joint_names=list(source.joint_names),
+                    urdf=source.urdf,
+                    config={},
+                )
+                session.merge(row)
+            session.commit()
+    finally:
+        engine.dispose()
+    return database_url
+
+
 def start_worker(
     command: list[str], queue: str, tmp_path: Path, *, task_fn: str | None = SCRIPTED
 ) -> tuple[Worker, PlannerPool]:
     """Start a worker and wait until it plans; the real planner when `task_fn` is None."""
-    worker = Worker(command, queue, tmp_path / "worker.log", REDIS_URL, task_fn)
-    pool = celery_pool(REDIS_URL, queue)
     ping = make_problem(tmp_path, scene="ping", budget_s=1.0)
     if task_fn is None:
         ping = replace(two_link_problem((2.0, 1.0)), budget_s=1.0)
+    database_url = store_models(f"sqlite:///{tmp_path / 'models.db'}", ping.model)
+    worker = Worker(
+        command, queue, tmp_path / "worker.log", REDIS_URL, task_fn, database_url=database_url
+    )
+    pool = celery_pool(REDIS_URL, queue)
     try:
         wait_for_worker(pool, worker, ping)
     except BaseException:
@@ -211,7 +248,7 @@ def test_budget_is_enforced(
 ) -> None:
     _, pool = celery_worker
     done = tmp_path / "done"
-    result = pool.submit(make_problem(tmp_path, budget_s=0.3, sleep=2.0, done_file=done))
+    result = pool.submit(make_problem(tmp_path, budget_s=0.3, sleep=2.0, done_file=str(done)))
     # Given up after the budget and the 1 s overhead, not when the 2 s task finished.
     assert result.status is PlannerStatus.TIMEOUT, result.message
     assert "budget of 0.3 s (no answer after 1.3 s)" in result.message
@@ -219,7 +256,15 @@ def test_budget_is_enforced(
     assert wait_until(done.exists)  # the worker is free again for the next test
 
 
+def test_workers_take_json_only() -> None:
+    conf = make_celery(Settings()).conf
+    assert (conf.accept_content, conf.result_accept_content) == (["json"], ["json"])
+    assert (conf.task_serializer, conf.result_serializer) == ("json", "json")
+
+
 def test_cli_worker_runs_the_real_planner(redis_url: str, tmp_path: Path) -> None:
+    """`trajcache worker` with the default settings plans, also as root (as the tests run in CI
+    containers): Celery refuses only workers that accept pickle as root."""
     queue = f"plan-cli-{uuid.uuid4().hex[:8]}"
     code = "import typer; from trajcache.cli.worker import worker; typer.run(worker)"
     command = [sys.executable, "-c", code, "--concurrency", "1", "--queues", queue]
@@ -232,6 +277,11 @@ def test_cli_worker_runs_the_real_planner(redis_url: str, tmp_path: Path) -> Non
         assert "run_ms" in result.stats  # run_planning's own statistics
         blocked = pool.submit(two_link_problem((1.5708, 0.0)))
         assert blocked.status is PlannerStatus.INVALID_GOAL, blocked.message
+        # The worker plans the model its database holds under the task's model id.
+        unknown = replace(two_link_problem((-1.0, 2.0)), model=make_problem(tmp_path).model)
+        missing = pool.submit(unknown)
+        assert missing.status is PlannerStatus.ERROR
+        assert "robot model 'model-1' not found in the worker's database" in missing.message
     finally:
         pool.close()
         worker.stop()

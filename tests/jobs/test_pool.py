@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib
 import os
 import signal
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -383,6 +385,31 @@ def test_closed_pool_answers_with_an_error(tmp_path: Path) -> None:
     result = pool.submit(make_problem(tmp_path))
     assert result.status is PlannerStatus.ERROR and "closed" in result.message
     assert runs(tmp_path) == 0
+
+
+def test_a_closed_pool_leaves_no_semaphore_to_the_resource_tracker() -> None:
+    """A process killed right after closing its pool (as uvicorn's server processes are, by the
+    SIGTERM they raise again once shut down) has released its queues' semaphores already."""
+    code = (
+        "import os, signal\n"
+        "from tests.jobs.test_pool import scripted_task\n"
+        "from trajcache.jobs.local import LocalBackend\n"
+        "backend = LocalBackend(scripted_task, processes=2)\n"
+        "assert backend.wait_ready(120.0)\n"
+        "backend.close()\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    root = Path(__file__).resolve().parents[2]
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]),
+    }
+    # Read until every holder of stderr, the resource tracker last, has exited.
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=root, env=env, capture_output=True, text=True, timeout=240
+    )
+    assert done.returncode == -signal.SIGKILL, done.stderr[-3000:]
+    assert "leaked" not in done.stderr and "resource_tracker" not in done.stderr, done.stderr
 
 
 def test_budget_is_capped_by_the_settings(tmp_path: Path) -> None:

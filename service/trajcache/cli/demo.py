@@ -9,11 +9,13 @@ is the benchmark harness in `bench/`: `python bench/paper_tables.py` from a chec
 from __future__ import annotations
 
 import json
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.console import Console
+from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
 from trajcache.cli.common import err_console
 from trajcache.cli.demo_play import RowResult
@@ -79,12 +81,31 @@ def summary(results: dict[str, RowResult]) -> dict[str, object]:
     return out
 
 
+def start_services(stack: ExitStack, names: list[str], console: Console) -> list[str]:
+    """Start one service per cache name (closed with `stack`), a line for each one ready."""
+    from trajcache.cli.launch import running_services
+
+    env = {"TRAJCACHE_WORKER_PROCESSES": "1"}
+    columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+               TextColumn("{task.completed}/{task.total} ready"), TimeElapsedColumn())  # fmt: skip
+    with Progress(*columns, console=console) as progress:
+        task = progress.add_task("starting the services", total=len(names))
+
+        def ready(index: int, base: str) -> None:
+            progress.console.print(f"  service for the {names[index]!r} cache ready at {base}")
+            progress.advance(task)
+
+        services = running_services(
+            [None] * len(names), env=env, deadline_s=300, quiet=True, ready_fn=ready
+        )
+        return stack.enter_context(services)
+
+
 def play(
     *, seed: int, sweep: tuple[int, ...], arm: bool, calls: int | None
 ) -> dict[str, RowResult]:
     """Start one service per cache, play every row with a progress bar; the rows' results."""
     from trajcache.cli.demo_play import Checker, demo_rows, play_row, prepare
-    from trajcache.cli.launch import running_services
     from trajcache_client import Client
 
     console = err_console()
@@ -92,14 +113,14 @@ def play(
     names = [name for name in CACHES if any(r.cache == name for r in rows)]
     shown = ", ".join(f"{d}°" for d in sweep)
     console.print(
-        f"Playing {len(rows)} rows of {calls or 'all'} calls each (seed {seed}, doors {shown}); "
-        f"starting {len(names)} services…"
+        f"Playing {len(rows)} rows of {calls or 'all'} calls each (seed {seed}, doors {shown}) "
+        f"on {len(names)} services"
     )
-    env = {"TRAJCACHE_WORKER_PROCESSES": "1"}
     columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
                "{task.total} rows"), TimeElapsedColumn())  # fmt: skip
     results: dict[str, RowResult] = {}
-    with running_services([None] * len(names), env=env, deadline_s=300, quiet=True) as bases:
+    with ExitStack() as stack:
+        bases = start_services(stack, names, console)
         clients = {n: Client(b, timeout=120) for n, b in zip(names, bases, strict=True)}
         models = {n: prepare(c) for n, c in clients.items()}
         checker = Checker()

@@ -3,7 +3,8 @@
 The one way a real service is started for measurement: by `trajcache demo`, by the benchmarks
 (`bench/`) and by their tests. Each service gets a free port, its own working directory and,
 unless a database URL is given, a temporary SQLite database; it is ready when `GET /readyz`
-answers 200. Services started together start side by side and are awaited together.
+answers 200. Services started together start side by side and are awaited together; `ready_fn`
+hears of each one as it becomes ready.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
@@ -54,8 +55,14 @@ def _answers_ready(base: str) -> bool:
     return True
 
 
+ReadyFn = Callable[[int, str], None]  # (index of the service, its base URL)
+
+
 def _wait_ready(
-    procs: Sequence[subprocess.Popen[bytes]], bases: list[str], deadline_s: float
+    procs: Sequence[subprocess.Popen[bytes]],
+    bases: list[str],
+    deadline_s: float,
+    ready_fn: ReadyFn | None = None,
 ) -> None:
     waiting = set(range(len(procs)))
     limit = time.monotonic() + deadline_s
@@ -65,6 +72,8 @@ def _wait_ready(
                 raise RuntimeError(f"the service for {bases[i]} exited while starting")
             if _answers_ready(bases[i]):
                 waiting.discard(i)
+                if ready_fn is not None:
+                    ready_fn(i, bases[i])
         if waiting and time.monotonic() > limit:
             raise RuntimeError(f"{len(waiting)} services not ready after {deadline_s:.0f} s")
         time.sleep(0.2)
@@ -78,10 +87,12 @@ def running_services(
     env: Mapping[str, str] | None = None,
     deadline_s: float = 60.0,
     quiet: bool = False,
+    ready_fn: ReadyFn | None = None,
 ) -> Iterator[list[str]]:
     """Run one service per database URL (None: temporary SQLite); yield their base URLs.
 
-    `env` adds TRAJCACHE_* settings; `quiet` drops the services' standard output."""
+    `env` adds TRAJCACHE_* settings; `quiet` drops the services' standard output; `ready_fn` is
+    called with each service's index and base URL as it becomes ready."""
     with ExitStack() as stack:
         procs, bases = [], []
         for url in database_urls:
@@ -103,7 +114,7 @@ def running_services(
             _PIDS[base] = proc.pid
             procs.append(proc)
             bases.append(base)
-        _wait_ready(procs, bases, deadline_s)
+        _wait_ready(procs, bases, deadline_s, ready_fn)
         yield bases
 
 

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import errno
 import os
+import signal
 import socket
+import sys
+from types import FrameType
 from typing import Annotated
 
 import typer
@@ -33,6 +36,10 @@ def check_port(host: str, port: int) -> None:
             if exc.errno == errno.EADDRINUSE:
                 reason += " (another service listens there; choose --port or TRAJCACHE_PORT)"
             raise fail(RuntimeError(f"cannot serve on {shown}:{port}: {reason}")) from None
+
+
+def _stop_on_sigterm(_signum: int, _frame: FrameType | None) -> None:
+    sys.exit(0)
 
 
 def serve(
@@ -69,6 +76,11 @@ def serve(
         os.environ["TRAJCACHE_DATABASE_URL"] = settings.database_url  # the app's workers read it
     os.environ["TRAJCACHE_HOST"] = host  # the app decides from it whether keys are required
     shown = f"[{host}]" if ":" in host else host
+    # SIGTERM is how a service is asked to stop (Docker, systemd, Kubernetes). uvicorn shuts down
+    # gracefully, then raises the signal again for the handler it found: this one ends the
+    # process with status 0, through the interpreter's exit handlers (multiprocessing's release
+    # the planner pool's semaphores), instead of the default handler killing it.
+    signal.signal(signal.SIGTERM, _stop_on_sigterm)
     err_console().print(
         f"trajcache serving on [bold]http://{shown}:{port}[/bold] "
         f"(API docs at /docs, {workers} worker{'s' if workers > 1 else ''})"

@@ -1,8 +1,9 @@
 """The Celery backend of the planner pool: the app, the `trajcache.plan` task and its client.
 
-Workers start with `celery -A trajcache.jobs.celery_app worker -Q plan` (or `trajcache worker`).
-Problems hold bytes and numpy arrays, so the plan task travels as pickle: Redis must only be
-reachable by trusted hosts, as anyone who can write to the broker can run code in the workers.
+Workers start with `celery -A trajcache.jobs.celery_app worker -Q plan` (or `trajcache worker`),
+as any user. Tasks and results travel as JSON and workers accept nothing else
+(`trajcache.jobs.wire`): a task names its model by id and its scene by hash, and a worker reads
+those it lacks from the database, which it shares with the service (`trajcache.jobs.sources`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import time
 from concurrent.futures import Future, InvalidStateError, wait
 from concurrent.futures import TimeoutError as FutureTimeout
 from functools import lru_cache
+from typing import Any
 
 from celery import Celery
 from celery.exceptions import TimeoutError as CeleryTimeout
@@ -26,8 +28,16 @@ from redis.exceptions import RedisError
 from trajcache.core.config import Settings, get_settings
 from trajcache.geometry.warm import warm
 from trajcache.jobs.backend import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
+from trajcache.jobs.sources import WorkerSources
 from trajcache.jobs.threads import pin_one_thread
+from trajcache.jobs.wire import (
+    problem_from_message,
+    result_from_message,
+    result_message,
+    task_message,
+)
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+from trajcache.services.errors import NotFoundError
 
 PLAN_TASK = "trajcache.plan"
 PLAN_QUEUE = "plan"
@@ -72,9 +82,22 @@ def _import_task_fn(**_: object) -> None:
         logger.exception("cannot import the planning task function")
 
 
-def plan(problem: PlanningProblem) -> PlanResult:
-    """The body of the `trajcache.plan` task: the same pure function as the local pool runs."""
-    return worker_task_fn()(problem)
+@lru_cache(maxsize=1)
+def worker_sources() -> WorkerSources:
+    """The models and scenes this worker process has read from the database."""
+    return WorkerSources(get_settings().database_url)
+
+
+def plan(message: dict[str, Any]) -> dict[str, Any]:
+    """The body of the `trajcache.plan` task: the same pure function as the local pool runs, on
+    the problem the JSON message names."""
+    sources = worker_sources()
+    try:
+        problem = problem_from_message(message, model_fn=sources.model, scene_fn=sources.scene)
+    except NotFoundError as exc:
+        reason = f"{exc} in the worker's database (it needs the service's TRAJCACHE_DATABASE_URL)"
+        return result_message(error_result(reason))
+    return result_message(worker_task_fn()(problem))
 
 
 def make_celery(settings: Settings, *, fail_fast: bool = False) -> Celery:
@@ -86,10 +109,10 @@ def make_celery(settings: Settings, *, fail_fast: bool = False) -> Celery:
         set_as_current=False,
     )
     app.conf.update(
-        accept_content=["pickle", "json"],
-        result_accept_content=["pickle", "json"],
-        task_serializer="pickle",
-        result_serializer="pickle",
+        accept_content=["json"],  # nothing a worker would run code to decode
+        result_accept_content=["json"],
+        task_serializer="json",
+        result_serializer="json",
         task_routes={PLAN_TASK: {"queue": PLAN_QUEUE}},
         task_track_started=True,  # lets a client tell "still queued" from "overran"
         task_acks_late=False,  # a task that crashed its worker is not redelivered to crash another
@@ -114,7 +137,7 @@ def make_celery(settings: Settings, *, fail_fast: bool = False) -> Celery:
             result_backend_transport_options={"retry_policy": {**retry, "timeout": 1.0}},
             redis_socket_timeout=10.0,
         )
-    app.task(name=PLAN_TASK, serializer="pickle")(plan)
+    app.task(name=PLAN_TASK)(plan)
     return app
 
 
@@ -139,9 +162,8 @@ class CeleryBackend:
         try:
             async_result = self.app.send_task(
                 PLAN_TASK,
-                args=(problem,),
+                args=(task_message(problem),),
                 queue=self.queue,
-                serializer="pickle",
                 expires=timeout_s,  # not started by then: nobody waits for it any more
                 time_limit=timeout_s + self.time_limit_grace_s,
             )
@@ -171,9 +193,12 @@ class CeleryBackend:
             if isinstance(_cause(exc), _UNAVAILABLE):
                 return error_result(f"worker backend unavailable: {_describe(exc)}")
             return error_result(f"planning task failed in the worker: {_describe(exc)}")
-        if not isinstance(value, PlanResult):
+        if not isinstance(value, dict):
             return error_result(f"planning task returned {type(value).__name__}")
-        return value
+        try:
+            return result_from_message(value)
+        except (KeyError, TypeError, ValueError) as exc:
+            return error_result(f"planning task returned a malformed result: {_describe(exc)}")
 
     def _lost_worker(
         self, async_result: AsyncResult, outcome: Future[object], deadline: float

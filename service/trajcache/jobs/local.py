@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
 import signal
 import sys
 import threading
@@ -18,14 +19,37 @@ from trajcache.jobs.threads import pin_one_thread
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 
 MIN_RETRY_BUDGET_S = 0.1  # a crashed task is not run again with less budget left than this
+PARENT_GONE_EXIT = 70  # a worker's exit status when the process that started it is gone
 
 
 def _init_worker() -> None:
     """Runs first in every worker: Ctrl-C reaches the whole process group, but only the service
-    decides when its workers stop (it stops them when it shuts down); and one numeric thread,
-    as the workers share the machine's cores."""
+    decides when its workers stop (it stops them when it shuts down, or by dying); and one
+    numeric thread, as the workers share the machine's cores."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _exit_with_parent()
     pin_one_thread()
+
+
+def _exit_with_parent() -> None:
+    """Exit as soon as the process that started this worker is gone, however it ended.
+
+    A service killed with SIGKILL cannot stop its workers, and they would wait for work forever:
+    each holds the pipe ends (its task queue's, the forkserver's) that would tell the others.
+    multiprocessing gives every child a handle on its parent (the process that asked for it,
+    not the forkserver that forked it), a pipe end that closes when the parent dies; a daemon
+    thread waits on it. Without the workers, the forkserver and the resource tracker see their
+    pipes close and exit too.
+    """
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+
+    def watch() -> None:
+        parent.join()  # returns once the parent is gone
+        os._exit(PARENT_GONE_EXIT)  # no cleanup to wait for: the task's caller is gone
+
+    threading.Thread(target=watch, name="trajcache-parent-watch", daemon=True).start()
 
 
 def _warm_up(task_fn: TaskFn) -> None:
@@ -204,14 +228,20 @@ class LocalBackend:
         """Let the old executor's other requests finish (within their deadlines), then kill it."""
         # Private attribute, but the only handle on the workers; a stuck one must be killed.
         workers = list((getattr(old.executor, "_processes", None) or {}).values())
-        old.executor.shutdown(wait=False, cancel_futures=True)
-        with self._lock:
-            others = {f: d for f, d in old.running.items() if f is not stuck}
-        if others and patient:
-            wait(others, timeout=max(0.0, max(others.values()) - time.monotonic()))
+        if patient:
+            old.executor.shutdown(wait=False, cancel_futures=True)
+            with self._lock:
+                others = {f: d for f, d in old.running.items() if f is not stuck}
+            if others:
+                wait(others, timeout=max(0.0, max(others.values()) - time.monotonic()))
         for process in workers:
             with contextlib.suppress(OSError, ValueError, AttributeError):  # already gone
                 process.kill()
+        if not patient:
+            # Wait for the executor's thread to see its workers gone and end: then its queues,
+            # and their semaphores, are released now, not reported leaked if this process is
+            # then killed (as uvicorn's workers are by the SIGTERM they re-raise).
+            old.executor.shutdown(wait=True, cancel_futures=True)
 
     def counters(self) -> dict[str, int]:
         """Crashes and recycles so far."""

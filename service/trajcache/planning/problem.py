@@ -47,10 +47,15 @@ class ModelSource:
 
 @dataclass(frozen=True)
 class SceneSource:
-    """A scene in its native payload form; workers cache the parsed scene by `hash`."""
+    """A scene in its native payload form; workers cache the parsed scene by `hash`.
+
+    `stored`: the database holds the scene (a robot's scene version), so a Celery worker reads
+    it by hash instead of receiving its payload.
+    """
 
     hash: str
     payload: dict[str, Any]
+    stored: bool = False
 
 
 @dataclass(frozen=True)

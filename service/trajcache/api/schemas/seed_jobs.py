@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 JobStateName = Literal["queued", "running", "completed", "cancelled", "failed"]
 EXAMPLE_SPEC: dict[str, Any] = {
@@ -48,6 +48,8 @@ JOB_OUT: dict[str, Any] = {
     "hit_rate": 0.92,
     "eta_s": 31.5,
     "runner": "api-1:4242:5f1c0e9a7b3d",
+    "lease_expires_at": "2025-06-02T09:26:42.500214Z",
+    "stale": False,
     "message": None,
     "errors": [
         {
@@ -88,6 +90,15 @@ class SeedJobOut(BaseModel):
     hit_rate: float | None
     eta_s: float | None
     runner: str | None
+    lease_expires_at: datetime | None = Field(
+        description="When the runner's claim on the job runs out unless its next progress write "
+        "renews it (null when no replica holds the job)."
+    )
+    stale: bool = Field(
+        description="True while the job is `running` but its claim has run out: its replica "
+        "stopped without handing it back (a crash). Another replica, or the restarted one, "
+        "takes it over at its next look for jobs."
+    )
     message: str | None
     errors: list[SeedJobError]
     created_at: datetime

@@ -256,6 +256,15 @@ def _resolve_scene(
     return scene, version
 
 
+def stored_scene_payload(*, session: Session, scene_hash: str) -> dict[str, Any]:
+    """The stored payload of the scene with hash `scene_hash` (whichever robot uploaded it)."""
+    query = sa.select(tables.SceneVersion.payload).where(tables.SceneVersion.hash == scene_hash)
+    payload = session.scalar(query.limit(1))
+    if payload is None:
+        raise NotFoundError(f"scene {scene_hash!r} not found")
+    return dict(payload)
+
+
 def get_scene(*, session: Session, scenes: SceneCache, robot_id: str) -> SceneInfo:
     """The robot's current scene in native form, with its version and hash."""
     _, scene, version = current_scene(session=session, scenes=scenes, robot_id=robot_id)

@@ -88,6 +88,7 @@ class Origin:
     real: bool  # a real robot: a hit counts as a validation of the trajectory in the real world
     held: Mapping[str, float] | None = None  # the robot's own held joint values, if it set any
     requester: Requester = Requester.ROBOT  # recorded in the plan event and the metrics
+    scene_stored: bool = False  # the scene is a stored scene version (a robot's uploaded one)
 
 
 @dataclass

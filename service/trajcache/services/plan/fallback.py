@@ -76,7 +76,9 @@ def _problem(attempt: PlanAttempt) -> PlanningProblem:
         model=model_source(
             session=attempt.session, model_id=attempt.model.model_id, registry=ctx.models
         ),
-        scene=SceneSource(hash=scene.hash, payload=scene_to_payload(scene)),
+        scene=SceneSource(
+            hash=scene.hash, payload=scene_to_payload(scene), stored=attempt.origin.scene_stored
+        ),
         start=tuple(float(v) for v in attempt.start),
         goal=tuple(float(v) for v in attempt.goal),
         budget_s=attempt.request.budget_s,

@@ -177,7 +177,13 @@ def _plan_robot(
                 ),
             )
             model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
-        origin = Origin("planner", robot_id, real=robot.kind == "real", held=robot.joint_values)
+        origin = Origin(
+            "planner",
+            robot_id,
+            real=robot.kind == "real",
+            held=robot.joint_values,
+            scene_stored=robot.version > 0,
+        )
         attempt = _open(ctx, session, robot_id, origin, model, robot.scene, request, clock)
         return _answer(attempt), attempt
 

@@ -116,6 +116,8 @@ class SeedJobInfo:
     hit_rate: float | None
     eta_s: float | None  # seconds left, while running with an estimate
     runner: str | None
+    lease_expires_at: datetime | None  # when the runner's claim runs out unless it renews it
+    stale: bool  # running, but its claim ran out: its replica stopped without handing it back
     message: str | None
     errors: list[dict[str, Any]]
     created_at: datetime
@@ -126,9 +128,11 @@ class SeedJobInfo:
     @classmethod
     def of(cls, row: SeedJob) -> SeedJobInfo:
         """The API view of a job row."""
-        eta = None
-        if row.eta_at is not None and row.state == JobState.RUNNING.value:
-            eta = round(max(0.0, (row.eta_at - utcnow()).total_seconds()), 1)
+        eta, now = None, utcnow()
+        running = row.state == JobState.RUNNING.value
+        if row.eta_at is not None and running:
+            eta = round(max(0.0, (row.eta_at - now).total_seconds()), 1)
+        lease_ends = row.lease_expires_at
         hit_rate = round(row.hits / row.done, 4) if row.done else None
         return cls(
             row.id,
@@ -143,6 +147,8 @@ class SeedJobInfo:
             hit_rate,
             eta,
             row.lease_owner,
+            lease_ends,
+            running and lease_ends is not None and lease_ends < now,
             row.message,
             list(row.errors or []),
             row.created_at,
