@@ -15,7 +15,8 @@ from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
 from trajcache.geometry.scene.scene import make_scene
-from trajcache.services.catalog.robots import current_scene, patch_scene
+from trajcache.services.catalog.robots import current_scene
+from trajcache.services.catalog.scene_writes import patch_scene
 
 TABLE = {
     "id": "table",

@@ -179,10 +179,13 @@ def test_task_exception_is_an_error_result(pool: PlannerPool, tmp_path: Path) ->
 def test_budget_is_enforced_and_an_overrunning_worker_is_recycled(tmp_path: Path) -> None:
     pid_file = tmp_path / "pid"
     with make_local_pool(grace=0.5) as pool:
+        assert isinstance(pool.backend, LocalBackend) and pool.backend.wait_ready(60.0)
         result = pool.submit(make_problem(tmp_path, budget_s=0.5, sleep=5.0, pid_file=pid_file))
         # Given up after the budget and the 1 s overhead, not when the 5 s task finished.
         assert result.status is PlannerStatus.TIMEOUT, result.message
         assert "budget of 0.5 s (no answer after 1.5 s)" in result.message
+        # written as the task began (late on a loaded machine)
+        assert wait_until(lambda: pid_file.exists() and pid_file.read_text() != "")
         stuck = int(pid_file.read_text())
         assert wait_until(lambda: pool.stats().recycles == 1)
         assert wait_until(lambda: not pid_alive(stuck)), "stuck worker not killed"

@@ -19,7 +19,8 @@ from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
-from trajcache.services.catalog.robots import put_robot, put_scene
+from trajcache.services.catalog.robots import put_robot
+from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import UnavailableError
 from trajcache.services.plan import flow

@@ -16,7 +16,8 @@ from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.scene import make_scene
-from trajcache.services.catalog.robots import put_robot, put_scene, robot_scene
+from trajcache.services.catalog.robots import put_robot, robot_scene
+from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import NotFoundError
 from trajcache.services.plan.flow import PlanAnswer, PlanRequest, PlanSource, plan

@@ -34,12 +34,11 @@ from trajcache.services.catalog.robots import (
     RobotInfo,
     get_robot,
     get_scene,
-    patch_scene,
     put_robot,
-    put_scene,
     scene_warnings,
 )
 from trajcache.services.catalog.scene_limits import SceneLimits
+from trajcache.services.catalog.scene_writes import patch_scene, put_scene
 
 router = APIRouter(
     prefix="/robots", tags=["robots"], responses=COMMON, route_class=BoundedBodyRoute

@@ -147,6 +147,13 @@ class PlanStats:
     time_saved_basis: list[ModelBasis]
 
 
+def _check_query(group_by: str, requester: str | None) -> None:
+    if group_by not in GROUP_BY:
+        raise InvalidInputError(f"query.group_by: {group_by!r} is not one of {GROUP_BY}")
+    if requester is not None and requester not in REQUESTERS:
+        raise InvalidInputError(f"query.requester: {requester!r} is not one of {REQUESTERS}")
+
+
 def plan_stats(
     *,
     session: Session,
@@ -158,22 +165,12 @@ def plan_stats(
     now: datetime | None = None,
 ) -> PlanStats:
     """Statistics of the plan requests of the last `window_s` seconds, grouped by `group_by`."""
-    if group_by not in GROUP_BY:
-        raise InvalidInputError(f"query.group_by: {group_by!r} is not one of {GROUP_BY}")
-    if requester is not None and requester not in REQUESTERS:
-        raise InvalidInputError(f"query.requester: {requester!r} is not one of {REQUESTERS}")
+    _check_query(group_by, requester)
     until = now or datetime.now(UTC)
     since = until - timedelta(seconds=window_s)
     bucket_s = bucket_seconds(window_s)
-    rows = _window_rows(
-        session,
-        since,
-        until,
-        bucket_s,
-        robot_id=robot_id,
-        model_id=model_id,
-        requester=requester,
-    )
+    filters = {"robot_id": robot_id, "model_id": model_id, "requester": requester}
+    rows = _window_rows(session, since, until, bucket_s, **filters)
 
     category = categories(rows.status, rows.source)
     models, model = codes(rows.model)

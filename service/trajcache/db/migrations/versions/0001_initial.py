@@ -25,6 +25,14 @@ Timestamp = sa.DateTime(timezone=True)
 
 
 def upgrade() -> None:
+    _models()
+    _robots_and_scenes()
+    _trajectories()
+    _events_and_keys()
+
+
+def _models() -> None:
+    """Robot models and their files."""
     op.create_table(
         "robot_models",
         sa.Column("id", sa.String(length=64), nullable=False),
@@ -56,6 +64,9 @@ def upgrade() -> None:
     )
     op.create_index(op.f("ix_model_files_model_id"), "model_files", ["model_id"])
 
+
+def _robots_and_scenes() -> None:
+    """Robots and their scene versions."""
     op.create_table(
         "robots",
         sa.Column("id", sa.String(length=128), nullable=False),
@@ -90,6 +101,9 @@ def upgrade() -> None:
     )
     op.create_index(op.f("ix_scene_versions_hash"), "scene_versions", ["hash"])
 
+
+def _trajectories() -> None:
+    """Trajectories and their tombstones."""
     op.create_table(
         "trajectories",
         sa.Column("id", BigIntPK, autoincrement=True, nullable=False),
@@ -146,6 +160,9 @@ def upgrade() -> None:
         op.f("ix_trajectory_tombstones_model_id"), "trajectory_tombstones", ["model_id"]
     )
 
+
+def _events_and_keys() -> None:
+    """Plan events and API keys."""
     op.create_table(
         "plan_events",
         sa.Column("id", BigIntPK, autoincrement=True, nullable=False),
