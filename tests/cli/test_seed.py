@@ -173,4 +173,5 @@ def test_the_shipped_example_runs_as_it_is(tmp_path: Path) -> None:
         stored = httpx.get(f"{server.url}/v1/trajectories", params={"source": "sim"}).json()
     assert (job["state"], job["done"], job["total"], job["failed"]) == ("completed", 9, 9, 0)
     assert job["model_id"] == reference["model_id"] and not reference["created"]
-    assert job["planned"] == stored["total"] > 0
+    # what the planner found is stored as sim; two identical paths are one trajectory
+    assert 0 < stored["total"] <= job["planned"]

@@ -137,13 +137,19 @@ def store_models(database_url: str, *sources: ModelSource) -> str:
 
 
 def start_worker(
-    command: list[str], queue: str, tmp_path: Path, *, task_fn: str | None = SCRIPTED
+    command: list[str],
+    queue: str,
+    tmp_path: Path,
+    *,
+    task_fn: str | None = SCRIPTED,
+    database_url: str | None = None,
 ) -> tuple[Worker, PlannerPool]:
-    """Start a worker and wait until it plans; the real planner when `task_fn` is None."""
+    """Start a worker on `database_url` (default: a SQLite file of its own) and wait until it
+    plans; the real planner when `task_fn` is None."""
     ping = make_problem(tmp_path, scene="ping", budget_s=1.0)
     if task_fn is None:
         ping = replace(two_link_problem((2.0, 1.0)), budget_s=1.0)
-    database_url = store_models(f"sqlite:///{tmp_path / 'models.db'}", ping.model)
+    database_url = store_models(database_url or f"sqlite:///{tmp_path / 'models.db'}", ping.model)
     worker = Worker(
         command, queue, tmp_path / "worker.log", REDIS_URL, task_fn, database_url=database_url
     )

@@ -557,7 +557,8 @@ def test_misses_go_through_celery_workers_when_configured(
     command = [sys.executable, "-m", "celery", "-A", "trajcache.jobs.celery_app", "worker"]
     command += ["--pool=solo", "-Q", queue, "-n", f"{queue}@%h", "--without-gossip"]
     command += ["--without-mingle", "--without-heartbeat"]
-    worker, probe = start_worker(command, queue, tmp_path, task_fn=None)
+    # The worker reads the job's model from the service's database.
+    worker, probe = start_worker(command, queue, tmp_path, task_fn=None, database_url=migrated_url)
     probe.close()
     context = ServiceContext.create(
         Settings(
