@@ -59,6 +59,9 @@ def test_the_wheel_holds_both_packages_typed(wheel: Path) -> None:
     assert "trajcache_client/_client.py" in names and "trajcache/api/schemas/models.py" in names
     for module in ("cli/__main__", "cli/launch", "cli/demo", "cli/demo_play", "reference/robot"):
         assert f"trajcache/{module}.py" in names, module
+    vendored = "trajcache/dashboard/static/vendor/three/"
+    for name in ("three.module.js", "three.core.js", "LICENSE", "addons/loaders/STLLoader.js"):
+        assert vendored + name in names, name  # the 3D view works from an installed package
     assert not [n for n in names if n.startswith(("trajcache/protocol/", "harness/", "bench/"))]
     for asset in ("swagger-ui/swagger-ui-bundle.js", "swagger-ui/swagger-ui.css", "redoc/LICENSE"):
         assert f"trajcache/api/static/{asset}" in names, asset  # /docs works offline

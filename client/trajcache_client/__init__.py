@@ -34,6 +34,7 @@ from trajcache_client._exceptions import (
     ValidationError,
 )
 from trajcache_client._models import (
+    ContactPair,
     Health,
     JointTrajectory,
     JointTrajectoryPoint,
@@ -42,6 +43,7 @@ from trajcache_client._models import (
     PlanEvent,
     PlanOptions,
     PlanResult,
+    RejectedCandidate,
     Rejection,
     Robot,
     RobotModel,
@@ -70,6 +72,14 @@ from trajcache_client._stats_models import (
     TopTrajectory,
 )
 from trajcache_client._version import __version__
+from trajcache_client._view_models import (
+    Failure,
+    Frames,
+    ModelElement,
+    ModelView,
+    PathView,
+    StoredScene,
+)
 
 __all__ = [
     "DEFAULT_BASE_URL",
@@ -82,6 +92,9 @@ __all__ = [
     "BadRequestError",
     "Client",
     "ConflictError",
+    "ContactPair",
+    "Failure",
+    "Frames",
     "Health",
     "ImportResult",
     "JointTrajectory",
@@ -89,18 +102,22 @@ __all__ = [
     "Latency",
     "Metrics",
     "ModelBasis",
+    "ModelElement",
     "ModelFile",
     "ModelPrune",
+    "ModelView",
     "MotionPlanResponse",
     "NotFoundError",
     "Operation",
     "Page",
+    "PathView",
     "PayloadTooLargeError",
     "PlanEvent",
     "PlanEventPage",
     "PlanOptions",
     "PlanResult",
     "PruneResult",
+    "RejectedCandidate",
     "RejectedLine",
     "Rejection",
     "Retry",
@@ -117,6 +134,7 @@ __all__ = [
     "Stats",
     "StatsBucket",
     "StatsGroup",
+    "StoredScene",
     "TimingOptions",
     "TopTrajectory",
     "TrajcacheError",

@@ -34,11 +34,12 @@ from trajcache_client._models import (
 from trajcache_client._moveit_models import MotionPlanResponse
 from trajcache_client._operations import JointLimits, Operation, StateLike, StateValues
 from trajcache_client._retry import Retry
+from trajcache_client._view_client import AsyncViewMethods
 
 T = TypeVar("T")
 
 
-class AsyncClient(AsyncAdminMethods, BaseClient):
+class AsyncClient(AsyncAdminMethods, AsyncViewMethods, BaseClient):
     """An asyncio trajcache client; use it with `async with` or call `aclose()`.
 
     `transport` replaces the network (e.g. `httpx.MockTransport`, `httpx.ASGITransport(app)`).

@@ -34,11 +34,12 @@ from trajcache_client._models import (
 from trajcache_client._moveit_models import MotionPlanResponse
 from trajcache_client._operations import JointLimits, Operation, StateLike, StateValues
 from trajcache_client._retry import Retry
+from trajcache_client._view_client import ViewMethods
 
 T = TypeVar("T")
 
 
-class Client(AdminMethods, BaseClient):
+class Client(AdminMethods, ViewMethods, BaseClient):
     """A blocking trajcache client; use it as a context manager or call `close()`.
 
     `transport` replaces the network, e.g. `httpx.MockTransport(handler)` in tests.

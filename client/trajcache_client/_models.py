@@ -196,6 +196,38 @@ class Rejection(_Answer):
     reason: str
 
 
+class ContactPair(_Answer):
+    """A link and what it touches: a scene object (`scene`) or another link (`self`)."""
+
+    link: str
+    other: str
+    kind: Literal["scene", "self"] | str
+
+
+class RejectedCandidate(_Answer):
+    """A cached candidate that failed validation, and where: its first failing sample.
+
+    `sample` is the validation sample at (or just before) the failing `state`, `at` the
+    fraction of the step to the next one, of `samples` in all; `pairs` are the link and object
+    (or the two links) at fault, `joints` those out of limits. `start` and `goal` are the
+    request's, which the candidate was adapted to.
+    """
+
+    trajectory_id: int
+    reversed: bool
+    status: Literal["collision", "out_of_limits", "too_close"] | str
+    reason: str
+    start: list[float]
+    goal: list[float]
+    sample: int | None = None
+    at: float | None = None
+    samples: int | None = None
+    segment: int | None = None
+    state: list[float] | None = None
+    pairs: list[ContactPair] = Field(default_factory=list)
+    joints: list[str] = Field(default_factory=list)
+
+
 class PlanResult(_Answer):
     """A plan answer: a trajectory and where it came from, or a status saying why there is none.
 
@@ -270,6 +302,7 @@ class PlanEvent(_Answer):
     total_ms: float
     error: str | None
     seed: int | None = None
+    rejections: list[RejectedCandidate] = Field(default_factory=list)
 
 
 class Trajectory(TrajectorySummary):

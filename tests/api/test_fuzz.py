@@ -123,7 +123,7 @@ def _prepare(base_url: str, headers: dict[str, str]) -> dict[str, list[Any]]:
 
         model_id = ok(http.post("/v1/robot-models", json={"urdf": TWO_JOINT_URDF}))["model_id"]
         ok(http.put(f"/v1/robots/{ROBOT}", json={"model_id": model_id}))
-        ok(http.put(f"/v1/robots/{ROBOT}/scene", json=SCENE))
+        scene = ok(http.put(f"/v1/robots/{ROBOT}/scene", json=SCENE))
         trajectories = [
             ok(http.post("/v1/trajectories", json={"model_id": model_id, "states": states}))
             for states in ([[0, 0], [0.5, 0.2]], [[-0.5, 0.1], [0.2, -0.3], [0.4, 0.4]])
@@ -140,11 +140,23 @@ def _prepare(base_url: str, headers: dict[str, str]) -> dict[str, list[Any]]:
                 },
             )
         )
+        events: list[Any] = []
+
+        def recorded() -> bool:
+            events[:] = ok(http.get("/v1/plan-events", params={"limit": 1}))["items"]
+            return bool(events)
+
+        assert wait_until(recorded, timeout_s=30, interval_s=0.05), "the plan left no event"
     return {
         "model_id": [model_id],
         "robot_id": [ROBOT],
         "trajectory_id": [t["trajectory_id"] for t in trajectories],
         "job_id": [job["job_id"]],
+        "version": [scene["version"]],
+        "scene_hash": [scene["hash"]],
+        "event_id": [events[0]["event_id"]],
+        "element": [0],
+        "path": ["meshes/upper.stl"],  # the two-joint arm has no files: a 404
     }
 
 
@@ -330,7 +342,14 @@ def _fuzz(operation: Any, mode: GenerationMode, live: LiveApp, statuses: Counter
 
 
 # Operations some fuzzed request must get through (2xx) with.
-REACHED = [*BODIES, "GET /v1/trajectories/{trajectory_id}", "GET /v1/seed-jobs/{job_id}"]
+REACHED = [
+    *BODIES,
+    "GET /v1/trajectories/{trajectory_id}",
+    "GET /v1/seed-jobs/{job_id}",
+    "GET /v1/robots/{robot_id}/scenes/{version}",
+    "GET /v1/scenes/{scene_hash}",
+    "GET /v1/view/models/{model_id}",
+]  # the paths' views come after DELETE /v1/trajectories/{id}: tests/api/test_view.py has them
 
 
 def _operations() -> list[Any]:

@@ -19,7 +19,7 @@ import pytest
 
 import trajcache_client as tc
 from tests.robots import OPAQUE_URDF
-from trajcache_client import _admin_operations, _moveit_models, _operations
+from trajcache_client import _admin_operations, _moveit_models, _operations, _view_operations
 from trajcache_client._operations import Operation
 
 DOCUMENT = Path(__file__).resolve().parents[2] / "openapi" / "openapi.json"
@@ -39,6 +39,8 @@ MODELS: dict[Any, str] = {
     tc.TimingOptions: "TimingOptions",
     tc.PlanResult: "PlanResponse",
     tc.Rejection: "Rejection",
+    tc.RejectedCandidate: "RejectedCandidateOut",
+    tc.ContactPair: "ContactPairOut",
     tc.TrajectoryQuality: "TrajectoryQuality",
     tc.JointTrajectory: "JointTrajectory",
     tc.JointTrajectoryPoint: "JointTrajectoryPoint",
@@ -80,6 +82,12 @@ MODELS: dict[Any, str] = {
     _moveit_models.MoveItErrorCode: "ErrorCodeOut",
     _moveit_models.TrajcacheExtras: "TrajcacheExtrasOut",
     _moveit_models.CandidateRejection: "CandidateRejectionOut",
+    tc.ModelView: "ModelViewOut",
+    tc.ModelElement: "ModelElementOut",
+    tc.StoredScene: "StoredSceneOut",
+    tc.PathView: "PathViewOut",
+    tc.Frames: "FramesOut",
+    tc.Failure: "FailureOut",
 }
 # Request bodies the client builds: None there means "leave it to the service" (not sent).
 REQUESTS = {tc.PlanOptions, tc.TimingOptions}
@@ -245,8 +253,13 @@ SAMPLES: dict[str, Any] = {
     "states": [[0.0], [1.0]],
     "spec": {},
     "data": b"",
+    "path": "a.stl",
+    "version": 1,
+    "scene_hash": "0" * 64,
+    "element": 0,
+    "event_id": 7,
 }
-MODULES = (_operations, _admin_operations)
+MODULES = (_operations, _admin_operations, _view_operations)
 
 
 def _operation_functions() -> dict[str, Callable[..., Operation[Any]]]:

@@ -212,6 +212,10 @@ def test_dashboard_shows_the_seeded_runs(page: tuple[Any, list[str]], seeded: Se
         seeded.sources
     )
     tab.goto(f"{seeded.base}/dashboard")  # redirected to /dashboard/
+    tab.wait_for_function("document.body.dataset.window === '24h'", timeout=WAIT_MS)
+    # a 24-hour window on a service that ran for a minute or less: charted over its last minute
+    # in 5-second buckets, not in hours (one dot); tests/services/stats has the young service
+    assert "buckets of 5 s" in tab.inner_text("#status")
     tab.select_option("#window", "5m")  # 5-second buckets: the runs span several
     tab.wait_for_function("document.body.dataset.window === '5m'", timeout=WAIT_MS)
 

@@ -17,6 +17,7 @@ from trajcache.api.routes import (
     seed_jobs,
     stats,
     trajectories,
+    view,
 )
 
 api_router = APIRouter(dependencies=[Depends(authorize)])
@@ -28,3 +29,4 @@ api_router.include_router(stats.router)
 api_router.include_router(seed_jobs.router)
 api_router.include_router(admin.router)
 api_router.include_router(motion_plan.router)
+api_router.include_router(view.router)

@@ -270,6 +270,9 @@ class PlanEvent(Base):
     error: Mapped[str | None] = mapped_column(String(500))
     # The planner's random seed when the request planned (run it again with it to reproduce).
     seed: Mapped[int | None] = mapped_column(Integer)
+    # Why each cached candidate was rejected: its first failing validation sample, the state
+    # there and the pairs (or joints) at fault (`services/plan/rejections.py`); None: none was.
+    rejections: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON)
     # Set by the background bookkeeping writer: a write retried after its COMMIT reached the
     # database (only the answer was lost) is recognised by it instead of being counted twice.
     record_key: Mapped[str | None] = mapped_column(String(32))

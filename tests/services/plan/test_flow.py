@@ -4,6 +4,7 @@ bookkeeping through the ordered record writer only, and the time of each phase."
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Iterator
 from datetime import UTC, datetime
@@ -18,12 +19,13 @@ from tests.services.hit_setup import context, count_statements, store, two_joint
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.validator import Resolution, interpolate
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 from trajcache.services.catalog.robots import put_robot
 from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import UnavailableError
-from trajcache.services.plan import flow
+from trajcache.services.plan import flow, rejections
 from trajcache.services.plan.flow import PlanAnswer, PlanRequest, PlanSource, PlanStatus, plan
 from trajcache.services.plan.records import PlanRecord
 
@@ -139,6 +141,7 @@ def test_a_hit_is_answered_and_recorded_by_the_writer(
     assert not writes(statements)
     [record] = recorded.records
     assert (record.served, record.failed, record.at) == (stored, (), AT)
+    assert record.details is None  # nothing rejected: nothing more to work out
     row, events = written(ctx, stored)
     assert (row.hits, row.failures) == (1, 0)
     [event] = events
@@ -189,6 +192,40 @@ def test_a_miss_without_planning_is_recorded_by_the_writer(
     [event] = events
     assert (event.status, event.source, event.candidates_tried) == ("miss", None, 1)
     assert event.error == answer.message
+
+
+def test_a_rejected_candidate_s_event_names_its_first_failing_sample_link_and_object(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    stored = setup_robot(ctx, [blocker()], DETOUR)
+    located: list[str] = []
+    locate = rejections.locate_failure
+
+    def spy(*args: Any) -> Any:
+        located.append(threading.current_thread().name)
+        return locate(*args)
+
+    monkeypatch.setattr(rejections, "locate_failure", spy)
+    ctx.records.linger_s = 30.0  # nothing is written until someone waits
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0])
+    assert answer.status is PlanStatus.MISS and located == []  # not on the request's path
+    _, [event] = written(ctx, stored)
+    assert located == ["plan-records"]  # worked out by the record writer
+    [rejection] = event.rejections or []
+    assert rejection["trajectory_id"] == stored and rejection["status"] == "collision"
+    assert rejection["pairs"] == [{"link": "upper", "other": "blocker", "kind": "scene"}]
+    assert rejection["start"] == [0.02, 0.0] and rejection["goal"] == [0.98, 0.0]
+    assert rejection["reversed"] is False and rejection["segment"] == 0
+    # DETOUR swings the shoulder back from 0.02 towards -1: the blocker at -0.5 stops it there
+    key = np.array(DETOUR, dtype=float)
+    key[0], key[-1] = [0.02, 0.0], [0.98, 0.0]
+    model = ctx.models.get(event.model_id)
+    assert model is not None
+    samples = interpolate(key, model, Resolution())
+    assert rejection["samples"] == len(samples)
+    failing = np.asarray(rejection["state"])
+    assert -0.5 < failing[0] < -0.2  # the upper arm reaches the blocker before its centre
+    np.testing.assert_allclose(samples[rejection["sample"]], failing, atol=0.04)
 
 
 def test_an_endpoint_in_collision_is_refused_before_planning(

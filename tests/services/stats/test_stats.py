@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -221,7 +222,9 @@ def check_against_brute_force(
     assert sum(m.hits for _, m in stats.series) == t.hits
     assert sum(m.time_saved_ms for _, m in stats.series) == pytest.approx(t.time_saved_ms)
     starts = [s for s, _ in stats.series]
-    assert starts[0] <= stats.since < starts[0] + timedelta(seconds=stats.bucket_s)
+    first = min(e.at for e in inside)  # the series spans the data: from the first event on
+    assert starts[0] <= first < starts[0] + timedelta(seconds=stats.bucket_s)
+    assert stats.bucket_s == bucket_seconds(max(60, math.ceil((now - first).total_seconds())))
     assert all(b - a == timedelta(seconds=stats.bucket_s) for a, b in itertools.pairwise(starts))
     for start, metrics in stats.series:
         end = start + timedelta(seconds=stats.bucket_s)
@@ -241,6 +244,28 @@ def test_stats_match_brute_force_on_events_and_on_rollups(
         rolled = session.scalar(sa.select(sa.func.sum(PlanEventRollup.requests)))
         horizon = floor_hour(now - timedelta(minutes=5))
         assert rolled == sum(e.at < horizon for e in events)
+
+
+def test_a_long_window_on_a_young_service_is_charted_over_its_data(
+    sessions: sessionmaker[Session],
+) -> None:
+    """Ten minutes of traffic in a 24-hour window: 15-second buckets over those ten minutes."""
+    now = datetime(2030, 5, 6, 7, 8, 9, tzinfo=UTC)
+    events = [
+        Event(now - timedelta(seconds=600 - 10 * k), f"r{k % 2}", "m-a", "success", "cache",
+              0.2, 1.0, 0.0)
+        for k in range(60)
+    ]  # fmt: skip
+    with sessions() as session:
+        store(session, events)
+        stats = plan_stats(session=session, window_s=86400, now=now)
+        empty = plan_stats(session=session, window_s=86400, now=now - timedelta(days=2))
+    assert stats.since == now - timedelta(days=1) and stats.totals.requests == 60
+    assert stats.bucket_s == 15
+    drawn = [m for _, m in stats.series if m.requests]
+    assert 38 <= len(stats.series) <= 42 and len(drawn) >= 38  # a line, not a dot
+    assert sum(m.requests for m in drawn) == 60
+    assert empty.bucket_s == 3600 and 24 <= len(empty.series) <= 25  # no data: the whole window
 
 
 def test_group_by_model_and_source(sessions: sessionmaker[Session]) -> None:

@@ -44,9 +44,11 @@ RequesterFilter = Annotated[
     summary="Hit rate, planner calls, time per step and time saved over a window",
     description="Totals, one entry per robot, model or source (`group_by`; a robot's entry "
     "says whether it is a robot or a seed job, `requester`), and a time series "
-    "for charts (`bucket_s` grows with the window: 5 s up to 5 min, 15 s up to 15 min, 1 min "
-    "up to 3 h, 5 min up to 12 h, 1 h up "
-    "to 7 d, 6 h up to 30 d, 1 d up to 90 d, 7 d beyond). Time saved credits each cache hit "
+    "for charts. The series spans the data: from the window's first event (at least the last "
+    "minute; the whole window when it holds none) to now, and `bucket_s` grows with that span: "
+    "5 s up to 5 min, 15 s up to 15 min, 1 min up to 3 h, 5 min up to 12 h, 1 h up "
+    "to 7 d, 6 h up to 30 d, 1 d up to 90 d, 7 d beyond. A 24-hour window on a service that "
+    "has run for ten minutes is charted in 15-second buckets. Time saved credits each cache hit "
     "with the median planning time of its model's successful planner calls in the window; "
     "hits of a model without any are credited nothing and counted in `uncredited_hits`.",
     responses=errors({422: ("Bad window or group", "query.window: '2w' is not a window like …")}),

@@ -5,8 +5,9 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Literal
 
-from pydantic import AliasChoices, BaseModel, ConfigDict, Field
+from pydantic import AliasChoices, BaseModel, ConfigDict, Field, field_validator
 
+from trajcache.api.schemas.rejections import RejectedCandidateOut
 from trajcache.api.schemas.trajectories import TrajectoryOut
 
 GroupBy = Literal["robot", "model", "source"]
@@ -183,6 +184,16 @@ class PlanEventOut(BaseModel):
         description="The planner's random seed when the request planned (null for a cache "
         "answer): planning the same problem with it repeats the same search.",
     )
+    rejections: list[RejectedCandidateOut] = Field(
+        default_factory=list,
+        description="The cached candidates that failed validation, each with its first failing "
+        "sample and the link and object (or the two links) at fault.",
+    )
+
+    @field_validator("rejections", mode="before")
+    @classmethod
+    def _none_is_empty(cls, value: Any) -> Any:
+        return [] if value is None else value
 
 
 class PlanEventPageOut(BaseModel):

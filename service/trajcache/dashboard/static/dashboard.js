@@ -1,11 +1,12 @@
 // The trajcache admin dashboard: reads /v1/stats, /v1/stats/top-trajectories, /v1/plan-events,
-// /v1/seed-jobs and /v1/trajectories/{id}, and redraws everything on a timer.
+// /v1/seed-jobs and /v1/trajectories/{id}, and redraws everything on a timer. The 3D view
+// (view3d.js) shows the inspected trajectory, or a plan event picked in the events table.
 "use strict";
 
 (() => {
   const KEY_STORAGE = "trajcache.adminKey";
   const $ = (id) => document.getElementById(id);
-  const state = { timer: null, busy: false, again: false, stats: null, refreshes: 0, models: new Map(), inspected: null };
+  const state = { timer: null, busy: false, again: false, stats: null, refreshes: 0, models: new Map(), inspected: null, viewed: null };
 
   // --- formatting ---------------------------------------------------------------------------
 
@@ -276,14 +277,37 @@
     cell(tr, e.status, `status-${e.status}`).title = e.error || "";
     cell(tr, e.source || "–");
     if (withTrajectory) trajectoryLink(cell(tr, ""), e.trajectory_id);
-    cell(tr, String(e.candidates_tried), "num");
+    const tried = cell(tr, String(e.candidates_tried), "num");
+    const rejected = (e.rejections || []).length;
+    if (rejected) tried.title = `${rejected} rejected: ${e.rejections.map((r) => `#${r.trajectory_id} ${r.status}`).join(", ")}`;
     if (!withTrajectory) cell(tr, fmtMs(e.validate_ms), "num");
     cell(tr, fmtMs(e.total_ms), "num");
+    if (withTrajectory) viewLink(cell(tr, ""), e, rejected);
     return tr;
   }
 
+  // Open the event in the 3D view (view3d.js follows #view3d's data-show).
+  function viewLink(td, e, rejected) {
+    if (e.trajectory_id === null && !rejected) { td.textContent = "–"; return; }
+    const a = document.createElement("a");
+    a.className = rejected ? "view3d-link rejected" : "view3d-link";
+    a.textContent = rejected ? `why (${rejected})` : "view";
+    a.title = rejected ? "the rejected candidates, at their first failing sample" : "the trajectory in 3D";
+    a.dataset.event = String(e.event_id);
+    a.addEventListener("click", () => {
+      show3d(`event:${e.event_id}`);
+      $("view3d").scrollIntoView({ block: "nearest" });
+    });
+    td.appendChild(a);
+  }
+
+  function show3d(what) {
+    const view = $("view3d");
+    if (view && view.dataset.show !== what) view.dataset.show = what;
+  }
+
   function renderEvents(page) {
-    fillTable($("events-table"), page.items.map((e) => eventRow(e, true)), 7, "No plan events yet");
+    fillTable($("events-table"), page.items.map((e) => eventRow(e, true)), 8, "No plan events yet");
   }
 
   async function inspect(id) {
@@ -323,6 +347,10 @@
       `#${detail.trajectory_id} · ${detail.source} · ${states.length} key states · ${fmtInt(detail.hits)} hits, ` +
       `${fmtInt(detail.failures)} failures · model ${shortId(detail.model_id)} (x: share of the path, y: rad or m)`;
     fillTable($("usage-table"), detail.usage_history.map((e) => eventRow(e, false)), 7, "Not used yet");
+    if (state.viewed !== id) { // a newly picked trajectory: the 3D view follows it
+      state.viewed = id;
+      show3d(`trajectory:${id}`);
+    }
   }
 
   // --- refresh loop -------------------------------------------------------------------------
@@ -361,7 +389,8 @@
       document.body.dataset.state = "ready";
       document.body.dataset.refreshes = String(state.refreshes);
       document.body.dataset.window = stats.window;
-      setStatus(`Updated ${fmtTime(new Date().toISOString())} UTC · buckets of ${fmtSpan(stats.bucket_s)}`);
+      const charted = stats.series.length ? ` from ${fmtDateTime(stats.series[0].start)}` : "";
+      setStatus(`Updated ${fmtTime(new Date().toISOString())} UTC · charted${charted} in buckets of ${fmtSpan(stats.bucket_s)}`);
     } catch (err) {
       if (err instanceof AuthNeeded) {
         $("key-panel").hidden = false;

@@ -29,6 +29,7 @@ from enum import Enum
 from typing import Protocol
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trajcache.core.lru import LRU
 from trajcache.geometry.collision.checker import CollisionChecker, Contact, ContactKind
@@ -40,6 +41,8 @@ from trajcache.geometry.model.space import segment_deltas, state_steps
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certify import SegmentCertifier
 from trajcache.geometry.validation.segments import Finding, SegmentStatus
+
+IntArray = NDArray[np.int64]
 
 _CHUNK = 256
 _SPREAD = 9  # samples checked first, spread along the trajectory
@@ -82,11 +85,9 @@ class ValidationResult:
         return self.status is ValidationStatus.VALID
 
 
-def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolution) -> FloatArray:
-    """Dense samples along the straight segments between key states, key states included."""
+def sample_counts(key_states: FloatArray, model: RobotModel, resolution: Resolution) -> IntArray:
+    """Steps each segment between consecutive key states is cut into (at least 1 each)."""
     key = np.asarray(key_states, dtype=float)
-    if len(key) < 2:
-        return key.copy()
     planar = model.base is BaseType.PLANAR
     delta = segment_deltas(key, planar=planar)
     off = model.arm_offset
@@ -96,7 +97,16 @@ def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolutio
         steps = np.maximum(steps, np.abs(delta[:, 2]) / resolution.orientation_rad)
     if delta.shape[1] > off:
         steps = np.maximum(steps, np.abs(delta[:, off:]).max(axis=1) / resolution.joint_rad)
-    counts = np.maximum(np.ceil(steps - 1e-9).astype(np.int64), 1)
+    return np.maximum(np.ceil(steps - 1e-9).astype(np.int64), 1)
+
+
+def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolution) -> FloatArray:
+    """Dense samples along the straight segments between key states, key states included."""
+    key = np.asarray(key_states, dtype=float)
+    if len(key) < 2:
+        return key.copy()
+    delta = segment_deltas(key, planar=model.base is BaseType.PLANAR)
+    counts = sample_counts(key, model, resolution)
     if len(counts) == 1:  # one segment, the usual cached motion
         frac = np.arange(counts[0] + 1) / counts[0]
         out = key[0] + frac[:, None] * delta[0]

@@ -18,7 +18,9 @@ import numpy as np
 from trajcache.cache.memo import MemoUse
 from trajcache.metrics import record_plan
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
+from trajcache.services.plan.record_batch import EventDetails
 from trajcache.services.plan.records import PlanRecord, QualityJob
+from trajcache.services.plan.rejections import rejection_entries
 
 __all__ = ["answer_hit", "answer_planned", "answer_without_path"]
 
@@ -126,7 +128,16 @@ def _record(
     at = records.now()
     real = attempt.origin.real and served is not None
     failed = tuple(attempt.failed)
-    record = records.submit(PlanRecord(at, served, failed, event, real=real, quality=quality))
+    details = None
+    if attempt.rejections:  # where each failed: worked out by the writer, not here
+        validator, start, goal = attempt.validator, attempt.start, attempt.goal
+        rejected = tuple(attempt.rejections)
+        details = EventDetails(
+            lambda: {"rejections": rejection_entries(validator, start, goal, rejected)}
+        )
+    record = records.submit(
+        PlanRecord(at, served, failed, event, real=real, quality=quality, details=details)
+    )
     if served is not None:
         attempt.ctx.facts.record(served=served, failed=attempt.failed, real=real, at=at)
     record_plan(

@@ -25,6 +25,7 @@ from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.validator import TrajectoryValidator, validator_for
 from trajcache.services.context import ServiceContext
 from trajcache.services.plan.quality import AnswerDetails
+from trajcache.services.plan.rejections import RejectedCandidate
 
 __all__ = [
     "Origin",
@@ -156,6 +157,7 @@ class PlanAttempt:
     goal: np.ndarray
     failed: list[int] = field(default_factory=list)  # candidates that failed validation
     rejected: list[dict[str, object]] = field(default_factory=list)  # and why
+    rejections: list[RejectedCandidate] = field(default_factory=list)  # as validated
     candidates: dict[int, np.ndarray] = field(default_factory=dict)  # key states, by id
     tried: int = 0  # candidates counted in the answer and its plan event
 
@@ -195,4 +197,5 @@ class PlanAttempt:
             "total_ms": timings["total"],
             "error": (error or None) and error[:500],
             "seed": seed,
+            "rejections": None,  # the record writer fills it in (`services.plan.rejections`)
         }

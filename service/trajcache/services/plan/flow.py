@@ -83,6 +83,7 @@ from trajcache.services.plan.attempt import (
 from trajcache.services.plan.fallback import plan_fallback
 from trajcache.services.plan.options import PlanOptions, resolve_request
 from trajcache.services.plan.quality import AnswerExtras, answer_details
+from trajcache.services.plan.rejections import RejectedCandidate
 from trajcache.timing import TimingError
 
 __all__ = [
@@ -289,6 +290,9 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
                 seen.append((adapted, result))
             attempt.failed.append(match.trajectory_id)
             attempt.rejected.append(_rejection(match, result))
+            attempt.rejections.append(
+                RejectedCandidate(match.trajectory_id, match.reversed, adapted, result)
+            )
     attempt.ctx.facts.record(
         served=None, failed=attempt.failed, real=False, at=attempt.ctx.records.now()
     )

@@ -18,7 +18,7 @@ from sqlalchemy import Engine
 
 from trajcache.db.models import PlanEvent, Trajectory
 
-__all__ = ["PlanRecord", "QualityJob", "committed", "write_records"]
+__all__ = ["EventDetails", "PlanRecord", "QualityJob", "committed", "write_records"]
 
 _log = logging.getLogger(__name__)
 
@@ -44,6 +44,25 @@ class QualityJob:
         return self._values
 
 
+class EventDetails:
+    """Plan event columns computed off the request path (by the writer, before the record's
+    transaction; once, whatever the retries): why the candidates were rejected."""
+
+    def __init__(self, compute: Callable[[], Mapping[str, Any]]):
+        self._compute: Callable[[], Mapping[str, Any]] | None = compute
+        self._values: Mapping[str, Any] = {}
+
+    def values(self) -> Mapping[str, Any]:
+        """The column values ({} when they could not be computed); computed on the first call."""
+        if self._compute is not None:
+            compute, self._compute = self._compute, None
+            try:
+                self._values = compute()
+            except Exception:  # a detail must never cost the record
+                _log.warning("plan event details could not be computed", exc_info=True)
+        return self._values
+
+
 @dataclass(frozen=True)
 class PlanRecord:
     """The bookkeeping of one plan request."""
@@ -55,6 +74,7 @@ class PlanRecord:
     real: bool = False  # served to a real robot: counts as a real-world validation
     key: str = field(default_factory=lambda: uuid.uuid4().hex)  # its event's record_key
     quality: QualityJob | None = None  # a newly planned trajectory's quality, written with it
+    details: EventDetails | None = None  # event columns the writer computes
 
 
 _T = Trajectory
@@ -128,12 +148,17 @@ def write_records(engine: Engine, records: Iterable[PlanRecord]) -> None:
             if record.real:
                 u.real += 1
                 u.real_at = record.at
-        events.append({**record.event, "created_at": record.at, "record_key": record.key})
+        details = record.details.values() if record.details is not None else {}
+        events.append(
+            {**record.event, **details, "created_at": record.at, "record_key": record.key}
+        )
     rows = [
         {"b_id": i, "b_hits": u.hits, "b_failures": u.failures, "b_served": u.served_at is not None,
          "b_streak": u.streak, "b_at": u.served_at, "b_real": u.real, "b_real_at": u.real_at}
         for i, u in sorted(usage.items())
     ]  # fmt: skip
+    columns = set().union(*events) if events else set()
+    events = [dict.fromkeys(columns) | event for event in events]  # one insert: the same keys
     with engine.begin() as conn:
         if rows:
             conn.execute(_USAGE, _one_or_many(rows))

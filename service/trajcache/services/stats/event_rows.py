@@ -125,6 +125,29 @@ def fetch_events(
     )
 
 
+def first_event_at(
+    session: Session,
+    begin: datetime,
+    end: datetime,
+    *,
+    robot_id: str | None = None,
+    model_id: str | None = None,
+    requester: str | None = None,
+) -> datetime | None:
+    """When the first plan event with `begin` ≤ created_at < `end` was written (one index
+    seek), or None."""
+    e = PlanEvent
+    query = sa.select(e.created_at).where(e.created_at >= begin, e.created_at < end)
+    if robot_id is not None:
+        query = query.where(e.robot_id == robot_id)
+    if model_id is not None:
+        query = query.where(e.model_id == model_id)
+    if requester is not None:
+        query = query.where(e.requester == requester)
+    first: datetime | None = session.scalar(query.order_by(e.created_at).limit(1))
+    return first
+
+
 def fetch_rollups(
     session: Session,
     begin: datetime,

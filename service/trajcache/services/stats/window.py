@@ -1,5 +1,9 @@
 """Plan statistics over a time window: totals, groups, a time series and the time saved.
 
+The time series spans the data, not the whole window: it runs from the window's first event
+(at least the last minute; the whole window when it holds none) to now, in buckets chosen from
+that span, so a young service is charted over its lifetime rather than as one dot.
+
 Counts and sums are exact. Percentiles come from log-spaced histograms and are within
 `histograms.MAX_RELATIVE_ERROR` (5.9 %) of the exact value. Windows whose buckets are an hour or
 longer read whole hours from the hourly rollups and only the partial hours at either end from
@@ -37,6 +41,7 @@ from trajcache.services.stats.event_rows import (
     codes,
     fetch_events,
     fetch_rollups,
+    first_event_at,
 )
 from trajcache.services.stats.events import REQUESTERS
 from trajcache.services.stats.rollups import (
@@ -62,6 +67,9 @@ _BUCKETS = (
     (90 * 86400, 86400),
 )
 QUANTILES = (0.5, 0.95, 0.99)
+# The time series spans the data, not the whole window: a service that started ten minutes ago
+# is charted over those ten minutes (15-second buckets), not as one dot in a 24-hour window.
+MIN_SPAN_S = 60
 
 HIT, PLANNED, MISS, FAILURE, ERROR, OTHER = range(6)
 PLANNER_CALLS = (PLANNED, FAILURE, ERROR)
@@ -81,7 +89,7 @@ def parse_window(text: str) -> int:
 
 
 def bucket_seconds(window_s: int) -> int:
-    """The time-series bucket for a window (a whole number of hours beyond 12 h)."""
+    """The time-series bucket for a span of time (a whole number of hours beyond 12 h)."""
     return next((b for longest, b in _BUCKETS if window_s <= longest), 7 * 86400)
 
 
@@ -168,15 +176,16 @@ def plan_stats(
     _check_query(group_by, requester)
     until = now or datetime.now(UTC)
     since = until - timedelta(seconds=window_s)
-    bucket_s = bucket_seconds(window_s)
     filters = {"robot_id": robot_id, "model_id": model_id, "requester": requester}
+    span_s = _data_span_s(session, since, until, **filters)
+    bucket_s = bucket_seconds(span_s)
     rows = _window_rows(session, since, until, bucket_s, **filters)
 
     category = categories(rows.status, rows.source)
     models, model = codes(rows.model)
     medians, planned = _median_plan_ms(rows, category, model, len(models))
     keys, requesters, group = _group_codes(rows, group_by)
-    first = int(since.timestamp()) // bucket_s * bucket_s
+    first = int(until.timestamp() - span_s) // bucket_s * bucket_s
     slots = (math.ceil(until.timestamp()) - 1 - first) // bucket_s + 1
     slot = np.clip((rows.t - first) // bucket_s, 0, slots - 1)
 
@@ -209,6 +218,16 @@ def plan_stats(
             for i, m in enumerate(models)
         ],
     )
+
+
+def _data_span_s(session: Session, since: datetime, until: datetime, **filters: str | None) -> int:
+    """Seconds the time series covers: from the window's first event to `until`, at least
+    `MIN_SPAN_S`, at most the window (the whole window when it holds no event)."""
+    window_s = round((until - since).total_seconds())
+    first = first_event_at(session, since, until, **filters)
+    if first is None:
+        return window_s
+    return min(window_s, max(MIN_SPAN_S, math.ceil((until - first).total_seconds())))
 
 
 def categories(status: npt.NDArray[np.object_], source: npt.NDArray[np.object_]) -> np.ndarray:
