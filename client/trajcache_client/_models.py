@@ -210,7 +210,8 @@ class RejectedCandidate(_Answer):
     `sample` is the validation sample at (or just before) the failing `state`, `at` the
     fraction of the step to the next one, of `samples` in all; `pairs` are the link and object
     (or the two links) at fault, `joints` those out of limits. `start` and `goal` are the
-    request's, which the candidate was adapted to.
+    request's, which the candidate was adapted to; `held` the joint values the robot held
+    outside the planning joints then (`{}`: its model's).
     """
 
     trajectory_id: int
@@ -226,6 +227,7 @@ class RejectedCandidate(_Answer):
     state: list[float] | None = None
     pairs: list[ContactPair] = Field(default_factory=list)
     joints: list[str] = Field(default_factory=list)
+    held: dict[str, float] | None = None
 
 
 class PlanResult(_Answer):

@@ -241,3 +241,29 @@ def test_an_event_without_rejections_shows_its_trajectory(
     assert view["trajectory_id"] == stored["trajectory_id"] and view["failure"] is None
     np.testing.assert_allclose(view["key_states"], path)
     assert view["notes"] and "stored path" in view["notes"][0]
+
+
+def test_a_rejected_candidate_is_posed_with_the_joint_values_held_when_it_was_validated(
+    app_client: TestClient,
+) -> None:
+    registered = app_client.post(
+        "/v1/robot-models", json={"urdf": TWO_JOINT_URDF, "joint_names": ["shoulder"]}
+    )
+    model_id = _ok(registered, 201)["model_id"]  # the elbow is held, not planned
+    robot = {"model_id": model_id, "joint_values": {"elbow": 0.5}}
+    _ok(app_client.put("/v1/robots/r1", json=robot), 201)
+    _ok(app_client.put("/v1/robots/r1/scene", json={"objects": [_blocker()]}))
+    detour = [[0.0], [-1.0], [1.0]]
+    _ok(app_client.post("/v1/trajectories", json={"model_id": model_id, "states": detour}), 201)
+    body = {"start": [0.02], "goal": [0.98], "options": {"fallback": False}}
+    assert _ok(app_client.post("/v1/robots/r1/plan", json=body))["status"] == "miss"
+    [event] = _ok(app_client.get("/v1/plan-events", params={"robot_id": "r1"}))["items"]
+    [rejection] = event["rejections"]
+    assert rejection["held"] == {"elbow": 0.5}
+    url = f"/v1/view/plan-events/{event['event_id']}"
+    before = _ok(app_client.get(url))
+    _ok(app_client.put("/v1/robots/r1", json={**robot, "joint_values": {"elbow": 1.2}}))
+    after = _ok(app_client.get(url))
+    # The forearm is where the elbow held it then, not where the robot holds it now.
+    assert after["failure"]["poses"] == before["failure"]["poses"]
+    assert after["frames"]["poses"] == before["frames"]["poses"]

@@ -21,6 +21,7 @@ REJECTED_EXAMPLE: dict[str, Any] = {
     "state": _STATE,
     "pairs": [{"link": "link5", "other": "stall_2_door", "kind": "scene"}],
     "joints": [],
+    "held": {},
 }
 
 
@@ -63,3 +64,8 @@ class RejectedCandidateOut(BaseModel):
         "certify (too_close).",
     )
     joints: list[str] = Field(default_factory=list, description="Joints out of their limits.")
+    held: dict[str, float] | None = Field(
+        default=None,
+        description="The joint values the robot held outside the planning joints when the "
+        "candidate was validated (`{}`: its model's); the 3D view poses the links with them.",
+    )

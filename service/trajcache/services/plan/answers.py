@@ -131,9 +131,9 @@ def _record(
     details = None
     if attempt.rejections:  # where each failed: worked out by the writer, not here
         validator, start, goal = attempt.validator, attempt.start, attempt.goal
-        rejected = tuple(attempt.rejections)
+        rejected, held = tuple(attempt.rejections), attempt.origin.held
         details = EventDetails(
-            lambda: {"rejections": rejection_entries(validator, start, goal, rejected)}
+            lambda: {"rejections": rejection_entries(validator, start, goal, rejected, held)}
         )
     record = records.submit(
         PlanRecord(at, served, failed, event, real=real, quality=quality, details=details)

@@ -13,12 +13,14 @@ entry per candidate of the event's `rejections` column:
                                            on which segment between key states
      "state",                              the configuration that failed
      "pairs": [{"link", "other", "kind"}], links and objects (`scene`) or links (`self`)
-     "joints"}                             joints out of limits
+     "joints",                             joints out of limits
+     "held"}                               the robot's own held joint values ({}: the model's),
+                                           so the view poses the links as they were validated
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -48,6 +50,7 @@ def rejection_entries(
     start: FloatArray,
     goal: FloatArray,
     rejected: Sequence[RejectedCandidate],
+    held: Mapping[str, float] | None = None,
 ) -> list[dict[str, Any]]:
     """The `rejections` column of a plan event: where and on what each candidate failed."""
     entries = []
@@ -61,6 +64,7 @@ def rejection_entries(
             "start": _values(start),
             "goal": _values(goal),
         }
+        entry["held"] = {str(k): float(v) for k, v in (held or {}).items()}
         failure = locate_failure(validator, candidate.states, result)
         if failure is not None:
             entry.update(

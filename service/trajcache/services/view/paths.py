@@ -8,7 +8,8 @@
   opened at the first failing sample with the state that failed and the pairs at fault. Other
   candidates by index; an event without rejections shows its trajectory (as stored: a hit's
   answer replaced its end states with the request's). A candidate deleted since keeps its
-  failing state, shown alone. The robot's held joint values are its current ones.
+  failing state, shown alone. A rejected candidate is posed with the joint values the robot
+  held when it was validated (recorded with it); an event's trajectory, with the current ones.
 """
 
 from __future__ import annotations
@@ -113,7 +114,8 @@ def plan_event_view(
         )
     if candidate is None and not rejections and event.trajectory_id is None:
         raise NotFoundError(f"plan event {event_id} returned no trajectory and rejected none")
-    model = _event_model(ctx, session, event)
+    entry = rejections[candidate or 0] if rejections else None
+    model = _event_model(ctx, session, event, entry)
     scene = find_scene(session=session, scene_hash=event.scene_hash) if event.scene_hash else None
     notes = [] if scene is not None else ["the scene it was validated in is not stored"]
     if candidate is None and not rejections:
@@ -160,11 +162,22 @@ def _event_view(
     )
 
 
-def _event_model(ctx: ServiceContext, session: Session, event: tables.PlanEvent) -> RobotModel:
-    """The event's model, holding its joints as the robot does now (if it still exists)."""
+def _event_model(
+    ctx: ServiceContext,
+    session: Session,
+    event: tables.PlanEvent,
+    entry: Mapping[str, Any] | None,
+) -> RobotModel:
+    """The event's model, holding its joints as the rejected candidate `entry` recorded, else
+    as the robot does now (if it still exists)."""
     model = get_model(session=session, registry=ctx.models, model_id=event.model_id)
-    robot = session.get(tables.Robot, event.robot_id)
-    held = held_values(robot.joint_values) if robot and robot.model_id == model.model_id else None
+    held: Mapping[str, float] | None
+    if entry is not None and isinstance(entry.get("held"), dict):
+        held = {str(k): float(v) for k, v in entry["held"].items()} or None
+    else:
+        robot = session.get(tables.Robot, event.robot_id)
+        owned = robot is not None and robot.model_id == model.model_id
+        held = held_values(robot.joint_values) if robot is not None and owned else None
     return model_in_scene(model, EMPTY_SCENE, held, cache=ctx.variants)
 
 
