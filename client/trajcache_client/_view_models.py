@@ -45,7 +45,8 @@ class ModelView(_Answer):
 
 
 class StoredScene(_Answer):
-    """A stored scene version in native form (the empty scene has no robot and no version)."""
+    """A stored scene in native form: a robot's version (`robot_id`, `version`), a seed job's
+    scene (`seed_job_id`), or the empty scene (none of them)."""
 
     robot_id: str | None
     version: int | None
@@ -55,6 +56,7 @@ class StoredScene(_Answer):
     env: dict[str, float]
     allowed_collisions: list[list[str]]
     attached_objects: list[dict[str, Any]]
+    seed_job_id: int | None = None
 
 
 class Frames(_Answer):

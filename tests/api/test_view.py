@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
 from tests.robots import TWO_JOINT_URDF
+from tests.waiting import wait_until
 from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.validation.validator import Resolution, interpolate
 from trajcache.reference.example_robots import ROBOTS
@@ -267,3 +268,34 @@ def test_a_rejected_candidate_is_posed_with_the_joint_values_held_when_it_was_va
     # The forearm is where the elbow held it then, not where the robot holds it now.
     assert after["failure"]["poses"] == before["failure"]["poses"]
     assert after["frames"]["poses"] == before["frames"]["poses"]
+
+
+def test_a_seed_job_s_scenes_are_kept_and_its_trajectories_shown_in_them(
+    client_factory: ClientFactory,
+) -> None:
+    client = client_factory(worker_backend="none", seed_poll_interval_s=0.1)
+    model_id = register(client)["model_id"]
+    scene = {"objects": [_blocker()], "env": {"door": 0.25}}
+    body = {"model_id": model_id, "scenes": [scene], "queries": [{"start": [0, 0], "goal": [1, 0]}]}
+    job = _ok(client.post("/v1/seed-jobs", json=body), 202)
+    events: list[Any] = []
+
+    def planned() -> bool:
+        ctx_of(client).records.flush()
+        params = {"robot_id": f"seed-job-{job['job_id']}"}
+        events[:] = _ok(client.get("/v1/plan-events", params=params))["items"]
+        return bool(events)
+
+    assert wait_until(planned, timeout_s=60), "the job planned nothing"
+    scene_hash = events[0]["scene_hash"]
+    kept = _ok(client.get(f"/v1/scenes/{scene_hash}"))
+    assert (kept["seed_job_id"], kept["robot_id"], kept["version"]) == (job["job_id"], None, None)
+    assert [o["id"] for o in kept["objects"]] == ["blocker"] and kept["env"] == {"door": 0.25}
+    stored = {"model_id": model_id, "states": [[0, 0], [1, 0]], "scene_hash": scene_hash}
+    trajectory_id = _ok(client.post("/v1/trajectories", json=stored), 201)["trajectory_id"]
+    view = _ok(client.get(f"/v1/view/trajectories/{trajectory_id}"))
+    assert view["scene"]["seed_job_id"] == job["job_id"] and view["notes"] == []
+    # A robot's version with the same content is named first.
+    _ok(client.put("/v1/robots/r1", json={"model_id": model_id}), 201)
+    _ok(client.put("/v1/robots/r1/scene", json=scene))
+    assert _ok(client.get(f"/v1/scenes/{scene_hash}"))["robot_id"] == "r1"

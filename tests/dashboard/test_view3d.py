@@ -246,6 +246,7 @@ def test_a_stored_trajectory_is_drawn_and_scrubbed(
     view = tab.locator("#view3d")
     frames = int(view.get_attribute("data-frames") or 0)
     assert frames > 10 and view.get_attribute("data-highlighted") == ""
+    assert f"scene v1 of {shown.name}-1" in tab.inner_text("#view3d-title")  # stored there
     first = _canvas(tab, f"view3d-{shown.name}-start.png")
     x0, y0, x1, y1 = (int(v) for v in (view.get_attribute("data-robot-box") or "").split(","))
     assert x1 - x0 > 20 and y1 - y0 > 20, (x0, y0, x1, y1)
@@ -286,6 +287,7 @@ def test_a_rejected_candidate_opens_at_its_failure_with_link_and_object_highligh
     }
     info = tab.inner_text("#view3d-info")
     assert f"link '{shown.link}' hits object 'cart'" in info and "at sample" in info
+    assert f"scene v2 of {shown.name}-1" in tab.inner_text("#view3d-title")  # validated there
     name = f"view3d-{shown.name}-rejected.png"
     image = _canvas(tab, name)
     magenta = _highlight_pixels(image).sum()

@@ -25,6 +25,7 @@ TABLES = {
     "robot_models",
     "robots",
     "scene_versions",
+    "seed_job_scenes",
     "seed_jobs",
     "trajectories",
     "trajectory_tombstones",

@@ -360,3 +360,17 @@ class SeedJob(Base):
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+
+class SeedJobScene(Base):
+    """A scene of a seed job (canonical native form) and its hash, kept with the job so the
+    trajectories it seeded can be shown in the scene they were planned in."""
+
+    __tablename__ = "seed_job_scenes"
+    __table_args__ = (UniqueConstraint("job_id", "position"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    job_id: Mapped[int] = mapped_column(Integer, ForeignKey("seed_jobs.id", ondelete="CASCADE"))
+    position: Mapped[int] = mapped_column(Integer)  # the scene's index in the job
+    hash: Mapped[str] = mapped_column(String(64), index=True)
+    payload: Mapped[dict[str, Any]] = mapped_column(JSON)

@@ -81,9 +81,10 @@ def scene_version_route(
     "/scenes/{scene_hash}",
     response_model=StoredSceneOut,
     summary="A stored scene by its content hash",
-    description="The first stored version (of any robot) whose content hash is `scene_hash`: "
-    "the scene a trajectory was stored in (`scene_hash` of a trajectory) or a plan request "
-    "was validated in (`scene_hash` of a plan event). The empty scene is known by its hash.",
+    description="The first stored version (of any robot) whose content hash is `scene_hash`, "
+    "else the first seed job's scene with it (`seed_job_id`): the scene a trajectory was "
+    "stored in (`scene_hash` of a trajectory) or a plan request was validated in (`scene_hash` "
+    "of a plan event). The empty scene is known by its hash.",
     responses=errors(
         {
             404: ("No stored scene has this hash", "no stored scene has hash '08dd8287…'"),
@@ -225,6 +226,7 @@ def _scene_out(scene: StoredScene) -> StoredSceneOut:
         env=scene.env,
         allowed_collisions=scene.allowed_collisions,
         attached_objects=scene.attached_objects,
+        seed_job_id=scene.seed_job_id,
     )
 
 

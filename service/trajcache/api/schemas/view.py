@@ -85,8 +85,9 @@ class ModelViewOut(BaseModel):
 
 
 class StoredSceneOut(BaseModel):
-    """A stored scene version in native form; `robot_id` and `version` are null for the empty
-    scene (a robot that never uploaded one)."""
+    """A stored scene in native form: a version of a robot's scene (`robot_id`, `version`), a
+    seed job's scene (`seed_job_id`; `created_at` is the job's), or the empty scene (a robot
+    that never uploaded one; all three null)."""
 
     model_config = ConfigDict(
         json_schema_extra=examples(
@@ -99,6 +100,7 @@ class StoredSceneOut(BaseModel):
                 "env": {"stall_2_door": 0.52},
                 "allowed_collisions": [],
                 "attached_objects": [],
+                "seed_job_id": None,
             }
         )
     )
@@ -111,6 +113,7 @@ class StoredSceneOut(BaseModel):
     env: dict[str, float]
     allowed_collisions: list[list[str]]
     attached_objects: list[dict[str, Any]]
+    seed_job_id: int | None = None
 
 
 class FramesOut(BaseModel):

@@ -319,7 +319,7 @@ class View3D {
     $("view3d-failure").hidden = !view.failure;
     const of = event ? `plan event #${event.event_id} of ${event.robot_id} (${event.status})` : "";
     const what = kind === "event" ? of : `trajectory #${id}${of ? ` for ${of}` : ""}`;
-    $("view3d-title").textContent = `${what} · scene ${view.scene_hash ? view.scene_hash.slice(0, 10) : "none"}`;
+    $("view3d-title").textContent = `${what} · ${sceneLabel(view)}`;
     const lines = view.failure ? [describe(view.failure.rejection)] : [`${view.key_states.length} key states, ${view.frames.samples} validation samples`];
     $("view3d-info").textContent = [...lines, ...view.notes].join(" · ");
   }
@@ -332,6 +332,15 @@ class View3D {
       : this.open("event", event.event_id, `?candidate=${value}`);
     opened.catch((err) => this.fail(String(err.message || err)));
   }
+}
+
+// Where the drawn scene comes from: a robot's version, a seed job's scene, or only its hash.
+function sceneLabel(view) {
+  const scene = view.scene;
+  const hash = view.scene_hash ? view.scene_hash.slice(0, 10) : "none";
+  if (scene && scene.robot_id !== null) return `scene v${scene.version} of ${scene.robot_id}`;
+  if (scene && scene.seed_job_id !== null) return `scene of seed job #${scene.seed_job_id}`;
+  return `scene ${hash}`;
 }
 
 const root = document.getElementById("view3d");

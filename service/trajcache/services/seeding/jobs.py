@@ -38,7 +38,8 @@ import sqlalchemy as sa
 from sqlalchemy.engine import CursorResult
 from sqlalchemy.orm import Session, defer
 
-from trajcache.db.models import SeedJob, utcnow
+from trajcache.db.models import SeedJob, SeedJobScene, utcnow
+from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.services.catalog.models import get_model
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import ConflictError, InvalidInputError, NotFoundError
@@ -78,7 +79,8 @@ def affected_rows(result: Any) -> int:
 
 
 def create_job(*, session: Session, ctx: ServiceContext, spec: SeedJobSpec) -> SeedJob:
-    """Validate the whole job (422/413 naming what is wrong, 404 for the model), store it queued."""
+    """Validate the whole job (422/413 naming what is wrong, 404 for the model), store it queued
+    with its scenes (the 3D view shows what it seeds in them)."""
     model = get_model(session=session, registry=ctx.models, model_id=spec.model_id)
     work = expand(spec, model=model, settings=ctx.settings)
     if not work.items:
@@ -96,6 +98,11 @@ def create_job(*, session: Session, ctx: ServiceContext, spec: SeedJobSpec) -> S
         errors=[],
     )
     session.add(row)
+    session.flush()  # the job's id, for its scenes
+    session.add_all(
+        SeedJobScene(job_id=row.id, position=k, hash=scene.hash, payload=scene_to_payload(scene))
+        for k, scene in enumerate(work.scenes)
+    )
     session.commit()
     return row
 

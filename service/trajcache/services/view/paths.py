@@ -82,7 +82,7 @@ def trajectory_view(
         scene = scene_by_hash(session=session, scene_hash=scene_hash)
     elif row.scene_hash:
         scene = find_scene(session=session, scene_hash=row.scene_hash)
-        if scene is None:  # a seed job's scene, say: not a robot's stored version
+        if scene is None:  # its robot deleted since, say, or a job from before 0010
             notes.append(f"the scene it was stored in ({row.scene_hash[:12]}…) is not stored")
     else:
         notes.append("it was stored without a scene")
