@@ -14,6 +14,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from trajcache.geometry import kernel_cache  # noqa: F401  (first: its locators stamp the kernels)
 from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]

@@ -25,11 +25,13 @@ its whole motion, from both ends) are settled by that alone.
 
 Modules: `slabs.py` (support functions and slabs), `primitives.py` (poses, world boxes, motion
 bounds), `scene_open.py` and `self_open.py` (the segment kernels), `state_rows.py` (single
-states). Forward kinematics and the hull climb are the model's (`model/kernels.py`).
+states). Forward kinematics and the hull climb are the model's (`model/kernels.py`). Their
+on-disk cache is stamped with every kernel source file (`geometry/kernel_cache.py`).
 """
 
 from __future__ import annotations
 
+from trajcache.geometry import kernel_cache  # noqa: F401  (first: its locators stamp the kernels)
 from trajcache.geometry.collision.compiled.scene_open import scene_open_kernel
 from trajcache.geometry.collision.compiled.self_open import self_open_kernel
 from trajcache.geometry.collision.compiled.state_rows import state_rows_kernel

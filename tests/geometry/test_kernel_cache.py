@@ -1,0 +1,114 @@
+"""The kernels' on-disk cache is stamped with every kernel source file, so a change to a helper
+in another module compiles the kernels that inline it again (numba alone would not)."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numba
+from numba.core.registry import CPUDispatcher
+
+from trajcache.geometry import kernel_cache
+from trajcache.geometry.kernel_cache import (
+    KERNEL_SOURCES,
+    KernelCacheLocator,
+    UserKernelCacheLocator,
+    kernel_sources_stamp,
+)
+
+KERNEL_MODULES = [
+    "trajcache.geometry.model.kernels",
+    "trajcache.geometry.collision.compiled.primitives",
+    "trajcache.geometry.collision.compiled.slabs",
+    "trajcache.geometry.collision.compiled.scene_open",
+    "trajcache.geometry.collision.compiled.self_open",
+    "trajcache.geometry.collision.compiled.state_rows",
+]
+
+
+def test_every_cached_kernel_is_stamped_with_all_kernel_sources() -> None:
+    files = set()
+    cached = 0
+    for name in KERNEL_MODULES:
+        module = importlib.import_module(name)
+        for value in vars(module).values():
+            if not isinstance(value, CPUDispatcher) or value.__module__ != name:
+                continue
+            assert value._cache is not None and value._cache._impl is not None, value
+            locator = value._cache._impl._locator
+            assert isinstance(locator, KernelCacheLocator | UserKernelCacheLocator), value
+            assert locator.get_source_stamp()[1] == kernel_sources_stamp()
+            files.add(Path(module.__file__ or "").resolve())
+            cached += 1
+    assert cached >= 15
+    sources = {p for s in KERNEL_SOURCES for p in (s.glob("*.py") if s.is_dir() else [s])}
+    assert files == {p for p in sources if p.name != "__init__.py"}  # no kernel file left out
+
+
+def test_the_stamp_changes_with_any_kernel_source(tmp_path: Path) -> None:
+    for name in ("a.py", "b.py"):
+        (tmp_path / name).write_text("x = 1\n")
+    before = kernel_sources_stamp((tmp_path,))
+    (tmp_path / "b.py").write_text("x = 2\n")
+    assert kernel_sources_stamp((tmp_path,)) != before
+    assert kernel_sources_stamp((tmp_path,)) == kernel_sources_stamp((tmp_path,))
+
+
+HELPER = "import numba\n\n@numba.njit(cache=True, inline='always')\ndef helper():\n    return {}\n"
+KERNEL = """\
+import numba
+from helper import helper
+
+@numba.njit(cache=True)
+def kernel():
+    return helper()
+"""
+RUN = """\
+import sys
+from pathlib import Path
+if sys.argv[1] == "stamped":
+    from trajcache.geometry import kernel_cache
+    from numba.core import caching
+
+    class Toy(kernel_cache.KernelCacheLocator):
+        sources = (Path.cwd() / "kernels",)
+
+    impl = getattr(caching, "CacheImpl", None) or vars(caching)["_CacheImpl"]
+    impl._locator_classes.insert(0, Toy)
+sys.path.insert(0, str(Path.cwd() / "kernels"))
+from kernel import kernel
+print(kernel())
+"""
+
+
+def _run(where: Path, mode: str) -> int:
+    env = {**os.environ, "NUMBA_CACHE_DIR": ""}
+    out = subprocess.run(
+        [sys.executable, "run.py", mode], cwd=where, env=env, capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    return int(out.stdout.split()[-1])
+
+
+def test_a_changed_helper_in_another_file_recompiles_the_kernel(tmp_path: Path) -> None:
+    # With numba's own locators (`python run.py numba`, numba 0.68) the second run answers 1:
+    # the kernel's file did not change, so its cache still holds the old helper.
+    (tmp_path / "kernels").mkdir()
+    (tmp_path / "run.py").write_text(RUN)
+    (tmp_path / "kernels" / "kernel.py").write_text(KERNEL)
+    (tmp_path / "kernels" / "helper.py").write_text(HELPER.format(1))
+    assert _run(tmp_path, "stamped") == 1  # compiled and cached
+    assert list((tmp_path / "kernels" / "__pycache__").glob("kernel.kernel-*.nbi"))
+    (tmp_path / "kernels" / "helper.py").write_text(HELPER.format(2))
+    assert _run(tmp_path, "stamped") == 2
+
+
+def test_installing_twice_adds_the_locators_once() -> None:
+    kernel_cache.install()
+    impl = getattr(numba.core.caching, "CacheImpl", None) or vars(numba.core.caching)["_CacheImpl"]
+    locators = impl._locator_classes
+    assert locators.count(KernelCacheLocator) == locators.count(UserKernelCacheLocator) == 1
