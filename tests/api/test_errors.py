@@ -69,11 +69,11 @@ def test_a_robot_id_of_only_dots_is_a_422_naming_it_on_every_robot_route(
 ) -> None:
     paths = openapi_document()["paths"]
     operations = [(m.upper(), p) for p, ops in paths.items() if "{robot_id}" in p for m in ops]
-    assert len(operations) == 7
+    assert len(operations) == 8
     for method, path in operations:
         for robot_id in (".", "..", "..."):
             encoded = robot_id.replace(".", "%2E")  # a client would resolve the dot segments
-            url = path.replace("{robot_id}", encoded)
+            url = path.replace("{robot_id}", encoded).replace("{version}", "1")
             reply = app_client.request(method, url, json={"model_id": model_id})
             assert_detail(reply, 422, "path.robot_id", f"robot id {robot_id!r}", "only dots")
     store = {"model_id": model_id, "states": [[0, 0], [0.1, 0]], "robot_id": ".."}

@@ -236,7 +236,7 @@ def test_task_exception_is_an_error_result(
     _, pool = celery_worker
     result = pool.submit(make_problem(tmp_path, explode=True))
     assert result.status is PlannerStatus.ERROR
-    assert "failed in the worker" in result.message and "planner exploded" in result.message
+    assert "failed in the worker" in result.message and "planner exploded" in result.detail
 
 
 def test_crashed_worker_process_is_an_error_result(
@@ -245,7 +245,7 @@ def test_crashed_worker_process_is_an_error_result(
     _, pool = celery_worker
     result = pool.submit(make_problem(tmp_path, budget_s=10.0, exit=True))
     # An error at the crash, not a timeout at the end of the 10 s budget.
-    assert result.status is PlannerStatus.ERROR and "WorkerLostError" in result.message
+    assert result.status is PlannerStatus.ERROR and "WorkerLostError" in result.detail
     assert pool.submit(make_problem(tmp_path, scene="after")).solved
 
 
@@ -330,7 +330,7 @@ def test_unreachable_broker_is_an_error_result_quickly(tmp_path: Path) -> None:
             # Fail fast is the promise: the refused connection is not retried for the budget.
             assert time.monotonic() - began < problem.budget_s
             assert result.status is PlannerStatus.ERROR
-            assert result.message.startswith("worker backend unavailable:")
+            assert result.message == "worker backend unavailable" and result.detail
         assert pool.stats().negative_hits == 0
     finally:
         pool.close()

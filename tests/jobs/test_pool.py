@@ -169,7 +169,7 @@ def test_workers_run_one_numeric_thread(pool: PlannerPool, tmp_path: Path) -> No
 def test_task_exception_is_an_error_result(pool: PlannerPool, tmp_path: Path) -> None:
     result = pool.submit(make_problem(tmp_path, explode=True))
     assert result.status is PlannerStatus.ERROR
-    assert "planner exploded" in result.message
+    assert "planning task raised" in result.message and "planner exploded" in result.detail
     assert pool.submit(make_problem(tmp_path, scene="ok")).solved
 
 

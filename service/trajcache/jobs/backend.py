@@ -26,9 +26,10 @@ def load_task_fn(path: str = DEFAULT_TASK_FN) -> TaskFn:
     return fn
 
 
-def error_result(message: str) -> PlanResult:
-    """A PlanResult for a planner that could not run."""
-    return PlanResult(PlannerStatus.ERROR, message=message)
+def error_result(message: str, detail: str = "") -> PlanResult:
+    """A PlanResult for a planner that could not run: `message` for the robot that asked,
+    `detail` (exception text, hosts) for the plan event and the log only."""
+    return PlanResult(PlannerStatus.ERROR, message=message, detail=detail)
 
 
 class PlanBackend(Protocol):

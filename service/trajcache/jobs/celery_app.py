@@ -168,9 +168,9 @@ class CeleryBackend:
                 time_limit=timeout_s + self.time_limit_grace_s,
             )
         except EncodeError as exc:
-            return error_result(f"planning problem could not be serialized: {_describe(exc)}")
+            return error_result("planning problem could not be serialized", _describe(exc))
         except Exception as exc:  # kombu's connection errors, redis errors, OSError
-            return error_result(f"worker backend unavailable: {_describe(exc)}")
+            return error_result("worker backend unavailable", _describe(exc))
         # AsyncResult.get checks its timeout only once a second: wait for it from a helper thread
         # so that this request's deadline holds to the millisecond.
         outcome: Future[object] = Future()
@@ -184,26 +184,28 @@ class CeleryBackend:
         if not wait([outcome], timeout=max(0.0, check_at - time.monotonic())).done:
             lost = self._lost_worker(async_result, outcome, deadline)
             if lost is not None:
-                return error_result(lost)
+                return error_result(
+                    "a Celery worker stopped answering while it planned; the task was lost", lost
+                )
         try:
             value = outcome.result(timeout=max(0.0, deadline - time.monotonic()))
         except (FutureTimeout, CeleryTimeout):
             return self._timed_out(async_result, problem, timeout_s)
         except Exception as exc:  # the task raised in the worker (or was revoked), or Redis left
             if isinstance(_cause(exc), _UNAVAILABLE):
-                return error_result(f"worker backend unavailable: {_describe(exc)}")
-            return error_result(f"planning task failed in the worker: {_describe(exc)}")
+                return error_result("worker backend unavailable", _describe(exc))
+            return error_result("planning task failed in the worker", _describe(exc))
         if not isinstance(value, dict):
             return error_result(f"planning task returned {type(value).__name__}")
         try:
             return result_from_message(value)
         except (KeyError, TypeError, ValueError) as exc:
-            return error_result(f"planning task returned a malformed result: {_describe(exc)}")
+            return error_result("planning task returned a malformed result", _describe(exc))
 
     def _lost_worker(
         self, async_result: AsyncResult, outcome: Future[object], deadline: float
     ) -> str | None:
-        """Why the task will never answer, if the worker that started it is gone; else None.
+        """The worker that started the task, if it is gone (the task will never answer).
 
         A worker killed with its task (SIGKILL, out of memory, a lost machine) leaves the task
         STARTED forever: no one reports it. The worker that started it is pinged (prefork and
@@ -232,7 +234,7 @@ class CeleryBackend:
                 return None
         except Exception:  # the broker is away: cannot tell
             return None
-        return f"Celery worker {node!r} stopped answering while it planned; the task was lost"
+        return f"worker {node!r}"
 
     def _timed_out(
         self, async_result: AsyncResult, problem: PlanningProblem, timeout_s: float
@@ -240,7 +242,7 @@ class CeleryBackend:
         try:
             state = async_result.state
         except Exception as exc:  # not known to have overrun: not a planning failure
-            return error_result(f"worker backend unavailable: {_describe(exc)}")
+            return error_result("worker backend unavailable", _describe(exc))
         if state == "PENDING":
             return error_result(
                 f"no Celery worker started the planning task within "

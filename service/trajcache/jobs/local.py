@@ -157,10 +157,10 @@ class LocalBackend:
                         continue
                 tried = f" {retries + 1} times" if retries else ""
                 return error_result(
-                    f"planning worker crashed{tried} ({exc}); the pool was restarted"
+                    f"planning worker crashed{tried}; the pool was restarted", str(exc)
                 )
             except Exception as exc:
-                return error_result(f"planning task raised {exc!r}")
+                return error_result(f"planning task raised {type(exc).__name__}", repr(exc))
             if not isinstance(result, PlanResult):
                 return error_result(f"planning task returned {type(result).__name__}")
             return _retried(result, retries)

@@ -118,7 +118,7 @@ class PlannerPool:
         try:
             result = self.backend.run(problem, problem.budget_s + self.overhead_s)
         except Exception as exc:  # a backend must not raise; keep the service up if one does
-            result = error_result(f"planning backend failed: {exc!r}")
+            result = error_result("planning backend failed", repr(exc))
         finally:
             self._finish(key, flight, result)
         return result

@@ -86,13 +86,18 @@ class PlanningProblem:
 
 @dataclass
 class PlanResult:
-    """A planner's answer: a status, the path (key states) when solved, and statistics."""
+    """A planner's answer: a status, the path (key states) when solved, and statistics.
+
+    `message` may reach the robot that asked; `detail` (an exception's text, a host name) only
+    the plan event and the log.
+    """
 
     status: PlannerStatus
     path: np.ndarray | None = None
     message: str = ""
     stats: dict[str, float] = field(default_factory=dict)
     seed: int | None = None  # the seed the planner ran with (None: no planner ran)
+    detail: str = ""
 
     @property
     def solved(self) -> bool:

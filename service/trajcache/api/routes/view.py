@@ -7,7 +7,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Query, Response
 
-from trajcache.api.deps import CtxDep, SessionDep
+from trajcache.api.deps import CtxDep, RobotIdPath, SessionDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.rejections import RejectedCandidateOut
 from trajcache.api.schemas.stats import PlanEventOut
@@ -69,7 +69,7 @@ def model_file_route(model_id: str, path: str, session: SessionDep) -> Response:
     responses=errors({404: ("Unknown robot or version", "robot 'robot-7' has no scene version 9")}),
 )
 def scene_version_route(
-    robot_id: str,
+    robot_id: RobotIdPath,
     version: Annotated[int, Path(ge=1, le=2**31 - 1)],
     session: SessionDep,
 ) -> StoredSceneOut:

@@ -8,6 +8,8 @@ the scene it was planned in) is computed by the record writer, off the request p
 
 from __future__ import annotations
 
+import logging
+
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import (
@@ -23,6 +25,8 @@ from trajcache.services.errors import UnavailableError
 from trajcache.services.plan.answers import answer_planned, answer_without_path
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanStatus
 from trajcache.services.plan.records import QualityJob
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["plan_fallback"]
 
@@ -97,6 +101,9 @@ def _unsolved(attempt: PlanAttempt, outcome: PlanResult, seed: int | None) -> Pl
     its plan event is written."""
     status = PlanStatus.ERROR if outcome.status is PlannerStatus.ERROR else PlanStatus.FAILURE
     message = f"{outcome.status.value}: {outcome.message}".rstrip(": ")
+    if outcome.detail:  # the plan event and the log have it; the robot's answer does not
+        message = f"{message} ({outcome.detail})"
+        logger.warning("planning could not run: %s", message)
     answer = answer_without_path(attempt, status, message, seed=seed)
     if status is PlanStatus.ERROR:
         if answer.record is not None:
