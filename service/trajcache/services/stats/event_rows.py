@@ -73,6 +73,17 @@ def epoch_seconds(
     return sa.cast(sa.func.floor(sa.extract("epoch", column)), sa.BigInteger)
 
 
+def _matching(
+    table: type[PlanEvent] | type[PlanEventRollup],
+    robot_id: str | None,
+    model_id: str | None,
+    requester: str | None,
+) -> list[sa.ColumnElement[bool]]:
+    """Conditions for the given robot, model and requester (None: any)."""
+    wanted = ((table.robot_id, robot_id), (table.model_id, model_id), (table.requester, requester))
+    return [column == value for column, value in wanted if value is not None]
+
+
 def fetch_events(
     session: Session,
     begin: datetime,
@@ -95,13 +106,7 @@ def fetch_events(
         e.validate_ms,
         e.plan_ms,
         e.total_ms,
-    ).where(e.created_at >= begin, e.created_at < end)
-    if robot_id is not None:
-        query = query.where(e.robot_id == robot_id)
-    if model_id is not None:
-        query = query.where(e.model_id == model_id)
-    if requester is not None:
-        query = query.where(e.requester == requester)
+    ).where(e.created_at >= begin, e.created_at < end, *_matching(e, robot_id, model_id, requester))
     rows = session.connection().execute(query).all()  # core rows: no ORM overhead
     count = len(rows)
     cols = list(zip(*rows, strict=True)) if rows else [()] * 10
@@ -137,13 +142,9 @@ def first_event_at(
     """When the first plan event with `begin` ≤ created_at < `end` was written (one index
     seek), or None."""
     e = PlanEvent
-    query = sa.select(e.created_at).where(e.created_at >= begin, e.created_at < end)
-    if robot_id is not None:
-        query = query.where(e.robot_id == robot_id)
-    if model_id is not None:
-        query = query.where(e.model_id == model_id)
-    if requester is not None:
-        query = query.where(e.requester == requester)
+    query = sa.select(e.created_at).where(
+        e.created_at >= begin, e.created_at < end, *_matching(e, robot_id, model_id, requester)
+    )
     first: datetime | None = session.scalar(query.order_by(e.created_at).limit(1))
     return first
 
@@ -172,13 +173,9 @@ def fetch_rollups(
         r.plan_ms,
         r.total_ms,
         r.histograms,
-    ).where(r.bucket_start >= begin, r.bucket_start < end)
-    if robot_id is not None:
-        query = query.where(r.robot_id == robot_id)
-    if model_id is not None:
-        query = query.where(r.model_id == model_id)
-    if requester is not None:
-        query = query.where(r.requester == requester)
+    ).where(
+        r.bucket_start >= begin, r.bucket_start < end, *_matching(r, robot_id, model_id, requester)
+    )
     rows = session.connection().execute(query).all()  # core rows: no ORM overhead
     count = len(rows)
     cols = list(zip(*rows, strict=True)) if rows else [()] * 12
