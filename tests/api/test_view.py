@@ -295,6 +295,8 @@ def test_a_seed_job_s_scenes_are_kept_and_its_trajectories_shown_in_them(
     trajectory_id = _ok(client.post("/v1/trajectories", json=stored), 201)["trajectory_id"]
     view = _ok(client.get(f"/v1/view/trajectories/{trajectory_id}"))
     assert view["scene"]["seed_job_id"] == job["job_id"] and view["notes"] == []
+    stored_row = _ok(client.get(f"/v1/trajectories/{trajectory_id}"))
+    assert stored_row["min_clearance"] is not None  # its clearance, measured in that scene
     # A robot's version with the same content is named first.
     _ok(client.put("/v1/robots/r1", json={"model_id": model_id}), 201)
     _ok(client.put("/v1/robots/r1/scene", json=scene))

@@ -247,7 +247,13 @@ def test_dashboard_shows_the_seeded_runs(page: tuple[Any, list[str]], seeded: Se
     ]
     top = _rows(tab, "top-table")
     assert top and all(r[0].startswith("#") for r in top)
-    assert len(_rows(tab, "events-table")) == 15
+    events = _rows(tab, "events-table")
+    assert len(events) == 15
+    asked = {row[1] for row in events}  # the seed job ran last: it is among the latest
+    assert f"seed job #{job['job_id']}" in asked and asked <= {
+        *seeded.robots,
+        f"seed job #{job['job_id']}",
+    }
     usage = _rows(tab, "usage-table")
     assert usage and usage[0][0] != "Not used yet"
     legend = tab.eval_on_selector_all(

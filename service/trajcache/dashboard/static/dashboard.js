@@ -270,10 +270,18 @@
     fillTable($("top-table"), rows, 6, "The cache is empty");
   }
 
+  // Who asked: a robot by its id, or a seed job by its number (its events' robot id is a key).
+  function requesterCell(tr, e) {
+    if (e.requester !== "seed_job") return cell(tr, e.robot_id);
+    const td = cell(tr, `seed job #${e.robot_id.replace(/^seed-job-/, "")}`, "seed-job");
+    td.title = `${e.robot_id}: planned in simulation`;
+    return td;
+  }
+
   function eventRow(e, withTrajectory) {
     const tr = document.createElement("tr");
     cell(tr, fmtTime(e.created_at)).title = fmtDateTime(e.created_at);
-    cell(tr, e.robot_id);
+    requesterCell(tr, e);
     cell(tr, e.status, `status-${e.status}`).title = e.error || "";
     cell(tr, e.source || "–");
     if (withTrajectory) trajectoryLink(cell(tr, ""), e.trajectory_id);

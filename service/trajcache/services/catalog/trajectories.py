@@ -149,15 +149,16 @@ def _fill_quality(
 
 
 def _scene_with_hash(session: Session, scene_hash: str, scenes: SceneCache | None) -> Scene | None:
-    """The scene version with this hash (any robot's), parsed once per `scenes`; None if none."""
+    """The scene with this hash, a robot's version or else a seed job's, parsed once per
+    `scenes`; None if none is stored."""
     cached = scenes.get(scene_hash) if scenes is not None else None
     if cached is not None:
         return cached
-    payload = session.scalar(
-        sa.select(tables.SceneVersion.payload)
-        .where(tables.SceneVersion.hash == scene_hash)
-        .limit(1)
-    )
+    payload = None
+    for table in (tables.SceneVersion, tables.SeedJobScene):
+        query = sa.select(table.payload).where(table.hash == scene_hash).limit(1)
+        if (payload := session.scalar(query)) is not None:
+            break
     if payload is None:
         return None
     try:
