@@ -3,6 +3,7 @@ in another module compiles the kernels that inline it again (numba alone would n
 
 from __future__ import annotations
 
+import ast
 import importlib
 import os
 import subprocess
@@ -112,3 +113,33 @@ def test_installing_twice_adds_the_locators_once() -> None:
     impl = getattr(numba.core.caching, "CacheImpl", None) or vars(numba.core.caching)["_CacheImpl"]
     locators = impl._locator_classes
     assert locators.count(KernelCacheLocator) == locators.count(UserKernelCacheLocator) == 1
+
+
+def _defined_in(module_name: str, name: str) -> Path:
+    """The file of the module that defines `name` as imported from `module_name` (a constant,
+    which has no `__module__`, is taken as that module's own)."""
+    value = getattr(importlib.import_module(module_name), name)
+    home = importlib.import_module(getattr(value, "__module__", module_name))
+    return Path(home.__file__ or "").resolve()
+
+
+def test_the_kernels_compile_in_nothing_from_outside_the_stamped_files() -> None:
+    """numba compiles in the functions and the globals a kernel uses: any module they come from
+    must be stamped too (a type alias is not compiled in, nor is the locators' module)."""
+    sources = {p for s in KERNEL_SOURCES for p in (s.glob("*.py") if s.is_dir() else [s])}
+    type_only = {
+        ("trajcache.geometry.model.shapes", "FloatArray"),
+        ("trajcache.geometry", "kernel_cache"),
+    }
+    outside = []
+    for path in sources:
+        for node in ast.walk(ast.parse(path.read_text())):
+            module = node.module if isinstance(node, ast.ImportFrom) else None
+            if module is None or not module.startswith("trajcache"):
+                continue
+            for alias in node.names:
+                if (module, alias.name) in type_only:
+                    continue
+                if _defined_in(module, alias.name) not in sources:
+                    outside.append(f"{path.name}: {module}.{alias.name}")
+    assert not outside, outside
