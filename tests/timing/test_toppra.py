@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -184,3 +186,21 @@ def test_bad_calls_are_refused(limits: KinematicLimits, corner_path: np.ndarray)
         time_trajectory(corner_path, planar=True, limits=limits, method=TimingMethod.NONE)
     with pytest.raises(TimingError, match="do not match"):
         time_trajectory(corner_path[:, :5], planar=True, limits=limits)
+
+
+def test_a_profile_with_nan_speeds_is_refused_not_returned(
+    limits: KinematicLimits, corner_path: np.ndarray, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import toppra.algorithm
+
+    real = toppra.algorithm.TOPPRA.compute_parameterization
+
+    def with_a_nan(self: Any, *args: Any, **kwargs: Any) -> Any:
+        sdd, sd, v = real(self, *args, **kwargs)
+        sd = np.array(sd, dtype=float)
+        sd[len(sd) // 2] = np.sqrt(-1.0)  # what toppra's reachability sweep yields, rarely
+        return sdd, sd, v
+
+    monkeypatch.setattr(toppra.algorithm.TOPPRA, "compute_parameterization", with_a_nan)
+    with pytest.raises(TimingError, match="stops inside a segment"):
+        time_trajectory(corner_path, planar=True, limits=limits)

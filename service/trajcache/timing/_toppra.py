@@ -82,7 +82,8 @@ def time_optimal(
         solver_wrapper="seidel",
         parametrizer="ParametrizeConstAccel",
     )
-    _, sd_vec, _ = instance.compute_parameterization(0.0, 0.0)
+    with np.errstate(invalid="ignore"):  # a NaN speed it computes is refused just below
+        _, sd_vec, _ = instance.compute_parameterization(0.0, 0.0)
     if instance.problem_data.return_code != ParameterizationReturnCode.Ok or sd_vec is None:
         raise TimingError(f"toppra found no parameterization: {instance.problem_data.return_code}")
     sd = np.maximum(np.asarray(sd_vec, dtype=float), 0.0)
