@@ -5,19 +5,21 @@ from __future__ import annotations
 
 import ast
 import importlib
+import inspect
 import os
 import subprocess
 import sys
 from pathlib import Path
 
 import numba
+import pytest
 from numba.core.registry import CPUDispatcher
 
 from trajcache.geometry import kernel_cache
 from trajcache.geometry.kernel_cache import (
     KERNEL_SOURCES,
-    KernelCacheLocator,
-    UserKernelCacheLocator,
+    LOCATORS,
+    UserWideKernelCacheLocator,
     kernel_sources_stamp,
 )
 
@@ -41,7 +43,7 @@ def test_every_cached_kernel_is_stamped_with_all_kernel_sources() -> None:
                 continue
             assert value._cache is not None and value._cache._impl is not None, value
             locator = value._cache._impl._locator
-            assert isinstance(locator, KernelCacheLocator | UserKernelCacheLocator), value
+            assert isinstance(locator, LOCATORS), value
             assert locator.get_source_stamp()[1] == kernel_sources_stamp()
             files.add(Path(module.__file__ or "").resolve())
             cached += 1
@@ -108,11 +110,27 @@ def test_a_changed_helper_in_another_file_recompiles_the_kernel(tmp_path: Path) 
     assert _run(tmp_path, "stamped") == 2
 
 
-def test_installing_twice_adds_the_locators_once() -> None:
+def test_installing_twice_adds_the_locators_once_ahead_of_numba_s() -> None:
     kernel_cache.install()
     impl = getattr(numba.core.caching, "CacheImpl", None) or vars(numba.core.caching)["_CacheImpl"]
     locators = impl._locator_classes
-    assert locators.count(KernelCacheLocator) == locators.count(UserKernelCacheLocator) == 1
+    assert tuple(locators[: len(LOCATORS)]) == LOCATORS
+    assert all(locators.count(locator) == 1 for locator in LOCATORS)
+
+
+def test_the_user_wide_cache_is_stamped_too(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where the package's own `__pycache__` is not writable (an installed image), numba caches
+    in the user's cache directory: stamped the same way."""
+    from trajcache.geometry.model.kernels import hull_climb
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    py_file = inspect.getfile(hull_climb.py_func)
+    locator = UserWideKernelCacheLocator.from_function(hull_climb.py_func, py_file)
+    assert locator is not None and str(tmp_path) in locator.get_cache_path()
+    assert locator.get_source_stamp()[1] == kernel_sources_stamp()
+    assert UserWideKernelCacheLocator.from_function(_defined_in, __file__) is None  # not a kernel
 
 
 def _defined_in(module_name: str, name: str) -> Path:

@@ -19,9 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from numba.core import caching
-from numba.core.caching import InTreeCacheLocator, UserProvidedCacheLocator
+from numba.core.caching import InTreeCacheLocator, UserProvidedCacheLocator, UserWideCacheLocator
 
-__all__ = ["KERNEL_SOURCES", "install", "is_kernel_source", "kernel_sources_stamp"]
+__all__ = ["KERNEL_SOURCES", "LOCATORS", "install", "is_kernel_source", "kernel_sources_stamp"]
 
 _GEOMETRY = Path(__file__).resolve().parent
 # The kernels and everything they compile in: the collision kernels and the model's.
@@ -79,13 +79,19 @@ class UserKernelCacheLocator(_KernelStamp, UserProvidedCacheLocator):
     """The kernels' cache under `NUMBA_CACHE_DIR`, when it is set."""
 
 
+class UserWideKernelCacheLocator(_KernelStamp, UserWideCacheLocator):
+    """The kernels' cache in the user's cache directory, when the package's is not writable."""
+
+
+# In numba's order: the user's directory if set, the package's, the user-wide one.
+LOCATORS = (UserKernelCacheLocator, KernelCacheLocator, UserWideKernelCacheLocator)
+
+
 def install() -> None:
     """Put the kernels' locators ahead of numba's own (once)."""
     impl = getattr(caching, "CacheImpl", None) or vars(caching)["_CacheImpl"]  # its older name
     locators = impl._locator_classes
-    for locator in (KernelCacheLocator, UserKernelCacheLocator):  # the user's directory first
-        if locator not in locators:
-            locators.insert(0, locator)
+    locators[:0] = [locator for locator in LOCATORS if locator not in locators]
 
 
 install()
