@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -84,6 +85,13 @@ def _matching(
     return [column == value for column, value in wanted if value is not None]
 
 
+def _keys(cols: list[Any]) -> dict[str, Any]:
+    """The first six columns of a query below: time, robot, requester, model, source, status."""
+    names = ("robot", "requester", "model", "source", "status")
+    keys = {name: np.array(cols[k], dtype=object) for k, name in enumerate(names, start=1)}
+    return {"t": np.array(cols[0], dtype=np.int64), **keys}
+
+
 def fetch_events(
     session: Session,
     begin: datetime,
@@ -113,12 +121,7 @@ def fetch_events(
     sums = np.array(cols[6:10], dtype=np.float64).T.reshape(count, len(histograms.METRICS))
     metrics = len(histograms.METRICS)
     return EventRows(
-        t=np.array(cols[0], dtype=np.int64),
-        robot=np.array(cols[1], dtype=object),
-        requester=np.array(cols[2], dtype=object),
-        model=np.array(cols[3], dtype=object),
-        source=np.array(cols[4], dtype=object),
-        status=np.array(cols[5], dtype=object),
+        **_keys(cols),
         n=np.ones(count, dtype=np.int64),
         sums=sums,
         entries=(
@@ -180,12 +183,7 @@ def fetch_rollups(
     count = len(rows)
     cols = list(zip(*rows, strict=True)) if rows else [()] * 12
     return EventRows(
-        t=np.array(cols[0], dtype=np.int64),
-        robot=np.array(cols[1], dtype=object),
-        requester=np.array(cols[2], dtype=object),
-        model=np.array(cols[3], dtype=object),
-        source=np.array(cols[4], dtype=object),
-        status=np.array(cols[5], dtype=object),
+        **_keys(cols),
         n=np.array(cols[6], dtype=np.int64),
         sums=np.array(cols[7:11], dtype=np.float64).T.reshape(count, len(histograms.METRICS)),
         entries=histograms.decode(list(cols[11])),

@@ -114,11 +114,12 @@ def plan_event_view(
         )
     if candidate is None and not rejections and event.trajectory_id is None:
         raise NotFoundError(f"plan event {event_id} returned no trajectory and rejected none")
-    entry = rejections[candidate or 0] if rejections else None
+    index = candidate or 0
+    entry = rejections[index] if rejections else None  # None: the event's trajectory
     model = _event_model(ctx, session, event, entry)
     scene = find_scene(session=session, scene_hash=event.scene_hash) if event.scene_hash else None
     notes = [] if scene is not None else ["the scene it was validated in is not stored"]
-    if candidate is None and not rejections:
+    if entry is None:
         states = _stored_states(session, event.trajectory_id) if event.trajectory_id else None
         if states is None:
             raise NotFoundError(f"trajectory {event.trajectory_id} of plan event {event_id} "
@@ -127,8 +128,6 @@ def plan_event_view(
             notes.append("the stored path: the answer replaced its end states with the request's")
         frames = _frames(ctx, model, states, scene)
         return _event_view(event, model, scene, states, frames, None, notes)
-    index = candidate or 0
-    entry = rejections[index]
     states = _candidate_states(session, model, entry)
     if states is None:
         notes.append(f"trajectory {entry['trajectory_id']} is no longer stored: its failing state")
