@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Annotated, Any
 
 import yaml
 from fastapi import APIRouter, Depends, Request, Response
+from sqlalchemy.orm import Session
 
 from trajcache.api.bounded import (
     BoundedBodyRoute,
@@ -27,7 +29,8 @@ from trajcache.api.schemas.robots import (
     SceneVersionOut,
 )
 from trajcache.geometry.errors import SceneError
-from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
+from trajcache.geometry.scene.moveit_diff import apply_scene_diff, is_scene_diff
+from trajcache.geometry.scene.parse import load_scene_text, parse_scene
 from trajcache.geometry.scene.scene import Scene
 from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.robots import (
@@ -38,7 +41,8 @@ from trajcache.services.catalog.robots import (
     scene_warnings,
 )
 from trajcache.services.catalog.scene_limits import SceneLimits
-from trajcache.services.catalog.scene_writes import patch_scene, put_scene
+from trajcache.services.catalog.scene_writes import change_scene, patch_scene, put_scene
+from trajcache.services.context import ServiceContext
 
 router = APIRouter(
     prefix="/robots", tags=["robots"], responses=COMMON, route_class=BoundedBodyRoute
@@ -160,6 +164,11 @@ def _reject_constant(token: str) -> Any:
 
 def parse_scene_body(body: SceneBody) -> Scene:
     """A Scene from a JSON (native or MoveIt) or YAML body."""
+    return parse_scene(load_scene_body(body))
+
+
+def load_scene_body(body: SceneBody) -> Mapping[str, Any]:
+    """The scene document of a JSON or YAML body, not yet parsed."""
     try:
         text = body.data.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -168,7 +177,7 @@ def parse_scene_body(body: SceneBody) -> Scene:
         raise SceneError("the scene body is empty")
     try:
         if body.media_type in YAML_TYPES:
-            return parse_scene_text(text)
+            return load_scene_text(text)
         payload = json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
         raise SceneError(f"the scene body is not valid JSON: {exc}") from None
@@ -176,7 +185,7 @@ def parse_scene_body(body: SceneBody) -> Scene:
         raise SceneError("the scene body nests too deeply") from None
     if not isinstance(payload, dict):
         raise SceneError("a scene must be a JSON object")
-    return parse_scene(payload)
+    return payload
 
 
 @router.put(
@@ -200,8 +209,12 @@ def parse_scene_body(body: SceneBody) -> Scene:
 def put_scene_route(
     robot_id: RobotIdPath, body: SceneBodyDep, ctx: CtxDep, session: SessionDep
 ) -> SceneVersionOut:
-    """A new scene version (or the current one when the content is unchanged)."""
-    scene = parse_scene_body(body)
+    """A new scene version (or the current one when the content is unchanged); a MoveIt
+    PlanningScene with `is_diff: true` changes the current scene (`moveit_diff.py`)."""
+    document = load_scene_body(body)
+    if is_scene_diff(document):
+        return _put_scene_diff(robot_id, document, ctx, session)
+    scene = parse_scene(document)
     robot = get_robot(session=session, robot_id=robot_id)
     model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
     warnings = scene_warnings(model, scene)
@@ -210,6 +223,29 @@ def put_scene_route(
         scenes=ctx.scenes,
         robot_id=robot_id,
         scene=scene,
+        limits=SceneLimits.of(ctx.settings),
+    )
+    return SceneVersionOut(version=version, hash=scene_hash, warnings=warnings)
+
+
+def _put_scene_diff(
+    robot_id: str, document: Mapping[str, Any], ctx: ServiceContext, session: Session
+) -> SceneVersionOut:
+    """Apply a PlanningScene diff to the robot's current scene, under its lock."""
+    robot = get_robot(session=session, robot_id=robot_id)
+    model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
+    warnings: list[str] = []
+
+    def changed(current: Scene) -> Scene:
+        scene = apply_scene_diff(current, document)
+        warnings[:] = scene_warnings(model, scene)
+        return scene
+
+    version, scene_hash = change_scene(
+        session=session,
+        scenes=ctx.scenes,
+        robot_id=robot_id,
+        change=changed,
         limits=SceneLimits.of(ctx.settings),
     )
     return SceneVersionOut(version=version, hash=scene_hash, warnings=warnings)

@@ -12,7 +12,8 @@ allows contact between the two names: links, objects or attached objects) and
 `robot_state.attached_collision_objects` (posed in the frame of their `link_name`, with their
 `touch_links`). What is not applied comes back as the scene's warnings: the robot state's joint
 values (each plan gives its own), default ACM entries, link padding and scale, fixed frame
-transforms and `is_diff` (a scene is always taken whole).
+transforms. A message with `is_diff: true` is changes to the robot's current scene
+(`moveit_diff.py`); where there is no current scene to change, it is refused.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ def _as_list(value: Any, where: str) -> Sequence[Any]:
     return value
 
 
-def _collision_objects(payload: Mapping[str, Any]) -> Sequence[Any]:
+def collision_objects(payload: Mapping[str, Any]) -> Sequence[Any]:
     world = payload.get("world", payload)
     if not isinstance(world, Mapping):
         raise SceneError("world must be a mapping with collision_objects")
@@ -61,6 +62,11 @@ def _collision_objects(payload: Mapping[str, Any]) -> Sequence[Any]:
         if isinstance(inner, Mapping) and inner.get("data"):
             raise SceneError("octomaps are not supported; send collision objects")
     return _as_list(world.get("collision_objects"), "world.collision_objects")
+
+
+def enum_operation(value: Any, where: str) -> int:
+    """A CollisionObject operation, by number or name."""
+    return _enum(value, _OPERATION_NAMES, where)
 
 
 def _enum(value: Any, names: Mapping[str, int], where: str) -> int:
@@ -134,7 +140,7 @@ def _poses(obj: Mapping[str, Any], key: str, count: int, oid: str) -> list[Float
     ]
 
 
-def _object_shapes(
+def object_shapes(
     obj: Mapping[str, Any], oid: str, link: str | None = None
 ) -> list[tuple[Any, FloatArray]]:
     """(Shape, pose) for every primitive then mesh of one CollisionObject: world poses, or
@@ -162,7 +168,7 @@ def _object_shapes(
 def parse_moveit_objects(payload: Mapping[str, Any]) -> list[SceneObject]:
     """Scene objects from a PlanningScene world; REMOVE entries are skipped, APPEND extends."""
     groups: dict[str, list[tuple[Any, FloatArray]]] = {}
-    for n, obj in enumerate(_collision_objects(payload)):
+    for n, obj in enumerate(collision_objects(payload)):
         if not isinstance(obj, Mapping):
             raise SceneError(f"collision_objects[{n}] must be a mapping")
         oid = obj.get("id")
@@ -177,17 +183,17 @@ def parse_moveit_objects(payload: Mapping[str, Any]) -> list[SceneObject]:
             raise SceneError(f"duplicate object id {oid!r}")
         if op not in (ADD, APPEND):
             raise SceneError(f"object {oid!r}: unknown operation {op}")
-        shapes = _object_shapes(obj, oid)
+        shapes = object_shapes(obj, oid)
         if not shapes:
             raise SceneError(f"object {oid!r}: no primitives or meshes")
         groups.setdefault(oid, []).extend(shapes)
-    objects = [part for oid, shapes in groups.items() for part in _parts(oid, shapes)]
+    objects = [part for oid, shapes in groups.items() for part in parts(oid, shapes)]
     if len(objects) > MAX_OBJECTS:
         raise SceneError(f"a scene may hold at most {MAX_OBJECTS} objects")
     return objects
 
 
-def _parts(oid: str, shapes: Sequence[tuple[Any, FloatArray]]) -> list[SceneObject]:
+def parts(oid: str, shapes: Sequence[tuple[Any, FloatArray]]) -> list[SceneObject]:
     return [
         SceneObject(oid if i == 0 else f"{oid}#{i}", shape, pose)
         for i, (shape, pose) in enumerate(shapes)
@@ -200,17 +206,34 @@ def parse_planning_scene(payload: Mapping[str, Any], env: Mapping[str, float]) -
     warnings: list[str] = []
     objects = parse_moveit_objects(payload) if _has_world(payload) else []
     attached = _attached_objects(payload.get("robot_state"), warnings)
-    allowed = _allowed_pairs(payload.get("allowed_collision_matrix"), warnings)
-    for key, what in (
-        ("link_padding", "link padding is not applied (checks are exact, without padding)"),
-        ("link_scale", "link scale is not applied"),
-        ("fixed_frame_transforms", "fixed frame transforms are not applied"),
-    ):
-        if payload.get(key):
-            warnings.append(f"{key}: {what}")
+    allowed = parse_matrix(payload.get("allowed_collision_matrix"), warnings)
     if payload.get("is_diff"):
-        warnings.append("is_diff: the scene is taken whole, not as a difference")
+        raise SceneError(
+            "is_diff: true: a scene diff changes a robot's current scene; send it to "
+            "PUT /v1/robots/{robot_id}/scene, or send the whole scene with is_diff: false"
+        )
+    warnings += unapplied_warnings(payload)
     return make_scene(objects, env, allowed=allowed, attached=attached, warnings=warnings)
+
+
+def unapplied_warnings(payload: Mapping[str, Any]) -> list[str]:
+    """What MoveIt would apply from the message and this service does not."""
+    return [
+        f"{key}: {what}"
+        for key, what in (
+            ("link_padding", "link padding is not applied (checks are exact, without padding)"),
+            ("link_scale", "link scale is not applied"),
+            ("fixed_frame_transforms", "fixed frame transforms are not applied"),
+        )
+        if payload.get(key)
+    ]
+
+
+def is_planning_scene(payload: Mapping[str, Any]) -> bool:
+    """Whether a scene document is a MoveIt PlanningScene (not the native form)."""
+    return "objects" not in payload and any(
+        key in payload for key in ("world", "collision_objects", "robot_state")
+    )
 
 
 def _has_world(payload: Mapping[str, Any]) -> bool:
@@ -234,34 +257,51 @@ def _attached_objects(state: Any, warnings: list[str]) -> list[AttachedObject]:
     for n, raw in enumerate(
         _as_list(state.get("attached_collision_objects"), "attached_collision_objects")
     ):
-        where = f"robot_state.attached_collision_objects[{n}]"
-        if not isinstance(raw, Mapping):
-            raise SceneError(f"{where} must be a mapping")
-        link = raw.get("link_name")
-        if not isinstance(link, str) or not link:
-            raise SceneError(f"{where}: link_name must name a robot link")
-        obj = raw.get("object")
-        if not isinstance(obj, Mapping):
-            raise SceneError(f"{where}: object must be a CollisionObject")
-        oid = obj.get("id")
-        if not isinstance(oid, str) or not oid.strip() or len(oid) > 200:
-            raise SceneError(f"{where}: object.id must be a non-empty string")
-        op = _enum(obj.get("operation", ADD), _OPERATION_NAMES, f"object {oid!r}: operation")
+        op, _, oid, objects = parse_attached_entry(
+            raw, f"robot_state.attached_collision_objects[{n}]"
+        )
         if op == REMOVE:
             continue
         if op != ADD:
             raise SceneError(f"attached object {oid!r}: only operation ADD is supported")
-        shapes = _object_shapes(obj, oid, link)
-        if not shapes:
-            raise SceneError(f"attached object {oid!r}: no primitives or meshes")
-        touch = _as_list(raw.get("touch_links"), f"{where}.touch_links")
-        if not all(isinstance(t, str) and t for t in touch):
-            raise SceneError(f"{where}: touch_links must be link names")
-        out += [AttachedObject(link, part, tuple(touch)) for part in _parts(oid, shapes)]
+        out += objects
     return out
 
 
-def _allowed_pairs(matrix: Any, warnings: list[str]) -> list[tuple[str, str]]:
+def parse_attached_entry(raw: Any, where: str) -> tuple[int, str, str, list[AttachedObject]]:
+    """One AttachedCollisionObject: its operation, link, object id and (for ADD) its parts.
+
+    A REMOVE may leave the link or the id empty (all objects of a link, or all)."""
+    if not isinstance(raw, Mapping):
+        raise SceneError(f"{where} must be a mapping")
+    link = raw.get("link_name")
+    obj = raw.get("object")
+    if not isinstance(obj, Mapping):
+        raise SceneError(f"{where}: object must be a CollisionObject")
+    oid = obj.get("id")
+    if not isinstance(oid, str) or len(oid) > 200:
+        raise SceneError(f"{where}: object.id must be a string")
+    op = _enum(obj.get("operation", ADD), _OPERATION_NAMES, f"object {oid!r}: operation")
+    if not isinstance(link, str):
+        raise SceneError(f"{where}: link_name must name a robot link")
+    if op == REMOVE:
+        return op, link, oid, []
+    if not link:
+        raise SceneError(f"{where}: link_name must name a robot link")
+    if not oid.strip():
+        raise SceneError(f"{where}: object.id must be a non-empty string")
+    if op != ADD:
+        return op, link, oid, []
+    shapes = object_shapes(obj, oid, link)
+    if not shapes:
+        raise SceneError(f"attached object {oid!r}: no primitives or meshes")
+    touch = _as_list(raw.get("touch_links"), f"{where}.touch_links")
+    if not all(isinstance(t, str) and t for t in touch):
+        raise SceneError(f"{where}: touch_links must be link names")
+    return op, link, oid, [AttachedObject(link, part, tuple(touch)) for part in parts(oid, shapes)]
+
+
+def parse_matrix(matrix: Any, warnings: list[str]) -> list[tuple[str, str]]:
     if matrix is None:
         return []
     if not isinstance(matrix, Mapping):

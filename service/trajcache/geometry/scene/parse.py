@@ -14,7 +14,7 @@ import yaml
 
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.scene.fields import parse_env
-from trajcache.geometry.scene.moveit import parse_planning_scene
+from trajcache.geometry.scene.moveit import is_planning_scene, parse_planning_scene
 from trajcache.geometry.scene.payload import parse_native_scene
 from trajcache.geometry.scene.scene import Scene
 
@@ -26,9 +26,7 @@ def parse_scene(payload: Mapping[str, Any]) -> Scene:
     if not isinstance(payload, Mapping):
         raise SceneError("a scene must be a mapping")
     env = parse_env(payload.get("env"))
-    if "objects" not in payload and any(
-        key in payload for key in ("world", "collision_objects", "robot_state")
-    ):
+    if is_planning_scene(payload):
         return parse_planning_scene(payload, env)
     return parse_native_scene(payload, env)
 
@@ -44,6 +42,11 @@ class _NoAliasLoader(yaml.SafeLoader):
 
 def parse_scene_text(text: str) -> Scene:
     """Parse a scene from JSON or YAML text."""
+    return parse_scene(load_scene_text(text))
+
+
+def load_scene_text(text: str) -> Mapping[str, Any]:
+    """The scene document in JSON or YAML text, not yet parsed."""
     if len(text) > MAX_SCENE_TEXT_BYTES:
         raise SceneError(f"scene text exceeds {MAX_SCENE_TEXT_BYTES} bytes")
     try:
@@ -55,4 +58,4 @@ def parse_scene_text(text: str) -> Scene:
             raise SceneError(f"scene is neither valid JSON nor YAML: {exc}") from None
     if not isinstance(data, Mapping):
         raise SceneError("a scene document must be a mapping at the top level")
-    return parse_scene(data)
+    return data

@@ -53,14 +53,35 @@ def patch_scene(
 
     Concurrent patches apply one after the other instead of losing each other's changes.
     """
+    return change_scene(
+        session=session,
+        scenes=scenes,
+        robot_id=robot_id,
+        change=lambda current: apply_patch(current, patch),
+        limits=limits,
+        what="patch",
+    )
 
-    def patched(current: Scene) -> Scene:
-        scene = apply_patch(current, patch)
+
+def change_scene(
+    *,
+    session: Session,
+    scenes: SceneCache,
+    robot_id: str,
+    change: Callable[[Scene], Scene],
+    limits: SceneLimits | None = None,
+    what: str = "change",
+) -> tuple[int, str]:
+    """Store `change(current scene)` as the next version (a patch, a MoveIt diff); return
+    (version, hash). Changes apply one after the other, each to the scene the last one left."""
+
+    def changed(current: Scene) -> Scene:
+        scene = change(current)
         if limits is not None:
             check_scene(scene, limits)
         return scene
 
-    return _write_scene(session, scenes, robot_id, patched, what="patch")
+    return _write_scene(session, scenes, robot_id, changed, what=what)
 
 
 def _write_scene(
