@@ -1,0 +1,150 @@
+"""What the MBM benchmark counts per family, its figures, and the table it prints.
+
+Timings, in milliseconds, over the solved problems (a failure's time is its budget):
+- `planner_ms`: through the service, the answer's `timings_ms.plan`, the time the request waited
+  on the planner pool: the worker's scene setup, the search, the simplification and the
+  certification of the path (the answer splits it no finer; should it carry `search` and
+  `simplify`, their sum is taken instead). In process (`--in-process`): the planner's own run
+  after the per-scene setup (`run_ms − setup_ms` of `run_planning`), and `setup_ms` apart.
+- `plan_ms`: the server's `timings_ms.total` of a planned answer (adds validation and storage).
+- `hit_server_ms`: the server's `timings_ms.total` of a replay answered from the cache.
+
+From the answers' extras, where they carry them (else null): `compiled_share`, the share of
+planned answers whose `planner` names `compiled`; `sphere_flag_rate` and `repair_rate`, the
+share of planned answers with a true or non-zero `sphere_flagged`/`sphere_flags` or
+`repaired`/`repairs` (in `timings_ms` or the answer itself; in process, the planner's stats).
+`path_length` is the joint-space length of a returned path (sum of Euclidean steps, rad).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+SPHERE_KEYS = ("sphere_flagged", "sphere_flags")
+REPAIR_KEYS = ("repaired", "repairs")
+COMPILED = "compiled"
+
+
+@dataclass
+class Tally:
+    """What one family's problems gave."""
+
+    family: str
+    problems: int = 0
+    solved: int = 0
+    clamped_goals: int = 0
+    clamped_starts: int = 0
+    planner_ms: list[float] = field(default_factory=list)
+    plan_ms: list[float] = field(default_factory=list)
+    setup_ms: list[float] = field(default_factory=list)  # in process: per-scene setup
+    path_lengths: list[float] = field(default_factory=list)
+    planners: Counter[str] = field(default_factory=Counter)  # planned answers by planner name
+    sphere_flags: list[bool] = field(default_factory=list)
+    repairs: list[bool] = field(default_factory=list)
+    replays: int = 0
+    hits: int = 0
+    hit_server_ms: list[float] = field(default_factory=list)
+    counts: Counter[str] = field(default_factory=Counter)  # paths, collisions, 4xx, …
+    notes: Counter[str] = field(default_factory=Counter)  # messages, contact pairs
+
+    def record_extras(self, extras: Mapping[str, Any]) -> None:
+        """Note what a planned answer says of its planner, spheres and repairs."""
+        self.planners[str(extras.get("planner") or "unnamed")] += 1
+        for keys, seen in ((SPHERE_KEYS, self.sphere_flags), (REPAIR_KEYS, self.repairs)):
+            found = [extras[k] for k in keys if k in extras]
+            if found:
+                seen.append(bool(found[0]))
+
+
+def percentile(values: list[float], q: float = 50) -> float | None:
+    """The q-th percentile, rounded to 0.01 (None for no values)."""
+    return round(float(np.percentile(values, q)), 2) if values else None
+
+
+def _share(part: float, whole: float) -> float | None:
+    return round(part / whole, 4) if whole else None
+
+
+def _all(tallies: list[Tally], name: str) -> list[Any]:
+    return [v for t in tallies for v in getattr(t, name)]
+
+
+def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
+    """The figures over several families."""
+    problems = sum(t.problems for t in tallies)
+    counts = sum((t.counts for t in tallies), Counter[str]())
+    planners = sum((t.planners for t in tallies), Counter[str]())
+    flags, repairs = _all(tallies, "sphere_flags"), _all(tallies, "repairs")
+    planner_ms = _all(tallies, "planner_ms")
+    prefix = "planner_only" if in_process else "planner"
+    out: dict[str, Any] = {
+        "problems": problems,
+        "success_rate": _share(sum(t.solved for t in tallies), problems),
+        f"{prefix}_ms_median": percentile(planner_ms),
+        f"{prefix}_ms_p95": percentile(planner_ms, 95),
+    }
+    if in_process:
+        out["setup_ms_median"] = percentile(_all(tallies, "setup_ms"))
+        out["setup_ms_p95"] = percentile(_all(tallies, "setup_ms"), 95)
+    else:
+        out["plan_ms_median"] = percentile(_all(tallies, "plan_ms"))
+    replays = sum(t.replays for t in tallies)
+    out |= {
+        "compiled_share": _share(planners[COMPILED], sum(planners.values())),
+        "sphere_flag_rate": _share(sum(flags), len(flags)),
+        "repair_rate": _share(sum(repairs), len(repairs)),
+        "path_length_median": percentile(_all(tallies, "path_lengths")),
+        "collisions": counts["collisions"],
+        "self_collisions": counts["self_collisions"],
+        "limit_violations": counts["limit_violations"],
+        "endpoint_errors": counts["endpoint_errors"],
+        "paths_checked": counts["paths"],
+        "clamped_goals": sum(t.clamped_goals for t in tallies),
+        "clamped_starts": sum(t.clamped_starts for t in tallies),
+        "http_4xx": counts["http_4xx"],
+        "http_5xx": counts["http_5xx"],
+        "replays": replays,
+        "replay_hit_rate": _share(sum(t.hits for t in tallies), replays),
+        "hit_server_ms_median": percentile(_all(tallies, "hit_server_ms")),
+        "replays_skipped": counts["replays_skipped"],  # no free noisy start or goal
+        "replays_planned": counts["replays_planned"],  # a success, but not from the cache
+        "planners": dict(planners),
+        "families": {t.family: _share(t.solved, t.problems) for t in tallies},
+    }
+    return out
+
+
+def print_table(tallies: list[Tally], in_process: bool, console: Console) -> None:
+    """A row per family and one for all, then the most frequent notes."""
+    table = Table(title="MotionBenchMaker, Panda" + (" (planner in process)" if in_process else ""))
+    head = ["family", "problems", "solved %", "planner ms p50", "p95"]
+    head += ["setup ms p50"] if in_process else ["plan ms p50", "replay hits"]
+    head += ["collide", "self", "limits"]
+    for name in head:
+        table.add_column(name, justify="left" if name == "family" else "right")
+    rows = [(t.family, [t]) for t in tallies] + [("all", tallies)]
+    for name, group in rows:
+        f = summary(group, in_process)
+        prefix = "planner_only" if in_process else "planner"
+        solved = "-" if f["success_rate"] is None else f"{100 * f['success_rate']:.1f}"
+        row = [name, str(f["problems"]), solved, str(f[f"{prefix}_ms_median"]),
+               str(f[f"{prefix}_ms_p95"])]  # fmt: skip
+        if in_process:
+            row.append(str(f["setup_ms_median"]))
+        else:
+            hits = sum(t.hits for t in group)
+            row += [str(f["plan_ms_median"]), f"{hits}/{f['replays']}"]
+        row += [str(f["collisions"]), str(f["self_collisions"]), str(f["limit_violations"])]
+        table.add_row(*row, end_section=name == tallies[-1].family)
+    console.print(table)
+    notes = sum((Counter({f"{t.family}: {k}": n for k, n in t.notes.items()}) for t in tallies),
+                Counter[str]())  # fmt: skip
+    for note, n in notes.most_common(12):
+        console.print(f"  {n} × {note}", markup=False, highlight=False)
