@@ -30,6 +30,8 @@ KERNEL_MODULES = [
     "trajcache.geometry.collision.compiled.scene_open",
     "trajcache.geometry.collision.compiled.self_open",
     "trajcache.geometry.collision.compiled.state_rows",
+    "trajcache.geometry.collision.compiled.spheres",
+    "trajcache.planning.compiled.search",
 ]
 
 

@@ -24,8 +24,13 @@ from numba.core.caching import InTreeCacheLocator, UserProvidedCacheLocator, Use
 __all__ = ["KERNEL_SOURCES", "LOCATORS", "install", "is_kernel_source", "kernel_sources_stamp"]
 
 _GEOMETRY = Path(__file__).resolve().parent
-# The kernels and everything they compile in: the collision kernels and the model's.
-KERNEL_SOURCES = (_GEOMETRY / "collision" / "compiled", _GEOMETRY / "model" / "kernels.py")
+# The kernels and everything they compile in: the collision kernels, the model's and the
+# compiled planner's (which inline the collision kernels).
+KERNEL_SOURCES = (
+    _GEOMETRY / "collision" / "compiled",
+    _GEOMETRY / "model" / "kernels.py",
+    _GEOMETRY.parent / "planning" / "compiled",
+)
 
 
 def _files(sources: tuple[Path, ...]) -> list[Path]:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.collision.compiled.spheres import sphere_state
+from trajcache.geometry.collision.sphere_tables import sphere_tables
 from trajcache.geometry.model.kernels import hull_support_climb
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
@@ -33,7 +35,8 @@ _WARM_URDF = """<robot name="warm">
 def warm() -> None:
     """Compile (or load from numba's cache) every kernel now, through the code that calls them
     (so with the argument types a request passes): certified validation, a state check with
-    pads and a planner's quick motion check, of a small robot near a box and a mesh."""
+    pads, a planner's quick motion check and a sphere-cover state check, of a small robot
+    near a box and a mesh."""
 
     vertices = np.zeros((1, 3))
     index = np.zeros(1, dtype=np.int64)
@@ -61,6 +64,8 @@ def warm() -> None:
     checker = CollisionChecker(model, scene)
     checker.check(key, element_pad=np.full((2, len(model.elements)), 0.01),
                   pair_pad=np.full((2, len(checker.robot.pair_i)), 0.01))  # fmt: skip
+    tables = sphere_tables(checker)
+    sphere_state(key[0], tables.fk, tables.robot, tables.scene, tables.pairs, tables.work())
 
 
 def _placed(x: float, y: float, z: float) -> FloatArray:

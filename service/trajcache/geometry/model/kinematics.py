@@ -208,6 +208,25 @@ def forward_kinematics(model: RobotModel, q: FloatArray) -> FloatArray:
     return tf
 
 
+def fk_tables(model: RobotModel) -> tuple[object, ...]:
+    """`forward_kinematics_kernel`'s arguments between the states and the output, for kernels
+    that pose states themselves."""
+    tables = _tables(model)
+    return (
+        model.base is BaseType.PLANAR,
+        tables.parent,
+        tables.child,
+        tables.value_index,
+        tables.value_scale,
+        tables.value_offset,
+        tables.default,
+        tables.fixed,
+        tables.sine,
+        tables.versine,
+        tables.slide,
+    )
+
+
 def element_transforms(model: RobotModel, link_tf: FloatArray) -> FloatArray:
     """World pose of every collision element, shape (N, E, 4, 4), from `link_transforms`."""
     tables = _tables(model)

@@ -245,8 +245,9 @@ def _offsets(sizes: Sequence[int], *, total: bool = False) -> list[int]:
     return starts if total else starts[:-1]
 
 
-def sphere_cover(shape: Shape) -> tuple[FloatArray, FloatArray]:
-    """Centres (k, 3) and radii (k,) of balls whose union contains the shape (local frame)."""
+def sphere_cover(shape: Shape, cells: int = _BOX_CELLS) -> tuple[FloatArray, FloatArray]:
+    """Centres (k, 3) and radii (k,) of balls whose union contains the shape (local frame); a
+    box or mesh is cut into at most `cells` cells along its longest side."""
     if shape.kind is ShapeKind.SPHERE:
         return np.zeros((1, 3)), np.array([shape.size[0] + _EPS])
     if shape.kind in (ShapeKind.CYLINDER, ShapeKind.CAPSULE):
@@ -259,18 +260,18 @@ def sphere_cover(shape: Shape) -> tuple[FloatArray, FloatArray]:
         centres = np.column_stack([np.zeros(count), np.zeros(count), z])
         return centres, np.full(count, math.hypot(radius, slab / 2.0) + _EPS)
     if shape.kind is ShapeKind.BOX:
-        centres, step = _grid(-np.asarray(shape.size) / 2.0, np.asarray(shape.size) / 2.0)
+        centres, step = _grid(-np.asarray(shape.size) / 2.0, np.asarray(shape.size) / 2.0, cells)
         return centres, np.full(len(centres), float(np.linalg.norm(step)) / 2.0 + _EPS)
     assert shape.vertices is not None and shape.faces is not None
-    centres, step = _grid(*_mesh_box(shape))
+    centres, step = _grid(*_mesh_box(shape), cells)
     centres = centres[_cells_of_mesh(centres, step / 2.0, shape.vertices, shape.faces)]
     return centres, np.full(len(centres), float(np.linalg.norm(step)) / 2.0 + _EPS)
 
 
-def _grid(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _grid(lo: FloatArray, hi: FloatArray, cells: int) -> tuple[FloatArray, FloatArray]:
     """Centres (C, 3) and the common size (3,) of the cells a box [lo, hi] is cut into."""
     size = hi - lo
-    cell = max(float(size.max()) / _BOX_CELLS, 1e-9)
+    cell = max(float(size.max()) / cells, 1e-9)
     counts = np.maximum(np.ceil(size / cell - 1e-9).astype(int), 1)
     step = size / counts
     axes = [lo[i] + step[i] * (np.arange(counts[i]) + 0.5) for i in range(3)]

@@ -1,0 +1,294 @@
+"""RRT-Connect and path simplification whose loops run compiled, on sphere covers.
+
+Every state a motion passes through (at the spec's resolution, coarse samples first) is FREE,
+OPEN or COLLIDING by `geometry/collision/compiled/spheres.sphere_state`. A motion with a
+COLLIDING sample is blocked; one whose samples are all FREE is taken. A motion with OPEN samples
+and no COLLIDING one is neither: it goes into the pending buffer and the loop goes on as if it
+were blocked. The loop returns to Python after `iterations` iterations (or when the buffer is
+full); Python checks the OPEN samples of each pending motion exactly (FCL) and marks it free or
+not; the next call first adds the motions found free to their trees. So the covers decide only
+what they prove, and the exact check decides the rest: spheres never make a motion blocked that
+the exact check finds free, they only delay it by one round.
+
+Trees: `nodes` (2, C, D), `parent` (2, C), `count` (2,): tree 0 grows from the start, tree 1
+from the goal. Pending: `p_tree`, `p_parent`, `p_state` (P, D), `p_target` (the node of the
+other tree it reaches, or −1), `p_ok` (set by Python), `p_count` (1,).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from trajcache.geometry.collision.compiled.spheres import COLLIDING, FREE, OPEN, sphere_state
+
+SOLVED, ROUND, FULL = 1, 0, -1
+
+
+@numba.njit(cache=True, nogil=True)
+def _diff(a, b, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    for d in range(a.shape[0]):
+        out[d] = b[d] - a[d]
+    if planar:
+        out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@numba.njit(cache=True, nogil=True)
+def distance(a, b, planar):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Euclidean distance, the base angle (when planar) the short way."""
+    total = 0.0
+    for d in range(a.shape[0]):
+        v = b[d] - a[d]
+        if planar and d == 2:
+            v = (v + math.pi) % (2.0 * math.pi) - math.pi
+        total += v * v
+    return math.sqrt(total)
+
+
+@numba.njit(cache=True, nogil=True)
+def sample_count(a, b, space):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Samples of a → b (a excluded): no value steps more than its resolution."""
+    step, planar = space[2], space[3]
+    need = 1.0
+    for d in range(a.shape[0]):
+        v = b[d] - a[d]
+        if planar and d == 2:
+            v = (v + math.pi) % (2.0 * math.pi) - math.pi
+        need = max(need, abs(v) / step[d])
+    return int(math.ceil(need - 1e-9))  # noqa: RUF046  (an integer in compiled code too)
+
+
+@numba.njit(cache=True, nogil=True)
+def _at(a, b, k, n, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The state k/n of the way a → b into out."""
+    t = k / n
+    for d in range(a.shape[0]):
+        v = b[d] - a[d]
+        if planar and d == 2:
+            v = (v + math.pi) % (2.0 * math.pi) - math.pi
+        out[d] = a[d] + t * v
+    if planar:
+        out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
+    if k == n:
+        out[:] = b
+
+
+@numba.njit(cache=True, nogil=True)
+def motion(a, b, space, fk, robot, scene, pairs, work, open_out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """FREE, OPEN or COLLIDING for the motion a → b (a excluded); samples coarse first, the
+    end first. With `open_out` of at least n rows, the OPEN samples are written to it and
+    their count is the second result."""
+    n = sample_count(a, b, space)
+    q = np.empty(a.shape[0])
+    status, opened = FREE, 0
+    top = 1
+    while top * 2 <= n:
+        top *= 2
+    stride, k = top, n  # the end first, then odd multiples of each stride, coarse to fine
+    while True:
+        _at(a, b, k, n, space[3], q)
+        s = sphere_state(q, fk, robot, scene, pairs, work)
+        if s == COLLIDING:
+            return COLLIDING, 0
+        if s == OPEN:
+            status = OPEN
+            if opened < open_out.shape[0]:
+                open_out[opened] = q
+            opened += 1
+        k = stride if k == n else k + 2 * stride
+        while k >= n and stride > 1:
+            stride //= 2
+            k = stride
+        if k >= n:
+            break
+    return status, opened
+
+
+@numba.njit(cache=True, nogil=True)
+def _nearest(nodes, count, q, planar):  # type: ignore[no-untyped-def]  # pragma: no cover
+    best, best_d = 0, np.inf
+    for i in range(count):
+        d = distance(nodes[i], q, planar)
+        if d < best_d:
+            best, best_d = i, d
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def _steer(a, b, reach, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The state `reach` along a → b, or b when closer; True when that is b."""
+    d = distance(a, b, planar)
+    if d <= reach:
+        out[:] = b
+        return True
+    _diff(a, b, planar, out)
+    for k in range(a.shape[0]):
+        out[k] = a[k] + out[k] * (reach / d)
+    if planar:
+        out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
+def _add(tree, t, parent_index, q):  # type: ignore[no-untyped-def]  # pragma: no cover
+    nodes, parent, count = tree[0], tree[1], tree[2]
+    n = count[t]
+    if n >= nodes.shape[1]:
+        return -1
+    nodes[t, n] = q
+    parent[t, n] = parent_index
+    count[t] = n + 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _pend(pending, t, parent_index, q, target):  # type: ignore[no-untyped-def]  # pragma: no cover
+    p_tree, p_parent, p_state, p_target, p_count = (
+        pending[0], pending[1], pending[2], pending[3], pending[5],
+    )  # fmt: skip
+    n = p_count[0]
+    if n < p_tree.shape[0]:
+        p_tree[n], p_parent[n], p_target[n] = t, parent_index, target
+        p_state[n] = q
+        p_count[0] = n + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _trace(tree, t, i, out, start):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Write tree t's branch from node i to its root into out from row `start`; the count."""
+    nodes, parent = tree[0], tree[1]
+    n = 0
+    while i >= 0:
+        out[start + n] = nodes[t, i]
+        i = parent[t, i]
+        n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _join(tree, t, i, j, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The path start → goal through node i of tree t and node j of the other tree."""
+    i0, i1 = (i, j) if t == 0 else (j, i)
+    n0 = _trace(tree, 0, i0, out, 0)
+    out[:n0] = out[:n0][::-1].copy()
+    n1 = _trace(tree, 1, i1, out, n0)
+    return n0 + n1
+
+
+@numba.njit(cache=True, nogil=True)
+def _connect(tree, t, target_index, space, fk, robot, scene, pairs, work, pending, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Grow tree 1 − t toward node `target_index` of tree t; the path length when they meet."""
+    nodes, count = tree[0], tree[2]
+    b = 1 - t
+    target = nodes[t, target_index]
+    q = np.empty(target.shape[0])
+    none = np.empty((0, target.shape[0]))
+    while True:
+        j = _nearest(nodes[b], count[b], target, space[3])
+        reached = _steer(nodes[b, j], target, space[4], space[3], q)
+        status, _ = motion(nodes[b, j], q, space, fk, robot, scene, pairs, work, none)
+        if status == OPEN:
+            _pend(pending, b, j, q, target_index if reached else -1)
+            return 0
+        if status != FREE:
+            return 0
+        k = _add(tree, b, j, q)
+        if k < 0:
+            return -1
+        if reached:
+            return _join(tree, b, k, target_index, out)
+
+
+@numba.njit(cache=True, nogil=True)
+def rrt_connect(tree, pending, space, fk, robot, scene, pairs, work, iterations, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Run up to `iterations` iterations: (SOLVED, path length in `out`), (ROUND, 0) or
+    (FULL, 0) when a tree is full. Resolved pending motions are added first."""
+    nodes, count = tree[0], tree[2]
+    p_tree, p_parent, p_state, p_target, p_ok, p_count = pending
+    for k in range(p_count[0]):
+        if p_ok[k] != 1:
+            continue
+        t = p_tree[k]
+        added = _add(tree, t, p_parent[k], p_state[k])
+        if added < 0:
+            return FULL, 0
+        if p_target[k] >= 0:
+            p_count[0] = 0
+            return SOLVED, _join(tree, t, added, p_target[k], out)
+    p_count[0] = 0
+    lower, upper, planar, reach = space[0], space[1], space[3], space[4]
+    dof = lower.shape[0]
+    q_rand, q_new = np.empty(dof), np.empty(dof)
+    none = np.empty((0, dof))
+    t = 0
+    for _ in range(iterations):
+        if p_count[0] >= p_tree.shape[0]:
+            return ROUND, 0
+        for d in range(dof):
+            q_rand[d] = lower[d] + np.random.random() * (upper[d] - lower[d])
+        i = _nearest(nodes[t], count[t], q_rand, planar)
+        _steer(nodes[t, i], q_rand, reach, planar, q_new)
+        status, _ = motion(nodes[t, i], q_new, space, fk, robot, scene, pairs, work, none)
+        if status == OPEN:
+            _pend(pending, t, i, q_new, -1)
+        elif status == FREE:
+            added = _add(tree, t, i, q_new)
+            if added < 0:
+                return FULL, 0
+            length = _connect(tree, t, added, space, fk, robot, scene, pairs, work, pending, out)
+            if length < 0:
+                return FULL, 0
+            if length > 0:
+                return SOLVED, length
+        t = 1 - t
+    return ROUND, 0
+
+
+@numba.njit(cache=True, nogil=True)
+def seed(value):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Seed the compiled code's random generator (this thread's)."""
+    np.random.seed(value)
+
+
+@numba.njit(cache=True, nogil=True)
+def simplify(path, n, space, fk, robot, scene, pairs, work, iterations):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Shorten path[:n] in place: drop vertices that a FREE motion skips, then shortcut between
+    random points of two segments; only motions the covers prove FREE are taken. The count."""
+    none = np.empty((0, path.shape[1]))
+    planar = space[3]
+    a, b = np.empty(path.shape[1]), np.empty(path.shape[1])
+    for _ in range(iterations):
+        if n < 3:
+            break
+        i = np.random.randint(0, n - 2)
+        j = np.random.randint(i + 2, n)
+        status, _ = motion(path[i], path[j], space, fk, robot, scene, pairs, work, none)
+        if status == FREE:
+            gap = j - i - 1
+            path[i + 1 : n - gap] = path[j:n].copy()
+            n -= gap
+    for _ in range(iterations):
+        if n < 3:
+            break
+        i = np.random.randint(0, n - 2)
+        j = np.random.randint(i + 1, n - 1)
+        ta, tb = np.random.random(), np.random.random()
+        _at(path[i], path[i + 1], ta, 1.0, planar, a)
+        _at(path[j], path[j + 1], tb, 1.0, planar, b)
+        old = distance(a, path[i + 1], planar) + distance(path[j], b, planar)
+        for k in range(i + 1, j):
+            old += distance(path[k], path[k + 1], planar)
+        if distance(a, b, planar) >= old - 1e-9:
+            continue
+        if n + 1 > path.shape[0]:
+            break
+        status, _ = motion(a, b, space, fk, robot, scene, pairs, work, none)
+        if status == FREE:
+            tail = path[j + 1 : n].copy()  # path[i + 1 .. j] become a, b
+            path[i + 1] = a
+            path[i + 2] = b
+            path[i + 3 : i + 3 + tail.shape[0]] = tail
+            n = i + 3 + tail.shape[0]
+    return n

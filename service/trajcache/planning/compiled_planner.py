@@ -1,0 +1,196 @@
+"""The compiled planner (`compiled`): RRT-Connect whose loop runs in numba on sphere covers.
+
+The search and its simplification run in `planning/compiled/search.py` with no Python per
+iteration: sampling, nearest neighbour, extension and motion checks (at the spec's resolution,
+coarse samples first) on the robot's sphere covers against the scene's primitives
+(`geometry/collision/compiled/spheres.py`). Where the covers neither prove a state free nor
+colliding, the motion waits in a buffer; between rounds of at most `ROUND_ITERATIONS`
+iterations, Python checks those states exactly (FCL, the checker every planner uses) and the
+deadline, and the next round adds the motions found free. So the covers never block a motion
+that the exact check lets through, and the budget is overrun by at most one round.
+
+The path found is then finished as every planner's is (`attempts.plan_until_certified`):
+shortcut, certified validation, repair; only certified paths are SOLVED.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from trajcache.geometry.collision.sphere_tables import SphereTables, sphere_tables
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
+from trajcache.planning.attempts import plan_until_certified
+from trajcache.planning.compiled.search import (
+    FREE,
+    FULL,
+    OPEN,
+    SOLVED,
+    motion,
+    rrt_connect,
+    sample_count,
+    seed,
+    simplify,
+)
+from trajcache.planning.deadline import Deadline
+from trajcache.planning.problem import PlanResult
+from trajcache.planning.rris import rris_search
+from trajcache.planning.space import SHORTCUT_CLEARANCE_M, Query, prepare_query
+
+NAME = "compiled"
+ROUND_ITERATIONS = 256  # iterations between two returns to Python (exact checks, the clock)
+TREE_CAPACITY = 16_384  # nodes per tree
+PENDING = 64  # motions waiting for the exact check
+SIMPLIFY_ITERATIONS = 128
+RANGE = 1.0  # extension step (rad, over all planning values)
+
+
+@dataclass
+class _Search:
+    """One query's compiled search: the tables, buffers and counters."""
+
+    query: Query
+    tables: SphereTables
+    stats: dict[str, float]
+    work: tuple[np.ndarray, ...] = field(init=False)
+    space: tuple[object, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        spec = self.query.spec
+        self.work = self.tables.work()
+        res = spec.resolution
+        step = np.full(spec.dof, res.joint_rad)
+        for joint in spec.model.joints:
+            if joint.index >= 0 and joint.mimic is None and joint.kind == "prismatic":
+                step[joint.index] = res.position_m
+        if spec.planar:
+            step[:3] = (res.position_m / np.sqrt(2.0), res.position_m / np.sqrt(2.0),
+                        res.orientation_rad)  # fmt: skip
+        lower, upper = spec.lower.astype(float), spec.upper.astype(float)
+        self.space = (lower, upper, step, bool(spec.planar), float(RANGE))
+
+    def _args(self) -> tuple[object, ...]:
+        t = self.tables
+        return (self.space, t.fk, t.robot, t.scene, t.pairs, self.work)
+
+    def motion_free(self, a: FloatArray, b: FloatArray) -> bool:
+        """A motion the covers prove free, or whose open states the exact check finds free."""
+        n = sample_count(a, b, self.space)
+        opened = np.empty((n, len(a)))
+        status, count = motion(a, b, *self._args(), opened)  # type: ignore[call-arg]
+        if status == OPEN:
+            return self._exact(opened[:count])
+        return bool(status == FREE)
+
+    def _exact(self, states: FloatArray) -> bool:
+        self.stats["exact_checks"] += len(states)
+        checker = self.query.checker.checker
+        return bool(checker.check(states, stop_at_first=True).first_collision < 0)
+
+    def run(self, deadline: Deadline) -> FloatArray | None:
+        """RRT-Connect within the deadline, then simplification; the path or None."""
+        q = self.query
+        dof = q.spec.dof
+        nodes = np.zeros((2, TREE_CAPACITY, dof))
+        parent = np.full((2, TREE_CAPACITY), -1, dtype=np.int64)
+        nodes[0, 0], nodes[1, 0] = q.start, q.goal
+        tree = (nodes, parent, np.ones(2, dtype=np.int64))
+        pending = (
+            np.zeros(PENDING, dtype=np.int64),
+            np.zeros(PENDING, dtype=np.int64),
+            np.zeros((PENDING, dof)),
+            np.zeros(PENDING, dtype=np.int64),
+            np.zeros(PENDING, dtype=np.int8),
+            np.zeros(1, dtype=np.int64),
+        )
+        out = np.zeros((2 * TREE_CAPACITY + 2, dof))
+        began = time.perf_counter()
+        while True:
+            code, length = rrt_connect(tree, pending, *self._args(), ROUND_ITERATIONS, out)  # type: ignore[call-arg]
+            self.stats["rounds"] += 1
+            if code == SOLVED:
+                break
+            if code == FULL or deadline.expired():
+                self.stats["search_ms"] += (time.perf_counter() - began) * 1e3
+                return None
+            self._resolve(tree, pending)
+        self.stats["search_ms"] += (time.perf_counter() - began) * 1e3
+        self.stats["tree_nodes"] += float(tree[2].sum())
+        began = time.perf_counter()
+        count = simplify(out, length, *self._args(), SIMPLIFY_ITERATIONS)  # type: ignore[call-arg]
+        self.stats["simplify_ms"] += (time.perf_counter() - began) * 1e3
+        return np.array(out[:count])
+
+    def _resolve(self, tree: tuple[np.ndarray, ...], pending: tuple[np.ndarray, ...]) -> None:
+        """Decide each pending motion by the exact check of its open states."""
+        nodes = tree[0]
+        p_tree, p_parent, p_state, _, p_ok, p_count = pending
+        self.stats["open_motions"] += float(p_count[0])
+        for k in range(int(p_count[0])):
+            a = nodes[p_tree[k], p_parent[k]]
+            b = p_state[k]
+            p_ok[k] = 1 if self.motion_free(a, b) else 0
+
+
+def plan_compiled(
+    problem_model: RobotModel,
+    scene: Scene,
+    start: Sequence[float] | FloatArray,
+    goal: Sequence[float] | FloatArray,
+    *,
+    budget_s: float,
+    seed_value: int,
+    shortcut_s: float = 0.05,
+    resolution: Resolution | None = None,
+    certified: bool = True,
+) -> PlanResult:
+    """Plan start → goal with the compiled planner; SOLVED paths passed certified validation."""
+    deadline = Deadline(budget_s)
+    began = time.perf_counter()
+    prepared = prepare_query(problem_model, scene, start, goal, resolution=resolution)
+    if isinstance(prepared, PlanResult):
+        return prepared
+    query = prepared
+    rng = np.random.default_rng(seed_value)
+    seed(int(seed_value) % (2**32))
+    validator = TrajectoryValidator(
+        problem_model, scene, resolution=resolution, certified=certified
+    )
+    stats: dict[str, float] = {"straight": 0.0}
+    for key in ("search_ms", "simplify_ms", "rounds", "open_motions", "exact_checks", "tree_nodes"):
+        stats[key] = 0.0
+    tables_began = time.perf_counter()
+    search = _Search(query, sphere_tables(query.checker.checker), stats)
+    stats["tables_ms"] = (time.perf_counter() - tables_began) * 1e3
+    stats["endpoints_ms"] = (tables_began - began) * 1e3
+    stats["plan_ms"] = stats["endpoints_ms"] + stats["tables_ms"]
+
+    def search_fn(attempt: int, deadline: Deadline) -> FloatArray | None:
+        if attempt == 0 and search.motion_free(query.start, query.goal):
+            stats["straight"] = 1.0
+            return np.stack([query.start, query.goal])
+        if deadline.expired():
+            return None
+        return search.run(deadline)
+
+    result = plan_until_certified(
+        query,
+        search_fn=search_fn,
+        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
+        shortcut_segment_fn=lambda a, b: query.checker.segment_free(a, b, SHORTCUT_CLEARANCE_M),
+        validator=validator,
+        deadline=deadline,
+        rng=rng,
+        shortcut_s=shortcut_s,
+        stats=stats,
+        none_found="no path found within the time budget",
+    )
+    stats.update(query.checker.stats())
+    stats["total_ms"] = (time.perf_counter() - began) * 1e3
+    return result

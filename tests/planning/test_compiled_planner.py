@@ -1,0 +1,114 @@
+"""The compiled planner's sphere covers, its three-valued state check and its search."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+import pytest
+import trimesh
+
+from tests.robots import TWO_JOINT_URDF
+from trajcache.geometry.collision.checker import FREE, CollisionChecker
+from trajcache.geometry.collision.compiled.spheres import COLLIDING, OPEN, sphere_state
+from trajcache.geometry.collision.sphere_tables import planner_covers, sphere_tables
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import Shape, ShapeKind
+from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.geometry.validation.validator import TrajectoryValidator
+from trajcache.planning.compiled_planner import plan_compiled
+from trajcache.planning.problem import PlannerStatus
+from trajcache.reference.example_robots import ROBOTS
+
+
+@cache
+def _robot(name: str) -> RobotModel:
+    example = ROBOTS[name]
+    return load_robot_model(example.urdf, files=example.files(), joint_names=example.joint_names,
+                            srdf=example.srdf, group=example.group, base=example.base)  # fmt: skip
+
+
+def _points(shape: Shape, rng: np.random.Generator, count: int) -> np.ndarray:
+    """Points of the shape: on its surface, and inside its solid where it has one."""
+    if shape.kind is ShapeKind.MESH:
+        assert shape.vertices is not None and shape.faces is not None
+        mesh = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
+        surface, _ = trimesh.sample.sample_surface(mesh, count, seed=int(rng.integers(1 << 30)))
+        return np.asarray(surface)
+    half = shape.half_extents()
+    box = rng.uniform(-half, half, size=(count * 4, 3))
+    if shape.kind is ShapeKind.BOX:
+        return box
+    radius = shape.size[0]
+    if shape.kind is ShapeKind.SPHERE:
+        return box[np.linalg.norm(box, axis=1) <= radius]
+    if shape.kind is ShapeKind.CYLINDER:
+        return box[np.hypot(box[:, 0], box[:, 1]) <= radius]
+    seg = np.clip(box[:, 2], -shape.size[1] / 2, shape.size[1] / 2)
+    return box[np.linalg.norm(box - np.c_[0 * seg, 0 * seg, seg], axis=1) <= radius]
+
+
+@pytest.mark.parametrize("name", sorted(ROBOTS))
+def test_the_planner_covers_cover_every_link(name: str) -> None:
+    """Random surface (and solid) points of every collision element of every example robot lie
+    inside a ball of its cover."""
+    model = _robot(name)
+    checker = CollisionChecker(model, make_scene([]))
+    count, local, radius, _ = planner_covers(checker.robot)
+    rng = np.random.default_rng(3)
+    for e, element in enumerate(model.elements):
+        points = _points(element.shape, rng, 400)
+        placed = points @ element.origin[:3, :3].T + element.origin[:3, 3]  # link frame
+        centres, radii = local[e, : count[e]], radius[e, : count[e]]
+        gaps = np.linalg.norm(placed[:, None, :] - centres[None], axis=-1) - radii[None]
+        assert np.all(gaps.min(axis=1) <= 0.0), f"{name}: element {e} not covered"
+
+
+def _box(oid: str, size: tuple[float, float, float], at: tuple[float, float, float]) -> SceneObject:
+    pose = np.eye(4)
+    pose[:3, 3] = at
+    return SceneObject(oid, Shape(ShapeKind.BOX, size), pose)
+
+
+def _shelf() -> Scene:
+    return make_scene(
+        [
+            _box("table", (0.8, 1.2, 0.05), (0.55, 0.0, 0.3)),
+            _box("wall", (0.05, 1.2, 0.8), (0.85, 0.0, 0.7)),
+            _box("board", (0.5, 1.2, 0.03), (0.6, 0.0, 0.75)),
+        ]
+    )
+
+
+@pytest.mark.parametrize("name", ["panda", "ur5"])
+def test_the_state_check_proves_only_what_the_exact_check_finds(name: str) -> None:
+    """FREE only where FCL finds no contact, COLLIDING only where it finds one; and the covers
+    settle most states (else the planner would hand everything to the exact check)."""
+    model = _robot(name)
+    checker = CollisionChecker(model, _shelf())
+    tables = sphere_tables(checker)
+    work = tables.work()
+    rng = np.random.default_rng(11)
+    states = model.lower + rng.random((600, model.dof)) * (model.upper - model.lower)
+    got = np.array([sphere_state(q, tables.fk, tables.robot, tables.scene, tables.pairs, work)
+                    for q in states])  # fmt: skip
+    exact = checker.check(states, stop_at_first=False).status
+    assert not np.any((got == 0) & (exact != FREE))
+    assert not np.any((got == COLLIDING) & (exact == FREE))
+    assert np.any(got == COLLIDING) and np.any(got == 0) and np.any(got == OPEN)
+
+
+def test_the_compiled_planner_finds_a_certified_path_around_a_wall() -> None:
+    model = load_robot_model(TWO_JOINT_URDF)
+    scene = make_scene([_box("lid", (0.15, 0.3, 0.06), (0.05, 0.0, 0.57))])
+    start, goal = np.array([-1.2, 0.3]), np.array([1.2, 0.3])
+    direct = CollisionChecker(model, scene).check(np.linspace(start, goal, 40), stop_at_first=True)
+    assert direct.first_collision >= 0  # the straight way is blocked
+    result = plan_compiled(model, scene, start, goal, budget_s=5.0, seed_value=1)
+    assert result.status is PlannerStatus.SOLVED, result.message
+    assert result.path is not None
+    np.testing.assert_allclose(result.path[0], start)
+    np.testing.assert_allclose(result.path[-1], goal)
+    assert TrajectoryValidator(model, scene).validate(result.path).valid
+    assert result.stats["search_ms"] > 0.0
