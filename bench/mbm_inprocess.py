@@ -91,7 +91,10 @@ def plan_problem(
         tally.notes[f"{result.status.value}: {result.message[:120]}"] += 1
         return
     tally.solved += 1
-    tally.planner_ms.append(stats.get("run_ms", 0.0) - stats.get("setup_ms", 0.0))
+    worker = stats.get("run_ms", 0.0) - stats.get("setup_ms", 0.0)
+    search = stats.get("search_ms", stats.get("plan_ms", 0.0))
+    tally.planner_ms.append(search + stats.get("simplify_ms", 0.0) + stats.get("shortcut_ms", 0.0))
+    tally.worker_ms.append(worker)
     tally.record_extras({"planner": args.planner or DEFAULT_PLANNER, **stats})
     states = np.asarray(result.path, dtype=float)
     tally.path_lengths.append(path_length(states))

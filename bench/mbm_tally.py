@@ -1,18 +1,21 @@
 """What the MBM benchmark counts per family, its figures, and the table it prints.
 
 Timings, in milliseconds, over the solved problems (a failure's time is its budget):
-- `planner_ms`: through the service, the answer's `timings_ms.plan`, the time the request waited
-  on the planner pool: the worker's scene setup, the search, the simplification and the
-  certification of the path (the answer splits it no finer; should it carry `search` and
-  `simplify`, their sum is taken instead). In process (`--in-process`): the planner's own run
-  after the per-scene setup (`run_ms − setup_ms` of `run_planning`), and `setup_ms` apart.
+- `planner_ms`: the search plus the simplification (what VAMP's published figures measure):
+  through the service, the answer's `timings_ms.search + simplify` (an answer without them:
+  `timings_ms.plan`, the time the request waited on the planner pool); in process
+  (`--in-process`), the planner's `search_ms` (OMPL: `plan_ms`) plus `simplify_ms` and
+  `shortcut_ms`. In process also `worker_ms`, the planner's whole run after the per-scene setup
+  (`run_ms − setup_ms` of `run_planning`: certification and repair too), and `setup_ms` apart.
 - `plan_ms`: the server's `timings_ms.total` of a planned answer (adds validation and storage).
 - `hit_server_ms`: the server's `timings_ms.total` of a replay answered from the cache.
 
 From the answers' extras, where they carry them (else null): `compiled_share`, the share of
-planned answers whose `planner` names `compiled`; `sphere_flag_rate` and `repair_rate`, the
-share of planned answers with a true or non-zero `sphere_flagged`/`sphere_flags` or
-`repaired`/`repairs` (in `timings_ms` or the answer itself; in process, the planner's stats).
+planned answers whose `planner` names `compiled`; `sphere_flag_rate`, the share of the states
+the compiled planner checked on its sphere trees that they left to the exact check
+(`sphere_open / sphere_states` of its stats; in process), else the share of planned answers
+with a true `sphere_flagged`/`sphere_flags`; `repair_rate`, the share of planned answers with a
+non-zero `repaired`/`repairs` (in `timings_ms` or the answer itself; in process, the stats).
 `path_length` is the joint-space length of a returned path (sum of Euclidean steps, rad).
 """
 
@@ -44,6 +47,9 @@ class Tally:
     planner_ms: list[float] = field(default_factory=list)
     plan_ms: list[float] = field(default_factory=list)
     setup_ms: list[float] = field(default_factory=list)  # in process: per-scene setup
+    worker_ms: list[float] = field(default_factory=list)  # in process: the planner's whole run
+    sphere_states: float = 0.0  # states the compiled planner checked on sphere trees
+    sphere_open: float = 0.0  # of which the trees left to the exact check
     path_lengths: list[float] = field(default_factory=list)
     planners: Counter[str] = field(default_factory=Counter)  # planned answers by planner name
     sphere_flags: list[bool] = field(default_factory=list)
@@ -57,6 +63,8 @@ class Tally:
     def record_extras(self, extras: Mapping[str, Any]) -> None:
         """Note what a planned answer says of its planner, spheres and repairs."""
         self.planners[str(extras.get("planner") or "unnamed")] += 1
+        self.sphere_states += float(extras.get("sphere_states", 0.0))
+        self.sphere_open += float(extras.get("sphere_open", 0.0))
         for keys, seen in ((SPHERE_KEYS, self.sphere_flags), (REPAIR_KEYS, self.repairs)):
             found = [extras[k] for k in keys if k in extras]
             if found:
@@ -76,6 +84,13 @@ def _all(tallies: list[Tally], name: str) -> list[Any]:
     return [v for t in tallies for v in getattr(t, name)]
 
 
+def _sphere_rate(tallies: list[Tally], flags: list[bool]) -> float | None:
+    states = sum(t.sphere_states for t in tallies)
+    if states:
+        return _share(sum(t.sphere_open for t in tallies), states)
+    return _share(sum(flags), len(flags))
+
+
 def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
     """The figures over several families."""
     problems = sum(t.problems for t in tallies)
@@ -91,6 +106,7 @@ def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
         f"{prefix}_ms_p95": percentile(planner_ms, 95),
     }
     if in_process:
+        out["worker_ms_median"] = percentile(_all(tallies, "worker_ms"))
         out["setup_ms_median"] = percentile(_all(tallies, "setup_ms"))
         out["setup_ms_p95"] = percentile(_all(tallies, "setup_ms"), 95)
     else:
@@ -98,7 +114,7 @@ def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
     replays = sum(t.replays for t in tallies)
     out |= {
         "compiled_share": _share(planners[COMPILED], sum(planners.values())),
-        "sphere_flag_rate": _share(sum(flags), len(flags)),
+        "sphere_flag_rate": _sphere_rate(tallies, flags),
         "repair_rate": _share(sum(repairs), len(repairs)),
         "path_length_median": percentile(_all(tallies, "path_lengths")),
         "collisions": counts["collisions"],

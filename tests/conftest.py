@@ -97,6 +97,6 @@ def data_dir_of_tests(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path
 def compiled_kernels() -> None:
     """The compiled kernels in numba's on-disk cache before any test starts a server (a server
     compiling them inside a request would time out)."""
-    from trajcache.geometry.warm import warm
+    from trajcache.planning.warm import warm
 
     warm()

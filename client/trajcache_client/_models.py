@@ -243,6 +243,7 @@ class PlanResult(_Answer):
     states: list[list[float]] | None
     candidates_tried: int
     timings_ms: dict[str, float]
+    planner: str | None = None  # the planner that found a planned answer's path
     message: str = ""
     rejected: list[Rejection] = Field(default_factory=list)
     quality: TrajectoryQuality | None = None

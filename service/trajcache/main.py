@@ -18,8 +18,8 @@ from trajcache.api.routes import health
 from trajcache.core.config import Settings, get_settings
 from trajcache.dashboard import mount_dashboard
 from trajcache.db import migrate as db_migrate
-from trajcache.geometry.warm import warm
 from trajcache.metrics import install_metrics
+from trajcache.planning.warm import warm
 from trajcache.services.background import start_background
 from trajcache.services.context import ServiceContext
 

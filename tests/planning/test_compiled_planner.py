@@ -11,7 +11,7 @@ import trimesh
 from tests.robots import TWO_JOINT_URDF
 from trajcache.geometry.collision.checker import FREE, CollisionChecker
 from trajcache.geometry.collision.compiled.spheres import COLLIDING, OPEN, sphere_state
-from trajcache.geometry.collision.sphere_tables import planner_covers, sphere_tables
+from trajcache.geometry.collision.sphere_tables import planner_trees, sphere_tables
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
@@ -49,20 +49,33 @@ def _points(shape: Shape, rng: np.random.Generator, count: int) -> np.ndarray:
     return box[np.linalg.norm(box - np.c_[0 * seg, 0 * seg, seg], axis=1) <= radius]
 
 
+def _found(tree: tuple[np.ndarray, ...], root: int, point: np.ndarray) -> bool:
+    """Whether descending from `root` through the balls that hold `point` reaches a leaf."""
+    centre, radius, first, count = tree[2], tree[3], tree[4], tree[5]
+    todo = [root]
+    while todo:
+        k = todo.pop()
+        if np.linalg.norm(centre[k] - point) > radius[k]:
+            continue
+        if first[k] < 0:
+            return True
+        todo.extend(range(first[k], first[k] + count[k]))
+    return False
+
+
 @pytest.mark.parametrize("name", sorted(ROBOTS))
-def test_the_planner_covers_cover_every_link(name: str) -> None:
-    """Random surface (and solid) points of every collision element of every example robot lie
-    inside a ball of its cover."""
+def test_the_sphere_trees_cover_every_link(name: str) -> None:
+    """Random surface (and solid) points of every collision element of every example robot are
+    found down its sphere tree: inside a leaf ball and inside every ball above it."""
     model = _robot(name)
     checker = CollisionChecker(model, make_scene([]))
-    count, local, radius, _ = planner_covers(checker.robot)
+    tree = planner_trees(checker.robot)
     rng = np.random.default_rng(3)
     for e, element in enumerate(model.elements):
-        points = _points(element.shape, rng, 400)
+        points = _points(element.shape, rng, 150)
         placed = points @ element.origin[:3, :3].T + element.origin[:3, 3]  # link frame
-        centres, radii = local[e, : count[e]], radius[e, : count[e]]
-        gaps = np.linalg.norm(placed[:, None, :] - centres[None], axis=-1) - radii[None]
-        assert np.all(gaps.min(axis=1) <= 0.0), f"{name}: element {e} not covered"
+        missed = [p for p in placed if not _found(tree, int(tree[1][e]), p)]
+        assert not missed, f"{name}: element {e} misses {len(missed)} points"
 
 
 def _box(oid: str, size: tuple[float, float, float], at: tuple[float, float, float]) -> SceneObject:
@@ -112,3 +125,31 @@ def test_the_compiled_planner_finds_a_certified_path_around_a_wall() -> None:
     np.testing.assert_allclose(result.path[-1], goal)
     assert TrajectoryValidator(model, scene).validate(result.path).valid
     assert result.stats["search_ms"] > 0.0
+
+
+def test_the_worker_task_dispatches_compiled_for_a_planar_base() -> None:
+    """By name through the worker task, for the reference robot on its planar base (held still
+    here), in the restroom: a certified path."""
+    from dataclasses import replace
+
+    from tests.planning.test_ompl_planner import DOWN, FORWARD
+    from trajcache.geometry.scene.payload import scene_to_payload
+    from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
+    from trajcache.planning.run import run_planning
+    from trajcache.reference.restroom import restroom_layout, restroom_scene
+    from trajcache.reference.robot import reference_model, reference_urdf
+
+    model = reference_model()
+    scene = restroom_scene(doors=45.0)
+    station = restroom_layout().station("stall_2")
+    base = (station.x, station.y, station.theta)
+    source = ModelSource(model_id=model.model_id, urdf=reference_urdf(), base=model.base.value,
+                         joint_names=model.joint_names)  # fmt: skip
+    payload = SceneSource(scene.hash, scene_to_payload(scene))
+    problem = PlanningProblem(model=source, scene=payload, start=base + DOWN, goal=base + FORWARD,
+                              budget_s=5.0, seed=3)  # fmt: skip
+    result = run_planning(replace(problem, planner="compiled"))
+    assert result.status is PlannerStatus.SOLVED, result.message
+    assert result.path is not None
+    assert TrajectoryValidator(model, scene).validate(result.path).valid
+    assert "search_ms" in result.stats

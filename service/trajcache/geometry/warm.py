@@ -1,8 +1,8 @@
 """Warming: compile (or load from numba's cache) every geometry kernel before a request needs it.
 
-The service calls `warm()` when it starts, the Celery worker before it forks its processes, and
-`make setup` once to fill numba's on-disk cache. The planner pool's forkserver imports
-`trajcache.jobs.preload`, which calls it.
+`planning/warm.py` calls `warm()` and then warms the compiled planner's kernels; the service
+calls that when it starts, the Celery worker before it forks its processes, `make setup` once to
+fill numba's on-disk cache, and the planner pool's forkserver through `trajcache.jobs.preload`.
 """
 
 from __future__ import annotations
@@ -13,9 +13,10 @@ from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.collision.compiled.spheres import sphere_state
 from trajcache.geometry.collision.sphere_tables import sphere_tables
 from trajcache.geometry.model.kernels import hull_support_climb
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.geometry.scene.scene import SceneObject, make_scene
+from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
 
 _WARM_URDF = """<robot name="warm">
@@ -44,6 +45,21 @@ def warm() -> None:
         vertices, index, index + 1, index, index, index + 1, index, np.zeros(2, dtype=np.int64),
         index, np.zeros((1, 3)), np.zeros(1),
     )  # fmt: skip
+    model, scene = warm_problem()
+    key = np.array([[-1.5, 0.0], [1.5, 0.1]])
+    validator = TrajectoryValidator(model, scene)
+    validator.validate(key)
+    validator.certifier.settled_by_bounds(key)
+    checker = CollisionChecker(model, scene)
+    checker.check(key, element_pad=np.full((2, len(model.elements)), 0.01),
+                  pair_pad=np.full((2, len(checker.robot.pair_i)), 0.01))  # fmt: skip
+    tables = sphere_tables(checker)
+    sphere_state(key[0], tables.fk, tables.robot, tables.scene, tables.pairs, tables.work())
+
+
+def warm_problem() -> tuple[RobotModel, Scene]:
+    """The small robot (a revolute and a prismatic joint) near a box and a mesh that warming
+    checks."""
     model = load_robot_model(_WARM_URDF, name="warm")
     tetra = Shape(
         ShapeKind.MESH,
@@ -57,15 +73,7 @@ def warm() -> None:
             SceneObject("mesh", tetra, _placed(-0.25, 0.0, 0.4)),
         ]
     )
-    key = np.array([[-1.5, 0.0], [1.5, 0.1]])
-    validator = TrajectoryValidator(model, scene)
-    validator.validate(key)
-    validator.certifier.settled_by_bounds(key)
-    checker = CollisionChecker(model, scene)
-    checker.check(key, element_pad=np.full((2, len(model.elements)), 0.01),
-                  pair_pad=np.full((2, len(checker.robot.pair_i)), 0.01))  # fmt: skip
-    tables = sphere_tables(checker)
-    sphere_state(key[0], tables.fk, tables.robot, tables.scene, tables.pairs, tables.work())
+    return model, scene
 
 
 def _placed(x: float, y: float, z: float) -> FloatArray:

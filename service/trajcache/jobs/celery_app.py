@@ -26,7 +26,6 @@ from kombu.exceptions import EncodeError, OperationalError
 from redis.exceptions import RedisError
 
 from trajcache.core.config import Settings, get_settings
-from trajcache.geometry.warm import warm
 from trajcache.jobs.backend import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
 from trajcache.jobs.sources import WorkerSources
 from trajcache.jobs.threads import pin_one_thread
@@ -37,6 +36,7 @@ from trajcache.jobs.wire import (
     task_message,
 )
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+from trajcache.planning.warm import warm
 from trajcache.services.errors import NotFoundError
 
 PLAN_TASK = "trajcache.plan"

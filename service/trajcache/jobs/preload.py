@@ -4,6 +4,6 @@ The planner pool's forkserver imports it before it forks any worker, so that eve
 with the kernels ready instead of loading them on its first plan.
 """
 
-from trajcache.geometry.warm import warm
+from trajcache.planning.warm import warm
 
 warm()

@@ -47,7 +47,7 @@ NAME = "compiled"
 ROUND_ITERATIONS = 256  # iterations between two returns to Python (exact checks, the clock)
 TREE_CAPACITY = 16_384  # nodes per tree
 PENDING = 64  # motions waiting for the exact check
-SIMPLIFY_ITERATIONS = 128
+SIMPLIFY_ITERATIONS = 24
 RANGE = 1.0  # extension step (rad, over all planning values)
 
 
@@ -146,7 +146,7 @@ def plan_compiled(
     *,
     budget_s: float,
     seed_value: int,
-    shortcut_s: float = 0.05,
+    shortcut_s: float = 0.0,
     resolution: Resolution | None = None,
     certified: bool = True,
 ) -> PlanResult:
@@ -192,5 +192,22 @@ def plan_compiled(
         none_found="no path found within the time budget",
     )
     stats.update(query.checker.stats())
+    counts = search.work[7]
+    stats["sphere_states"], stats["sphere_open"] = float(counts[0]), float(counts[1])
     stats["total_ms"] = (time.perf_counter() - began) * 1e3
     return result
+
+
+def warm_compiled(model: RobotModel, scene: Scene, start: FloatArray, goal: FloatArray) -> None:
+    """Compile (or load from numba's cache) the search kernels with the types a plan passes:
+    a motion check, rounds of the search and a simplification, for valid `start` and `goal`."""
+    query = prepare_query(model, scene, start, goal)
+    if isinstance(query, PlanResult):
+        raise ValueError(f"warm-up query refused: {query.message}")
+    stats = dict.fromkeys(("search_ms", "simplify_ms", "rounds", "open_motions", "exact_checks",
+                           "tree_nodes"), 0.0)  # fmt: skip
+    search = _Search(query, sphere_tables(query.checker.checker), stats)
+    search.motion_free(query.start, query.goal)
+    search.run(Deadline(0.01))
+    path = np.ascontiguousarray(np.stack([query.start, query.goal, query.start]))
+    simplify(path, 3, *search._args(), 1)  # type: ignore[call-arg]

@@ -17,6 +17,8 @@ from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.scene.variant import VariantCache, model_in_scene, variant_cache
+from trajcache.planning.compiled_planner import NAME as COMPILED
+from trajcache.planning.compiled_planner import plan_compiled
 from trajcache.planning.ompl_planner import plan_ompl
 from trajcache.planning.problem import (
     ModelSource,
@@ -64,7 +66,8 @@ def scene_from_source(source: SceneSource) -> Scene:
 
 
 def run_planning(problem: PlanningProblem) -> PlanResult:
-    """Plan one problem with the planner it names ("rris" or an OMPL planner); never raises."""
+    """Plan one problem with the planner it names ("compiled", "rris" or an OMPL planner);
+    never raises."""
     began = time.perf_counter()
     try:
         scene = scene_from_source(problem.scene)
@@ -73,7 +76,18 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
         )
         setup_ms = (time.perf_counter() - began) * 1e3
         name = problem.planner.strip().lower()
-        if name == RRIS:
+        if name == COMPILED:
+            result = plan_compiled(
+                model,
+                scene,
+                problem.start,
+                problem.goal,
+                budget_s=problem.budget_s,
+                seed_value=problem.seed,
+                resolution=problem.resolution,
+                certified=problem.certified_validation,
+            )
+        elif name == RRIS:
             result = plan_with_rris(
                 model,
                 scene,

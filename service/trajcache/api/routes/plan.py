@@ -91,6 +91,7 @@ def _response_body(answer: PlanAnswer) -> dict[str, object]:
         "trajectory_id": answer.trajectory_id,
         "states": answer.states.tolist() if answer.states is not None else None,
         "candidates_tried": answer.candidates_tried,
+        "planner": answer.planner,
         "timings_ms": answer.timings_ms,
         "message": answer.message,
         "rejected": [

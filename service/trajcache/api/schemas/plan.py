@@ -141,7 +141,15 @@ class PlanResponse(BaseModel):
     trajectory_id: int | None
     states: list[list[float]] | None
     candidates_tried: int
-    timings_ms: dict[str, float]
+    planner: str | None = Field(
+        default=None,
+        description="The planner that found a planned answer's path (null for a cache answer).",
+    )
+    timings_ms: dict[str, float] = Field(
+        description="Milliseconds per phase: lookup, validate, plan, db, total; a planned answer "
+        "adds the planner's own: search, simplify, certify (in the worker), repair, worker (its "
+        "whole run) and pool (the round trip around it)."
+    )
     message: str = ""
     rejected: list[Rejection] = []
     joint_trajectory: JointTrajectory | None = None

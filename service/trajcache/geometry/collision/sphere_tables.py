@@ -1,4 +1,4 @@
-"""The arrays `compiled/spheres.sphere_state` takes: a model's sphere covers, a scene's objects.
+"""The arrays `compiled/spheres.sphere_state` takes: a model's sphere trees, a scene's objects.
 
 Built from a `CollisionChecker`, so the elements (attached objects included, in a scene's model
 variant), the self-collision pairs still checked and the pairs the scene allows are exactly the
@@ -11,14 +11,14 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 
 from trajcache.geometry.collision.bodies import RobotGeometry
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.collision.compiled.spheres import BOX, CAPSULE, CYLINDER, MESH, SPHERE
+from trajcache.geometry.collision.pair_tables import pair_tables
 from trajcache.geometry.model.kinematics import fk_tables
-from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
-from trajcache.geometry.model.support import sphere_cover
+from trajcache.geometry.model.shapes import Shape, ShapeKind
+from trajcache.geometry.model.sphere_tree import sphere_tree
 
 _KINDS = {
     ShapeKind.BOX: BOX,
@@ -27,47 +27,33 @@ _KINDS = {
     ShapeKind.CAPSULE: CAPSULE,
     ShapeKind.MESH: MESH,
 }
-PLANNER_CELLS = 8  # cells along a box's or mesh's longest side in the planner's covers
-_COVERS: weakref.WeakKeyDictionary[RobotGeometry, tuple[np.ndarray, ...]] = (
+_TREES: weakref.WeakKeyDictionary[RobotGeometry, tuple[np.ndarray, ...]] = (
     weakref.WeakKeyDictionary()
 )
+STACK = 4096  # nodes (and node pairs) a descent may hold at once
 
 
-def surface_reach(shape: Shape, centres: FloatArray) -> FloatArray:
-    """Per cover ball centre of `shape` (local frame): how far it may be from a point of the
-    shape that FCL tests, so that the centre lying deeper than that inside an object proves
-    contact. A primitive is a solid and holds its cover's centres: 0. A mesh is its triangles:
-    the exact distance to the nearest one (trimesh), grown by a micrometre for round-off."""
-    if shape.kind is not ShapeKind.MESH:
-        return np.zeros(len(centres))
-    assert shape.vertices is not None and shape.faces is not None
-    mesh = trimesh.Trimesh(shape.vertices, shape.faces, process=False)
-    _, distance, _ = trimesh.proximity.closest_point(mesh, centres)
-    return np.asarray(distance, dtype=float) + 1e-6
-
-
-def planner_covers(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
-    """Every element's finer sphere cover (`PLANNER_CELLS`) in its link's frame: counts (E,),
-    centres (E, W, 3), radii (E, W) and surface reach (E, W), padded by repeating ball 0."""
-    covers = _COVERS.get(robot)
-    if covers is None:
-        elements = robot.model.elements
-        raw = [sphere_cover(e.shape, PLANNER_CELLS) for e in elements]
-        width = max((len(r) for _, r in raw), default=1)
-        count = np.array([len(r) for _, r in raw], dtype=np.int64)
-        local, radius, reach = (
-            np.zeros((len(raw), width, 3)),
-            np.zeros((len(raw), width)),
-            np.zeros((len(raw), width)),
+def planner_trees(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
+    """Every element's sphere tree (`model/sphere_tree.py`) packed, centres in the frame of the
+    element's link: element link (E,), root (E,), centres (N, 3), radii (N,), first child (N,),
+    child count (N,), reach (N,). Built once per model (variant)."""
+    packed = _TREES.get(robot)
+    if packed is None:
+        roots, parts, offset = [], [], 0
+        for element in robot.model.elements:
+            tree = sphere_tree(element.shape)
+            roots.append(offset)
+            centre = tree.centre @ element.origin[:3, :3].T + element.origin[:3, 3]
+            first = np.where(tree.first_child >= 0, tree.first_child + offset, -1)
+            parts.append((centre, tree.radius, first, tree.children, tree.reach))
+            offset += len(tree.radius)
+        packed = (
+            np.ascontiguousarray(robot.element_link),
+            np.array(roots, dtype=np.int64),
+            *(np.ascontiguousarray(np.concatenate([p[k] for p in parts])) for k in range(5)),
         )
-        for k, ((centres, radii), element) in enumerate(zip(raw, elements, strict=True)):
-            fill = np.r_[np.arange(len(radii)), np.zeros(width - len(radii), dtype=np.int64)]
-            placed = centres @ element.origin[:3, :3].T + element.origin[:3, 3]
-            local[k], radius[k] = placed[fill], radii[fill]
-            reach[k] = surface_reach(element.shape, centres)[fill]
-        covers = (count, local, radius, reach)
-        _COVERS[robot] = covers
-    return covers
+        _TREES[robot] = packed
+    return packed
 
 
 @dataclass(frozen=True)
@@ -76,19 +62,22 @@ class SphereTables:
 
     fk: tuple[object, ...]
     links: int
-    robot: tuple[np.ndarray, ...]
-    scene: tuple[np.ndarray, ...]
+    robot: tuple[object, ...]
+    scene: tuple[object, ...]
     pairs: tuple[np.ndarray, ...]
 
     def work(self) -> tuple[np.ndarray, ...]:
         """A fresh work buffer (one per thread)."""
-        links = self.links
-        elements, width = self.robot[4].shape[:2]
+        nodes = len(self.robot[3])  # type: ignore[arg-type]
         return (
-            np.zeros((1, links, 4, 4)),
-            np.zeros((elements, 3)),
-            np.zeros((elements, width, 3)),
-            np.zeros(elements, dtype=np.bool_),
+            np.zeros((1, self.links, 4, 4)),
+            np.zeros((nodes, 3)),
+            np.full(nodes, -1, dtype=np.int64),
+            np.zeros(1, dtype=np.int64),
+            np.zeros(STACK, dtype=np.int64),
+            np.zeros((STACK, 2), dtype=np.int64),
+            np.zeros((len(self.robot[1]), 3, 4)),  # type: ignore[arg-type]
+            np.zeros(2, dtype=np.int64),
         )
 
 
@@ -117,10 +106,9 @@ def sphere_tables(checker: CollisionChecker) -> SphereTables:
         fk=fk_tables(robot.model),
         links=len(robot.model.link_names),
         robot=(
-            np.ascontiguousarray(robot.element_link),
-            np.ascontiguousarray(robot.element_origin[:, :3, 3]),
-            np.ascontiguousarray(robot.radius, dtype=float),
-            *(np.ascontiguousarray(a) for a in planner_covers(robot)),
+            *planner_trees(robot),
+            np.ascontiguousarray(robot.element_origin),
+            robot.support.kernel_args,
         ),
         scene=(
             kinds,
@@ -128,6 +116,13 @@ def sphere_tables(checker: CollisionChecker) -> SphereTables:
             np.ascontiguousarray(position),
             np.ascontiguousarray(np.array([_object_size(o.shape) for o in objects]).reshape(-1, 3)),
             np.ascontiguousarray(allowed, dtype=np.bool_),
+            np.ascontiguousarray(np.array([o.pose[:3, :] for o in objects]).reshape(-1, 3, 4)),
+            scene.support.kernel_args,
+            np.ascontiguousarray(scene.half, dtype=float).reshape(-1, 3),
         ),
-        pairs=(np.ascontiguousarray(robot.pair_i), np.ascontiguousarray(robot.pair_j)),
+        pairs=(
+            np.ascontiguousarray(robot.pair_i),
+            np.ascontiguousarray(robot.pair_j),
+            *pair_tables(robot),
+        ),
     )

@@ -253,39 +253,47 @@ def seed(value):  # type: ignore[no-untyped-def]  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
+def _free(a, b, space, fk, robot, scene, pairs, work, none):  # type: ignore[no-untyped-def]  # pragma: no cover
+    status, _ = motion(a, b, space, fk, robot, scene, pairs, work, none)
+    return status == FREE
+
+
+@numba.njit(cache=True, nogil=True)
 def simplify(path, n, space, fk, robot, scene, pairs, work, iterations):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Shorten path[:n] in place: drop vertices that a FREE motion skips, then shortcut between
-    random points of two segments; only motions the covers prove FREE are taken. The count."""
+    """Shorten path[:n] in place; only motions the trees prove FREE are taken. The count.
+
+    First greedily from the start: from each kept vertex on, the last vertex, else the one
+    half as far, and so on, that a FREE motion reaches; then `iterations` shortcuts between
+    random points of two segments."""
     none = np.empty((0, path.shape[1]))
     planar = space[3]
+    kept, i = 1, 0  # path[:kept] is the result; reads are at i and beyond, writes at kept ≤ i + 1
+    while i < n - 1:
+        nxt = i + 1
+        span = n - 1 - i
+        while span >= 2:
+            if _free(path[i], path[i + span], space, fk, robot, scene, pairs, work, none):
+                nxt = i + span
+                break
+            span //= 2
+        path[kept] = path[nxt]
+        kept += 1
+        i = nxt
+    n = kept
     a, b = np.empty(path.shape[1]), np.empty(path.shape[1])
     for _ in range(iterations):
-        if n < 3:
-            break
-        i = np.random.randint(0, n - 2)
-        j = np.random.randint(i + 2, n)
-        status, _ = motion(path[i], path[j], space, fk, robot, scene, pairs, work, none)
-        if status == FREE:
-            gap = j - i - 1
-            path[i + 1 : n - gap] = path[j:n].copy()
-            n -= gap
-    for _ in range(iterations):
-        if n < 3:
+        if n < 3 or n + 1 > path.shape[0]:
             break
         i = np.random.randint(0, n - 2)
         j = np.random.randint(i + 1, n - 1)
-        ta, tb = np.random.random(), np.random.random()
-        _at(path[i], path[i + 1], ta, 1.0, planar, a)
-        _at(path[j], path[j + 1], tb, 1.0, planar, b)
+        _at(path[i], path[i + 1], np.random.random(), 1.0, planar, a)
+        _at(path[j], path[j + 1], np.random.random(), 1.0, planar, b)
         old = distance(a, path[i + 1], planar) + distance(path[j], b, planar)
         for k in range(i + 1, j):
             old += distance(path[k], path[k + 1], planar)
         if distance(a, b, planar) >= old - 1e-9:
             continue
-        if n + 1 > path.shape[0]:
-            break
-        status, _ = motion(a, b, space, fk, robot, scene, pairs, work, none)
-        if status == FREE:
+        if _free(a, b, space, fk, robot, scene, pairs, work, none):
             tail = path[j + 1 : n].copy()  # path[i + 1 .. j] become a, b
             path[i + 1] = a
             path[i + 2] = b

@@ -59,8 +59,11 @@ def answer_planned(
     *,
     seed: int | None,
     quality: QualityJob | None,
+    planner: str | None = None,
+    phases: Mapping[str, float] | None = None,
 ) -> PlanAnswer:
-    """Answer with the trajectory the planner found (stored); its quality is written later."""
+    """Answer with the trajectory the planner found (stored); its quality is written later.
+    `phases` are the planner's own times, added to the answer's timings (not to its record)."""
     timings = attempt.clock.timings()
     record = _record(
         attempt,
@@ -77,9 +80,10 @@ def answer_planned(
         trajectory_id,
         states,
         attempt.tried,
-        timings,
+        {**timings, **(phases or {})},
         rejected=attempt.rejected,
         record=record,
+        planner=planner,
     )
 
 

@@ -107,6 +107,7 @@ class PlanAnswer:
     record: int | None = None  # sequence number of the bookkeeping in `ctx.records`, if queued
     memo: MemoUse | None = None  # how the served cached trajectory was validated
     details: AnswerDetails | None = None  # quality and timing, when the caller asked for extras
+    planner: str | None = None  # the planner that found a planned answer's path
 
 
 class PhaseClock:

@@ -9,6 +9,7 @@ the scene it was planned in) is computed by the record writer, off the request p
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.jobs.pool import PlannerPool
@@ -70,7 +71,32 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
             trajectory_id,
             lambda: quality_columns(model, path, settings, scene, validators=validators),
         )
-    return answer_planned(attempt, trajectory_id, outcome.path, seed=seed, quality=job)
+    return answer_planned(
+        attempt,
+        trajectory_id,
+        outcome.path,
+        seed=seed,
+        quality=job,
+        planner=attempt.request.planner,
+        phases=planner_phases(outcome.stats, attempt.clock.seconds("plan") * 1e3),
+    )
+
+
+def planner_phases(stats: Mapping[str, float], plan_ms: float) -> dict[str, float]:
+    """Where a planned answer's planning time went, from the worker's counters: the search,
+    the simplification (compiled, then shortcutting), the worker's certification and repair,
+    the worker's whole run, and the pool's round trip around it."""
+    search = stats.get("search_ms", stats.get("plan_ms", 0.0))
+    simplify = stats.get("simplify_ms", 0.0) + stats.get("shortcut_ms", 0.0)
+    run = stats.get("run_ms", 0.0)
+    return {
+        "search": round(search, 3),
+        "simplify": round(simplify, 3),
+        "certify": round(stats.get("validate_ms", 0.0), 3),
+        "repair": round(stats.get("repair_ms", 0.0), 3),
+        "worker": round(run, 3),
+        "pool": round(max(plan_ms - run, 0.0), 3),
+    }
 
 
 def _problem(attempt: PlanAttempt) -> PlanningProblem:

@@ -1,21 +1,23 @@
 """One robot state against the scene and itself on sphere covers, compiled: free, open or
 colliding, for planners whose whole loop is compiled (`planning/compiled/`).
 
-The robot is its elements' sphere covers (`model/support.sphere_cover`: the union of an
-element's balls contains the element, surface and solid), behind one bounding ball per element.
-A scene object is its exact primitive (box, sphere, cylinder, capsule) or, for a mesh, its
-oriented bounding box. With sd(p) the signed distance from a point p to the object (negative
-inside):
+The robot is its elements' sphere trees (`model/sphere_tree.py`: every ball holds what its
+subtree's leaves cover, and the leaves cover all of the element FCL tests: a mesh's triangles,
+a primitive's solid). A scene object is its exact primitive (box, sphere, cylinder, capsule)
+or, for a mesh, its oriented bounding box. With sd(p) the signed distance from a point p to
+the object (negative inside):
 
-- FREE for an (element, object) row when the element's ball, or each of its cover balls
-  (c, r), has sd(c) > r: the ball, which contains (that part of) the element, misses the
-  object. A self-collision pair is free when its elements' balls, or every pair of their cover
-  balls, are apart. A state is FREE when every row and pair is: the proof is the cover's.
-- COLLIDING when a cover ball's centre lies deeper inside a (non-mesh) object than the centre's
-  distance e(c) to the element's surface (`sphere_tables.surface_reach`): the surface point
-  nearest c is within e(c) of c, so it lies inside the object, and the element's surface meets
-  the object's solid, which is a collision for FCL too. Nothing else is called colliding.
-- OPEN otherwise: the covers neither prove the state free nor colliding, and the exact check
+- FREE for an (element, object) row when every branch of the element's tree ends in a ball
+  (c, r) with sd(c) > r: that ball, which holds its subtree's part of the element, misses the
+  object. A self-collision pair is free when every pair of branches of the two trees ends in
+  two balls that are apart. A state is FREE when every row and pair is: the proof is the
+  trees'. A pair with a distance table (`pair_tables.py`: one or two joints move it) is free
+  first where the table's bound is positive.
+- COLLIDING when a leaf's centre lies deeper inside a (non-mesh) object than the leaf's reach
+  r(c), the distance from c to the nearest point of the element FCL tests: that point is
+  within r(c) of c, so it lies inside the object's solid, which is a collision for FCL too.
+  Nothing else is called colliding.
+- OPEN otherwise: the trees neither prove the state free nor colliding, and the exact check
   (FCL, in Python) decides. Self-collision pairs are never proven colliding here.
 
 `sphere_state` returns 0 (FREE), 1 (OPEN) or 2 (COLLIDING).
@@ -26,8 +28,8 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
+from trajcache.geometry.collision.compiled.slabs import self_slabs
 from trajcache.geometry.model.kernels import forward_kinematics_kernel
 
 FREE, OPEN, COLLIDING = 0, 1, 2
@@ -73,78 +75,157 @@ def pose_links(q, fk, links):  # type: ignore[no-untyped-def]  # pragma: no cove
 
 
 @numba.njit(cache=True, nogil=True)
-def _place_covers(e, pose, robot, world, placed):  # type: ignore[no-untyped-def]  # pragma: no cover
-    if placed[e]:
-        return
-    count, local = robot[3], robot[4]
-    for k in range(count[e]):
-        _place(pose, local[e, k], world[e, k])
-    placed[e] = True
+def _node(k, e, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """World centre of node k of element e's tree, placed once per state."""
+    links, world, stamp, clock = work[0], work[1], work[2], work[3]
+    if stamp[k] != clock[0]:
+        _place(links[0, robot[0][e]], robot[2][k], world[k])
+        stamp[k] = clock[0]
+    return world[k]
+
+
+@numba.njit(cache=True, nogil=True)
+def _scene_row(e, m, robot, scene, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """FREE, OPEN or COLLIDING for element e and object m, down e's tree."""
+    root, radius, first, count, reach = robot[1], robot[3], robot[4], robot[5], robot[6]
+    kind, rot, pos, size = scene[0][m], scene[1][m], scene[2][m], scene[3][m]
+    stack = work[4]
+    stack[0], top, status = root[e], 1, FREE
+    while top > 0:
+        top -= 1
+        k = stack[top]
+        w = _node(k, e, robot, work)
+        d = signed_distance(kind, rot, pos, size, w[0], w[1], w[2])
+        if d > radius[k]:
+            continue
+        if first[k] < 0:
+            if kind != MESH and -d > reach[k]:
+                return COLLIDING
+            status = OPEN
+        elif top + count[k] > stack.shape[0]:
+            status = OPEN  # too deep to follow: the exact check decides
+        else:
+            for c in range(count[k]):
+                stack[top] = first[k] + c
+                top += 1
+    return status
+
+
+@numba.njit(cache=True, nogil=True)
+def _pair_open(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Whether leaves of elements i and j meet (down both trees, the larger ball split)."""
+    root, radius, first, count = robot[1], robot[3], robot[4], robot[5]
+    stack = work[5]
+    stack[0, 0], stack[0, 1], top = root[i], root[j], 1
+    while top > 0:
+        top -= 1
+        a, b = stack[top, 0], stack[top, 1]
+        wa, wb = _node(a, i, robot, work), _node(b, j, robot, work)
+        gap = math.sqrt((wa[0] - wb[0]) ** 2 + (wa[1] - wb[1]) ** 2 + (wa[2] - wb[2]) ** 2)
+        if gap > radius[a] + radius[b]:
+            continue
+        if first[a] < 0 and first[b] < 0:
+            return True
+        split_a = first[b] < 0 or (first[a] >= 0 and radius[a] >= radius[b])
+        k = a if split_a else b
+        if top + count[k] > stack.shape[0]:
+            return True
+        for c in range(count[k]):
+            stack[top, 0] = first[k] + c if split_a else a
+            stack[top, 1] = b if split_a else first[k] + c
+            top += 1
+    return False
 
 
 @numba.njit(cache=True, nogil=True)
 def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """FREE, OPEN or COLLIDING (module docstring) for state q (D,).
 
-    robot: (element link (E,), element centre in its link (E, 3), bounding radius (E,),
-    cover count (E,), cover centres in the link (E, W, 3), cover radii (E, W), surface reach
-    of each centre (E, W)); scene: (kind (M,), rotation (M, 3, 3), position (M, 3), size
-    (M, 3), allowed (E, M)); pairs: (i (P,), j (P,)); work: (links (1, L, 4, 4), centres
-    (E, 3), cover centres (E, W, 3), placed (E,) bool)."""
-    links, centre, world, placed = work[0], work[1], work[2], work[3]
-    pose_links(q, fk, links)
-    link, local_centre, radius = robot[0], robot[1], robot[2]
-    count, cover_r, reach = robot[3], robot[5], robot[6]
-    kind, rot, pos, size, allowed = scene[0], scene[1], scene[2], scene[3], scene[4]
+    robot: (element link (E,), element root node (E,), node centres in their link's frame
+    (N, 3), radii (N,), first child (N,) (−1: a leaf), child count (N,), reach (N,), element
+    origins (E, 4, 4), support table); scene: (kind (M,), rotation (M, 3, 3), position (M, 3),
+    size (M, 3), allowed (E, M), poses (M, 3, 4), support table, box half extents (M, 3));
+    pairs: (i (P,), j (P,), then the distance tables of `pair_tables.py`); work: (links
+    (1, L, 4, 4), world centres (N, 3), stamps (N,),
+    clock (1,), stack (S,), pair stack (S, 2), element poses (E, 3, 4), counts (2,) of the
+    states checked and of those found OPEN).
+
+    Before a pair's trees are descended, the cheaper proofs: its distance table, the elements'
+    bounding balls and separating slabs (`slabs.py`, as the certification uses them)."""
+    pose_links(q, fk, work[0])
+    work[3][0] += 1
+    work[7][0] += 1
+    _pose_elements(robot, work)
+    allowed = scene[4]
     status = FREE
-    for e in range(link.shape[0]):
-        placed[e] = False
-        _place(links[0, link[e]], local_centre[e], centre[e])
-    for e in range(link.shape[0]):
-        pose = links[0, link[e]]
-        for m in range(kind.shape[0]):
+    for e in range(robot[1].shape[0]):
+        for m in range(scene[0].shape[0]):
             if allowed[e, m]:
                 continue
-            c = centre[e]
-            if signed_distance(kind[m], rot[m], pos[m], size[m], c[0], c[1], c[2]) > radius[e]:
-                continue
-            _place_covers(e, pose, robot, world, placed)
-            for k in range(count[e]):
-                w = world[e, k]
-                d = signed_distance(kind[m], rot[m], pos[m], size[m], w[0], w[1], w[2])
-                if d > cover_r[e, k]:
-                    continue
-                if kind[m] != MESH and -d > reach[e, k]:
-                    return COLLIDING
+            row = _scene_row(e, m, robot, scene, work)
+            if row == COLLIDING:
+                return COLLIDING
+            if row == OPEN:
                 status = OPEN
     if status == OPEN:
+        work[7][1] += 1
         return OPEN
     pi, pj = pairs[0], pairs[1]
     for p in range(pi.shape[0]):
-        i, j = pi[p], pj[p]
-        ci, cj = centre[i], centre[j]
-        gap = math.sqrt((ci[0] - cj[0]) ** 2 + (ci[1] - cj[1]) ** 2 + (ci[2] - cj[2]) ** 2)
-        if gap > radius[i] + radius[j]:
+        if pairs[2][p, 0] >= 0 and _table_bound(q, p, pairs) > 0.0:
             continue
-        _place_covers(i, links[0, link[i]], robot, world, placed)
-        _place_covers(j, links[0, link[j]], robot, world, placed)
-        if _covers_meet(i, j, count, world, cover_r, centre, radius):
+        if _pair_slab(pi[p], pj[p], robot, work):
+            continue
+        if _pair_open(pi[p], pj[p], robot, work):
+            work[7][1] += 1
             return OPEN
     return FREE
 
 
 @numba.njit(cache=True, nogil=True)
-def _covers_meet(i, j, count, world, cover_r, centre, radius):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Whether some cover ball of element i meets some of element j (balls of one that miss
-    the other's bounding ball are skipped)."""
-    for a in range(count[i]):
-        wa = world[i, a]
-        cj = centre[j]
-        if np.sqrt(np.sum((wa - cj) ** 2)) > cover_r[i, a] + radius[j]:
-            continue
-        for b in range(count[j]):
-            wb = world[j, b]
-            d = math.sqrt((wa[0] - wb[0]) ** 2 + (wa[1] - wb[1]) ** 2 + (wa[2] - wb[2]) ** 2)
-            if d <= cover_r[i, a] + cover_r[j, b]:
-                return True
+def _pose_elements(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """World poses (E, 3, 4) of the elements into work[6]."""
+    links, poses, link, origin = work[0], work[6], robot[0], robot[7]
+    for e in range(link.shape[0]):
+        frame = links[0, link[e]]
+        for r in range(3):
+            for c in range(4):
+                acc = frame[r, 0] * origin[e, 0, c] + frame[r, 1] * origin[e, 1, c]
+                acc += frame[r, 2] * origin[e, 2, c]
+                poses[e, r, c] = acc + (frame[r, 3] if c == 3 else 0.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _pair_slab(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Whether the elements' bounding balls, or a separating slab (`slabs.self_slabs`, with
+    meshes as boxes, then as hulls), prove elements i and j apart."""
+    root, radius, poses = robot[1], robot[3], work[6]
+    wi, wj = _node(root[i], i, robot, work), _node(root[j], j, robot, work)
+    gap = math.sqrt((wi[0] - wj[0]) ** 2 + (wi[1] - wj[1]) ** 2 + (wi[2] - wj[2]) ** 2)
+    if gap > radius[root[i]] + radius[root[j]]:
+        return True
+    if self_slabs(poses[i], poses[j], robot[8], i, j, False) > 0.0:
+        return True
+    sup = robot[8]
+    if sup[2][i] >= 0 or sup[2][j] >= 0:
+        return self_slabs(poses[i], poses[j], sup, i, j, True) > 0.0
     return False
+
+
+@numba.njit(cache=True, nogil=True)
+def _table_bound(q, p, pairs):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """A lower bound on pair p's distance at q from its table (`pair_tables.py`)."""
+    dofs, start, step, nodes, offset, bound, table = (
+        pairs[2], pairs[3], pairs[4], pairs[5], pairs[6], pairs[7], pairs[8],
+    )  # fmt: skip
+    index, stride, slack = 0, 1, 0.0
+    for k in range(1, -1, -1):  # row-major: the last joint varies fastest
+        d = dofs[p, k]
+        if d < 0:
+            continue
+        g = int(round((q[d] - start[p, k]) / step[p, k]))  # noqa: RUF046  (compiled)
+        g = min(max(g, 0), nodes[p, k] - 1)
+        slack += bound[p, k] * abs(q[d] - (start[p, k] + g * step[p, k]))
+        index += g * stride
+        stride *= nodes[p, k]
+    return table[offset[p] + index] - slack
