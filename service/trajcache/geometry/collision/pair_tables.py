@@ -2,8 +2,10 @@
 other (a wrist's links against the forearm), for the compiled planner's state check.
 
 Such a pair's distance d(q) depends on those joints' values only: every other joint moves both
-elements alike (`RobotGeometry.pair_mask`). It is measured exactly (coal, less the narrow
-phase's `EXACT_MARGIN`) at the nodes g of a grid over their limits. For any state q and the
+elements alike (`RobotGeometry.pair_mask`). It is bounded from below at the nodes g of a grid
+over their limits by coal's distance between the elements' convex hulls, which hold them, or
+where that is under `HULL_ENOUGH_M`, measured exactly (coal on the triangles); both less the
+narrow phase's `EXACT_MARGIN`. For any state q and the
 nearest node g, moving from g to q along a straight line in those values moves any point of one
 element relative to the other by at most Σ_d M_d |q_d − g_d|, with M_d the pair's
 configuration-independent motion bound per unit of joint d (`RobotGeometry.pair_motion`, the
@@ -17,7 +19,6 @@ and process, when a plan first needs it.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import weakref
 
@@ -27,17 +28,18 @@ import numpy as np
 from trajcache.core.lru import LRU
 from trajcache.geometry.collision.bodies import RobotGeometry
 from trajcache.geometry.collision.narrow import EXACT_MARGIN
+from trajcache.geometry.disk_cache import cached_arrays, digest
 from trajcache.geometry.model.kinematics import element_transforms, fk_tables, forward_kinematics
-from trajcache.geometry.model.shapes import Shape
 
-STEP_RAD = 0.04  # grid step of a joint's values (metres for a prismatic joint)
+STEP_RAD = 0.06  # grid step of a joint's values (metres for a prismatic joint)
 MAX_NODES = 30_000  # a pair whose grid would be larger gets no table
+HULL_ENOUGH_M = 0.05  # a hull distance at least this large is stored as the node's bound
 _TABLES: weakref.WeakKeyDictionary[RobotGeometry, tuple[np.ndarray, ...]] = (
     weakref.WeakKeyDictionary()
 )
 # One pair's distances by what they depend on (model variants of one robot share them): the
 # kinematic tables, the two elements' shapes and origins, and the grid.
-_DISTANCES: LRU[tuple[object, ...], tuple[np.ndarray, tuple[Shape, Shape]]] = LRU(capacity=512)
+_DISTANCES: LRU[str, np.ndarray] = LRU(capacity=512)
 
 
 def pair_tables(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
@@ -88,32 +90,26 @@ def _build(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
 def _cached_distances(
     robot: RobotGeometry, p: int, moving: np.ndarray, grid: np.ndarray
 ) -> np.ndarray:
+    """The pair's distances, from memory or the disk cache (`geometry/disk_cache.py`), keyed
+    by all they depend on: the kinematics, both elements' links, origins and shapes, the grid."""
     i, j = int(robot.pair_i[p]), int(robot.pair_j[p])
-    elements = robot.model.elements
-    key = (
-        _kinematics_digest(robot),
-        id(elements[i].shape),
-        id(elements[j].shape),
-        elements[i].origin.tobytes(),
-        elements[j].origin.tobytes(),
-        int(elements[i].link),
-        int(elements[j].link),
-        tuple(int(d) for d in moving),
-        grid.tobytes(),
-    )
+    content: list[object] = [STEP_RAD, HULL_ENOUGH_M, EXACT_MARGIN, moving, grid]
+    content += [np.asarray(part) for part in fk_tables(robot.model)]
+    for k in (i, j):
+        element = robot.model.elements[k]
+        shape = element.shape
+        content += [int(element.link), element.origin, shape.kind.value]
+        content += [np.asarray(shape.size, dtype=float)]
+        if shape.vertices is not None and shape.faces is not None:
+            content += [np.asarray(shape.vertices, float), np.asarray(shape.faces, np.int64)]
+    key = digest(content)
     hit = _DISTANCES.get(key)
     if hit is None:
-        hit = (_distances(robot, p, moving, grid), (elements[i].shape, elements[j].shape))
-        _DISTANCES.put(key, hit)  # the shapes are kept with it: their ids stay theirs
-    return hit[0]
-
-
-def _kinematics_digest(robot: RobotGeometry) -> str:
-    """A digest of the forward kinematics (joints, held values, base)."""
-    digest = hashlib.sha256()
-    for part in fk_tables(robot.model):
-        digest.update(np.asarray(part).tobytes())
-    return digest.hexdigest()
+        arrays = cached_arrays(
+            "pair-tables", key, lambda: {"distance": _distances(robot, p, moving, grid)}
+        )
+        hit = _DISTANCES.put(key, arrays["distance"])
+    return hit
 
 
 def _distances(robot: RobotGeometry, p: int, moving: np.ndarray, grid: np.ndarray) -> np.ndarray:
@@ -126,14 +122,18 @@ def _distances(robot: RobotGeometry, p: int, moving: np.ndarray, grid: np.ndarra
     states[:, moving] = grid
     poses = element_transforms(model, forward_kinematics(model, states))
     i, j = int(robot.pair_i[p]), int(robot.pair_j[p])
-    body_i, body_j = robot.exact.exact[i], robot.exact.exact[j]
+    exact, hull = robot.exact.exact, robot.exact.hull
     request = coal.DistanceRequest()
     out = np.empty(len(grid))
     for n in range(len(grid)):
         a, b = poses[n, i], poses[n, j]
-        out[n] = coal.distance(
-            body_i, coal.Transform3s(a[:3, :3], a[:3, 3]),
-            body_j, coal.Transform3s(b[:3, :3], b[:3, 3]),
-            request, coal.DistanceResult(),
-        )  # fmt: skip
+        placed_a = coal.Transform3s(a[:3, :3], a[:3, 3])
+        placed_b = coal.Transform3s(b[:3, :3], b[:3, 3])
+        # The hulls hold the elements, so their distance is a lower bound: kept where it is
+        # large enough to prove the pair apart near this node, measured exactly elsewhere.
+        out[n] = coal.distance(hull[i], placed_a, hull[j], placed_b, request, coal.DistanceResult())
+        if out[n] < HULL_ENOUGH_M:
+            out[n] = coal.distance(
+                exact[i], placed_a, exact[j], placed_b, request, coal.DistanceResult()
+            )
     return out - EXACT_MARGIN

@@ -26,6 +26,7 @@ import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
+from trajcache.geometry.disk_cache import cached_arrays, digest
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.support import sphere_cover
 
@@ -66,6 +67,31 @@ def sphere_tree(shape: Shape, leaf: float = LEAF_M) -> SphereTree:
 
 
 def _build(shape: Shape, leaf: float) -> SphereTree:
+    """The tree from the disk cache (`geometry/disk_cache.py`), else built and stored."""
+    content: list[object] = [shape.kind.value, np.asarray(shape.size, dtype=float), leaf]
+    if shape.kind is ShapeKind.MESH:
+        content += [np.asarray(shape.vertices, dtype=float), np.asarray(shape.faces, np.int64)]
+    arrays = cached_arrays("sphere-trees", digest(content), lambda: _arrays(_tree(shape, leaf)))
+    return SphereTree(
+        centre=arrays["centre"],
+        radius=arrays["radius"],
+        first_child=arrays["first_child"].astype(np.int64),
+        children=arrays["children"].astype(np.int64),
+        reach=arrays["reach"],
+    )
+
+
+def _arrays(tree: SphereTree) -> dict[str, np.ndarray]:
+    return {
+        "centre": tree.centre,
+        "radius": tree.radius,
+        "first_child": tree.first_child,
+        "children": tree.children,
+        "reach": tree.reach,
+    }
+
+
+def _tree(shape: Shape, leaf: float) -> SphereTree:
     if shape.kind is ShapeKind.MESH:
         assert shape.vertices is not None and shape.faces is not None
         return _mesh_tree(np.asarray(shape.vertices, float), np.asarray(shape.faces), leaf)
