@@ -144,4 +144,5 @@ class MotionPlanResponse(TypedDict):
     trajectory: RobotTrajectory
     planning_time: float
     error_code: MoveItErrorCode
+    warnings: list[str]
     trajcache: TrajcacheExtras

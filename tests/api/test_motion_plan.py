@@ -309,13 +309,8 @@ def test_planar_base_moves_in_the_multi_dof_trajectory(app_client: TestClient) -
             ["attached_collision_objects", "not supported"],
         ),
         ({**_request(), "max_cartesian_speed": 0.2}, ["max_cartesian_speed", "not supported"]),
-        ({**_request(), "planner_id": "CHOMP"}, ["CHOMP", "rrtconnect", "RRTConnect"]),
         ({**_request(), "pipeline_id": "pilz"}, ["pipeline_id", "ompl"]),
         ({**_request(), "max_velocity_scaling_factor": 1.5}, ["max_velocity_scaling_factor"]),
-        (
-            {**_request(), "allowed_planning_time": 100.0},
-            ["allowed_planning_time", "plan_budget_max_s"],
-        ),
     ],
     ids=[
         "bad-yaml",
@@ -327,10 +322,8 @@ def test_planar_base_moves_in_the_multi_dof_trajectory(app_client: TestClient) -
         "trajectory-constraints",
         "attached-objects",
         "cartesian-speed",
-        "unknown-planner",
         "other-pipeline",
         "scaling-above-1",
-        "budget-above-limit",
     ],
 )
 def test_malformed_or_unsupported_requests_are_422(

@@ -18,7 +18,6 @@ from trajcache.api.moveit import (
 from trajcache.core.config import Settings
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.services.errors import InvalidInputError
 
 SETTINGS = Settings.model_construct()
 ARM = load_robot_model(TWO_JOINT_URDF)
@@ -74,8 +73,9 @@ def test_budget_planner_and_scaling_are_taken() -> None:
     assert (query.request.budget_s, query.request.planner) == (4.5, "bitstar")
     assert (query.timing.velocity_scaling, query.timing.acceleration_scaling) == (0.25, 0.5)
     too_long = message.model_copy(update={"allowed_planning_time": 31.0})
-    with pytest.raises(InvalidInputError, match="plan_budget_max_s=30"):
-        motion_plan_query(too_long, model=ARM, settings=SETTINGS)
+    clamped = motion_plan_query(too_long, model=ARM, settings=SETTINGS)
+    assert clamped.request.budget_s == 30.0  # plan_budget_max_s, with a warning
+    assert any("plan_budget_max_s=30" in w for w in clamped.warnings)
 
 
 def test_held_joints_must_sit_at_their_held_values() -> None:

@@ -2,8 +2,10 @@
 
 Every message lists all of its ROS fields and forbids others, so a misspelt field (a constraint
 under a wrong name, say) is a 422 naming it instead of being dropped. Fields trajcache does not
-use are typed loosely and ignored; fields it cannot honour (path or trajectory constraints,
-reference trajectories, a Cartesian speed limit, attached objects) are refused when not empty.
+use are typed loosely and ignored (the answer's warnings name them); fields it cannot honour
+(path or trajectory constraints, reference trajectories, a Cartesian speed limit, attached
+objects) are refused when not empty. Vectors and quaternions may be mappings (`{x: 1, y: 2,
+z: 3}`) or lists in field order (`[x, y, z]`, `[x, y, z, w]`), as MoveIt's YAML tools write them.
 """
 
 from __future__ import annotations
@@ -34,16 +36,33 @@ class _Message(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True)
 
 
-class Vector3(_Message):
-    """`geometry_msgs/Vector3` (and `Point`)."""
+class _Components(_Message):
+    """A message of plain components, also given as a list of them in field order."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_list(cls, data: Any) -> Any:
+        if not isinstance(data, list | tuple):
+            return data
+        names = list(cls.model_fields)
+        if len(data) != len(names):
+            raise ValueError(
+                f"a list must have {len(names)} values ({', '.join(names)}), got {len(data)}"
+            )
+        return dict(zip(names, data, strict=True))
+
+
+class Vector3(_Components):
+    """`geometry_msgs/Vector3` (and `Point`): a mapping or `[x, y, z]`."""
 
     x: Finite = 0.0
     y: Finite = 0.0
     z: Finite = 0.0
 
 
-class Quaternion(_Message):
-    """`geometry_msgs/Quaternion`; all zeros (a ROS 1 default) means identity."""
+class Quaternion(_Components):
+    """`geometry_msgs/Quaternion`, a mapping or `[x, y, z, w]`; all zeros (a ROS 1 default)
+    means identity."""
 
     x: Finite = 0.0
     y: Finite = 0.0
@@ -215,12 +234,16 @@ class MotionPlanRequestIn(_Message):
         default="",
         description="A trajcache planner (" + ", ".join(PLANNER_NAMES) + "), case-insensitive, "
         "or a MoveIt/OMPL id such as 'RRTConnect', 'RRTConnectkConfigDefault', "
-        "'geometric::BITstar'; empty: the service default.",
+        "'geometric::BITstar'; empty: the service default; any other id: the service default, "
+        "with a warning.",
     )
     group_name: Name = Field(default="", description="Echoed in the response.")
     num_planning_attempts: int = Field(default=0, ge=0, description="Ignored.")
     allowed_planning_time: Finite = Field(
-        default=0.0, ge=0, description="Planning budget (s); 0: the service default."
+        default=0.0,
+        ge=0,
+        description="Planning budget (s); 0: the service default; above plan_budget_max_s: "
+        "plan_budget_max_s, with a warning.",
     )
     max_velocity_scaling_factor: Finite = Field(
         default=0.0, ge=0, le=1, description="Factor on velocity limits, 0 < f ≤ 1; 0 means 1."
@@ -278,18 +301,22 @@ class MotionPlanRequestIn(_Message):
             raise ValueError(f"pipeline {value!r} is not served; leave it empty or use 'ompl'")
         return value
 
-    @field_validator("planner_id")
-    @classmethod
-    def _known_planner(cls, value: str) -> str:
-        return native_planner(value)
+
+def known_planner(planner_id: str) -> str | None:
+    """The native planner name of a MoveIt/OMPL planner id ('' stays ''); None if it names none.
+
+    Only exact names count (after `geometric::` and `kConfigDefault` go, in any case): an id is
+    never guessed from a prefix, so `BKPIECEGood` or `LBKPIECE1` name no planner here."""
+    given = planner_id.strip().lower()
+    key = given.removeprefix("geometric::").removesuffix("kconfigdefault")
+    key = PLANNER_ALIASES.get(key, key)
+    return key if not given or key in PLANNER_NAMES else None
 
 
 def native_planner(planner_id: str) -> str:
     """The native planner name of a MoveIt/OMPL planner id ('' stays ''); ValueError if none."""
-    given = planner_id.strip().lower()
-    key = given.removeprefix("geometric::").removesuffix("kconfigdefault")
-    key = PLANNER_ALIASES.get(key, key)
-    if given and key not in PLANNER_NAMES:
+    key = known_planner(planner_id)
+    if key is None:
         known = ", ".join(PLANNER_NAMES)
         raise ValueError(
             f"unknown planner {planner_id!r}; use one of {known} (any case), or their OMPL ids "

@@ -42,6 +42,7 @@ def answered_body(
         trajectory=_robot_trajectory(model, extras["joint_trajectory"], query.base_joint),
         code=code,
         text="" if code is MoveItErrorCode.SUCCESS else answer.message,
+        warnings=list(query.warnings),
         trajcache={
             "status": answer.status.value,
             "source": answer.source.value if answer.source else None,
@@ -60,7 +61,12 @@ def answered_body(
 
 
 def refused_body(
-    *, message: MotionPlanRequestIn, code: MoveItErrorCode, text: str, began: float
+    *,
+    message: MotionPlanRequestIn,
+    code: MoveItErrorCode,
+    text: str,
+    began: float,
+    warnings: Sequence[str] = (),
 ) -> dict[str, Any]:
     """The response to a request refused before planning: its start state echoed, no path."""
     multi_dof = message.start_state.multi_dof_joint_state
@@ -84,6 +90,7 @@ def refused_body(
         trajectory=_robot_trajectory(None, None, ""),
         code=code,
         text=text,
+        warnings=list(warnings),
         trajcache={
             "status": "invalid",
             "source": None,
@@ -105,6 +112,7 @@ def _body(
     trajectory: dict[str, Any],
     code: MoveItErrorCode,
     text: str,
+    warnings: list[str],
     trajcache: dict[str, Any],
     began: float,
 ) -> dict[str, Any]:
@@ -114,6 +122,7 @@ def _body(
         "trajectory": trajectory,
         "planning_time": round(time.perf_counter() - began, 6),
         "error_code": {"val": int(code), "message": text, "source": SOURCE},
+        "warnings": warnings,
         "trajcache": trajcache,
     }
 

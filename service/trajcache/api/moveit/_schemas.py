@@ -174,6 +174,7 @@ class MotionPlanResponseOut(BaseModel):
                     },
                     "planning_time": 0.004,
                     "error_code": {"val": 1, "message": "", "source": "trajcache"},
+                    "warnings": [],
                     "trajcache": {
                         "status": "success",
                         "source": "cache",
@@ -199,4 +200,9 @@ class MotionPlanResponseOut(BaseModel):
     trajectory: RobotTrajectoryOut
     planning_time: float = Field(description="Seconds spent in the service on this request.")
     error_code: ErrorCodeOut
+    warnings: list[str] = Field(
+        description="What of the request was read differently from MoveIt (an unknown "
+        "planner_id, a clamped allowed_planning_time, a start or goal moved onto a joint limit, "
+        "fixed joints) or ignored.",
+    )
     trajcache: TrajcacheExtrasOut

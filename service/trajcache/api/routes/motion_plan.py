@@ -32,7 +32,7 @@ from trajcache.api.moveit import (
 )
 from trajcache.api.responses import COMMON, errors
 from trajcache.geometry.errors import StateError
-from trajcache.services.catalog.robot_model import robot_model
+from trajcache.services.catalog.robot_model import robot_model_and_held
 from trajcache.services.plan.flow import answer_request
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
@@ -109,16 +109,19 @@ RawBodyDep = Annotated[RawBody, Depends(read_raw_body)]
     summary="Plan with MoveIt's messages: a MotionPlanRequest in, a MotionPlanResponse out",
     description="Takes a `moveit_msgs/MotionPlanRequest` as rosbridge-style JSON or YAML (bare, "
     "or wrapped as `motion_plan_request` or `request`) and answers it like `POST "
-    "/v1/robots/{robot_id}/plan`, from the same cache: the start is `start_state` by joint name "
-    "(a planar base: the first multi-DOF joint), the goal the first of `goal_constraints` whose "
-    "joint constraints cover every planning joint, the budget `allowed_planning_time`, the "
-    "planner `planner_id` (native or OMPL names). The answer is a `moveit_msgs/"
-    "MotionPlanResponse` timed under the velocity and acceleration scaling factors, plus "
-    "`trajcache` (cache or planner, timings). A well-formed request is answered 200 with MoveIt's "
-    "error code: 1 success, -1 no path, -6 planner timeout, -10/-12 start/goal in collision, "
-    "-16 unusable goal constraints (position/orientation goals included), -17 unusable start "
-    "state. Path and trajectory constraints, reference trajectories, Cartesian speed limits and "
-    "attached objects are refused (422), never ignored.",
+    "/v1/robots/{robot_id}/plan`, from the same cache: the start is `start_state` by joint "
+    "name (a planar base: the first multi-DOF joint), the goal the first of "
+    "`goal_constraints` whose joint constraints cover every planning joint, the budget "
+    "`allowed_planning_time` (at most plan_budget_max_s), the planner `planner_id` (native or"
+    " OMPL names; another id: the default planner). Start and goal positions just outside the"
+    " joint limits are moved onto them as MoveIt does; what is read differently from MoveIt, "
+    "or ignored, is listed in `warnings`. The answer is a `moveit_msgs/MotionPlanResponse` "
+    "timed under the velocity and acceleration scaling factors, plus `trajcache` (cache or "
+    "planner, timings). A well-formed request is answered 200 with MoveIt's error code: 1 "
+    "success, -1 no path, -6 planner timeout, -10/-12 start/goal in collision, -16 unusable "
+    "goal constraints (position/orientation goals included), -17 unusable start state. Path "
+    "and trajectory constraints, reference trajectories, Cartesian speed limits and attached "
+    "objects are refused (422), never ignored.",
     openapi_extra=_BODY,
     responses=errors(
         {
@@ -132,8 +135,7 @@ RawBodyDep = Annotated[RawBody, Depends(read_raw_body)]
                 "unsupported content type 'text/csv'; send application/json or application/yaml",
             ),
             422: (
-                "Malformed body, an unsupported field, an unknown planner or a budget above "
-                "plan_budget_max_s",
+                "Malformed body or an unsupported field",
                 "body.path_constraints: Value error, path constraints are not supported: "
                 "trajcache cannot honour them, so it refuses them",
             ),
@@ -144,20 +146,24 @@ def motion_plan_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> R
     """Answer a MoveIt motion plan request from the cache or the planner."""
     began = time.perf_counter()
     message = parse_motion_plan_request(body.media_type, body.data)
-    model = robot_model(ctx=ctx, robot_id=robot_id)
+    model, held = robot_model_and_held(ctx=ctx, robot_id=robot_id)
     try:
-        query = motion_plan_query(message, model=model, settings=ctx.settings)
+        query = motion_plan_query(message, model=model, settings=ctx.settings, held=held)
+    except MotionPlanError as exc:
+        return _json(refused_body(message=message, code=exc.code, text=str(exc), began=began))
+    try:
         answer = answer_request(
             ctx=ctx,
             robot_id=robot_id,
             request=query.request,
             extras=answer_extras(query.timing, "basic"),
         )
-    except MotionPlanError as exc:
-        return _json(refused_body(message=message, code=exc.code, text=str(exc), began=began))
     except StateError as exc:  # a start or goal in collision (the native endpoint's 422)
         code = state_error_code(exc)
-        return _json(refused_body(message=message, code=code, text=str(exc), began=began))
+        refused = refused_body(
+            message=message, code=code, text=str(exc), began=began, warnings=query.warnings
+        )
+        return _json(refused)
     content = answered_body(message=message, query=query, model=model, answer=answer, began=began)
     # The request's cycle ends (after the response is sent) once its bookkeeping is written.
     background = None
