@@ -29,6 +29,7 @@ from trajcache.api.schemas.robots import (
     SceneVersionOut,
 )
 from trajcache.geometry.errors import SceneError
+from trajcache.geometry.scene.frames import root_frames
 from trajcache.geometry.scene.moveit_diff import apply_scene_diff, is_scene_diff
 from trajcache.geometry.scene.parse import load_scene_text, parse_scene
 from trajcache.geometry.scene.scene import Scene
@@ -194,8 +195,10 @@ def load_scene_body(body: SceneBody) -> Mapping[str, Any]:
     summary="Replace the robot's scene (native, MoveIt world, JSON or YAML)",
     description="Replaces the scene with collision objects in the world frame (box, sphere, "
     "cylinder, capsule, mesh) and named environment values, in native form or as the "
-    "`world.collision_objects` of a MoveIt PlanningScene, as JSON or YAML. Answers the new "
-    "version and content hash; unchanged content keeps the current version.",
+    "`world.collision_objects` of a MoveIt PlanningScene, as JSON or YAML. A PlanningScene's "
+    "objects may also be given in the root link's frame of a fixed-base robot, or of a link "
+    "fixed to it (as MoveIt resolves it); a planar base's root frame is refused (it moves). "
+    "Answers the new version and content hash; unchanged content keeps the current version.",
     openapi_extra=_SCENE_BODY,
     responses=errors(
         {
@@ -214,9 +217,9 @@ def put_scene_route(
     document = load_scene_body(body)
     if is_scene_diff(document):
         return _put_scene_diff(robot_id, document, ctx, session)
-    scene = parse_scene(document)
     robot = get_robot(session=session, robot_id=robot_id)
     model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
+    scene = parse_scene(document, root_frames(model))  # objects may be in the root link's frame
     warnings = scene_warnings(model, scene)
     version, scene_hash = put_scene(
         session=session,
@@ -237,7 +240,7 @@ def _put_scene_diff(
     warnings: list[str] = []
 
     def changed(current: Scene) -> Scene:
-        scene = apply_scene_diff(current, document)
+        scene = apply_scene_diff(current, document, root_frames(model))
         warnings[:] = scene_warnings(model, scene)
         return scene
 

@@ -2,7 +2,9 @@
 
 Accepted: the whole message (`world.collision_objects`), `{"world": {...}}` or
 `{"collision_objects": [...]}`, as decoded from JSON/YAML (rosbridge-style dicts; points and
-quaternions may also be plain lists). World objects must be in a world frame. An object with
+quaternions may also be plain lists). World objects must be in a world frame, or in a robot
+frame the caller resolves (`frames.py`: the root link of a fixed base and links fixed to it). An
+object with
 several shapes becomes several scene objects `id`, `id#1`, `id#2` … (primitives first, then
 meshes); the object pose composes with each shape pose. As in MoveIt itself, an all-zero
 quaternion in a message means identity (a default-constructed pose).
@@ -26,6 +28,7 @@ import numpy as np
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import FloatArray, ShapeKind
 from trajcache.geometry.scene.fields import make_shape, number_list, parse_pose
+from trajcache.geometry.scene.frames import NO_FRAMES, SceneFrames, object_frame
 from trajcache.geometry.scene.scene import (
     MAX_OBJECTS,
     AttachedObject,
@@ -35,7 +38,6 @@ from trajcache.geometry.scene.scene import (
     matrix_to_quaternion,
 )
 
-WORLD_FRAMES = frozenset({"", "world", "map", "odom"})
 # shape_msgs/SolidPrimitive type constants
 BOX, SPHERE, CYLINDER, CONE = 1, 2, 3, 4
 _PRIMITIVE_NAMES = {"box": BOX, "sphere": SPHERE, "cylinder": CYLINDER, "cone": CONE}
@@ -80,25 +82,6 @@ def _enum(value: Any, names: Mapping[str, int], where: str) -> int:
     return value
 
 
-def _frame_id(obj: Mapping[str, Any], oid: str, link: str | None = None) -> None:
-    header = obj.get("header") or {}
-    if not isinstance(header, Mapping):
-        raise SceneError(f"object {oid!r}: header must be a mapping")
-    frame = header.get("frame_id", "")
-    if link is not None:
-        if not isinstance(frame, str) or frame.lstrip("/") not in ("", link):
-            raise SceneError(
-                f"attached object {oid!r}: header.frame_id {frame!r} is not its link "
-                f"{link!r}; give its pose in the frame of the link that carries it"
-            )
-        return
-    if not isinstance(frame, str) or frame.lstrip("/") not in WORLD_FRAMES:
-        raise SceneError(
-            f"object {oid!r}: header.frame_id {frame!r} is not a world frame "
-            f"(only {sorted(WORLD_FRAMES)} are supported)"
-        )
-
-
 def _primitive(raw: Any, oid: str, where: str) -> tuple[ShapeKind, list[float]]:
     if not isinstance(raw, Mapping):
         raise SceneError(f"object {oid!r}: {where} must be a mapping")
@@ -141,14 +124,15 @@ def _poses(obj: Mapping[str, Any], key: str, count: int, oid: str) -> list[Float
 
 
 def object_shapes(
-    obj: Mapping[str, Any], oid: str, link: str | None = None
+    obj: Mapping[str, Any], oid: str, link: str | None = None, frames: SceneFrames = NO_FRAMES
 ) -> list[tuple[Any, FloatArray]]:
-    """(Shape, pose) for every primitive then mesh of one CollisionObject: world poses, or
-    poses in the frame of `link` for an attached object."""
-    _frame_id(obj, oid, link)
+    """(Shape, pose) for every primitive then mesh of one CollisionObject: world poses (its
+    frame resolved with `frames`), or poses in the frame of `link` for an attached object."""
+    frame = object_frame(obj, oid, link, frames)
     if _as_list(obj.get("planes"), f"object {oid!r}: planes"):
         raise SceneError(f"object {oid!r}: planes are not supported")
-    base = parse_pose(obj.get("pose"), f"object {oid!r}: pose", zero_is_identity=True)
+    pose = parse_pose(obj.get("pose"), f"object {oid!r}: pose", zero_is_identity=True)
+    base = frame @ pose
     out: list[tuple[Any, FloatArray]] = []
     primitives = _as_list(obj.get("primitives"), f"object {oid!r}: primitives")
     for i, (raw, pose) in enumerate(
@@ -165,7 +149,9 @@ def object_shapes(
     return out
 
 
-def parse_moveit_objects(payload: Mapping[str, Any]) -> list[SceneObject]:
+def parse_moveit_objects(
+    payload: Mapping[str, Any], frames: SceneFrames = NO_FRAMES
+) -> list[SceneObject]:
     """Scene objects from a PlanningScene world; REMOVE entries are skipped, APPEND extends."""
     groups: dict[str, list[tuple[Any, FloatArray]]] = {}
     for n, obj in enumerate(collision_objects(payload)):
@@ -183,7 +169,7 @@ def parse_moveit_objects(payload: Mapping[str, Any]) -> list[SceneObject]:
             raise SceneError(f"duplicate object id {oid!r}")
         if op not in (ADD, APPEND):
             raise SceneError(f"object {oid!r}: unknown operation {op}")
-        shapes = object_shapes(obj, oid)
+        shapes = object_shapes(obj, oid, frames=frames)
         if not shapes:
             raise SceneError(f"object {oid!r}: no primitives or meshes")
         groups.setdefault(oid, []).extend(shapes)
@@ -200,11 +186,14 @@ def parts(oid: str, shapes: Sequence[tuple[Any, FloatArray]]) -> list[SceneObjec
     ]
 
 
-def parse_planning_scene(payload: Mapping[str, Any], env: Mapping[str, float]) -> Scene:
-    """A scene from a PlanningScene message: world objects, attached objects and the allowed
-    collision matrix; what is not applied is listed in the scene's warnings."""
+def parse_planning_scene(
+    payload: Mapping[str, Any], env: Mapping[str, float], frames: SceneFrames = NO_FRAMES
+) -> Scene:
+    """A scene from a PlanningScene message: world objects (in world frames or `frames`),
+    attached objects and the allowed collision matrix; what is not applied is listed in the
+    scene's warnings."""
     warnings: list[str] = []
-    objects = parse_moveit_objects(payload) if _has_world(payload) else []
+    objects = parse_moveit_objects(payload, frames) if _has_world(payload) else []
     attached = _attached_objects(payload.get("robot_state"), warnings)
     allowed = parse_matrix(payload.get("allowed_collision_matrix"), warnings)
     if payload.get("is_diff"):

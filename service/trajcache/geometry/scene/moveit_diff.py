@@ -34,6 +34,7 @@ from typing import Any
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import FloatArray, Shape
 from trajcache.geometry.scene.fields import parse_env
+from trajcache.geometry.scene.frames import NO_FRAMES, SceneFrames
 from trajcache.geometry.scene.moveit import (
     ADD,
     APPEND,
@@ -74,7 +75,7 @@ def _attached_groups(scene: Scene) -> dict[str, list[AttachedObject]]:
 
 
 def _apply_world(
-    groups: dict[str, Shapes], payload: Mapping[str, Any], warnings: list[str]
+    groups: dict[str, Shapes], payload: Mapping[str, Any], warnings: list[str], frames: SceneFrames
 ) -> set[str]:
     """Apply the world's collision objects to `groups`; return the ids the diff names."""
     named: set[str] = set()
@@ -102,7 +103,7 @@ def _apply_world(
             )
         if op not in (ADD, APPEND):
             raise SceneError(f"object {oid!r}: unknown operation {op}")
-        shapes = object_shapes(obj, oid)
+        shapes = object_shapes(obj, oid, frames=frames)
         if not shapes:
             raise SceneError(f"object {oid!r}: no primitives or meshes")
         named.add(oid)
@@ -172,11 +173,13 @@ def _state_given(state: Mapping[str, Any]) -> bool:
     return False
 
 
-def apply_scene_diff(current: Scene, payload: Mapping[str, Any]) -> Scene:
+def apply_scene_diff(
+    current: Scene, payload: Mapping[str, Any], frames: SceneFrames = NO_FRAMES
+) -> Scene:
     """`current` with the PlanningScene diff `payload` applied (see the module docstring)."""
     warnings: list[str] = []
     groups = _world_groups(current)
-    named = _apply_world(groups, payload, warnings)
+    named = _apply_world(groups, payload, warnings, frames)
     before = _attached_groups(current)
     held = _apply_attached(before, payload.get("robot_state"), named)
     dropped = sorted(set(before) - set(held) - named)

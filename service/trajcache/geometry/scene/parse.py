@@ -14,6 +14,7 @@ import yaml
 
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.scene.fields import parse_env
+from trajcache.geometry.scene.frames import NO_FRAMES, SceneFrames
 from trajcache.geometry.scene.moveit import is_planning_scene, parse_planning_scene
 from trajcache.geometry.scene.payload import parse_native_scene
 from trajcache.geometry.scene.scene import Scene
@@ -21,13 +22,14 @@ from trajcache.geometry.scene.scene import Scene
 MAX_SCENE_TEXT_BYTES = 16 * 1024 * 1024
 
 
-def parse_scene(payload: Mapping[str, Any]) -> Scene:
-    """Parse a native scene or a MoveIt PlanningScene (whole, `{"world": ...}` or bare list)."""
+def parse_scene(payload: Mapping[str, Any], frames: SceneFrames = NO_FRAMES) -> Scene:
+    """Parse a native scene or a MoveIt PlanningScene (whole, `{"world": ...}` or bare list);
+    a PlanningScene's objects may also be given in the robot frames `frames` resolves."""
     if not isinstance(payload, Mapping):
         raise SceneError("a scene must be a mapping")
     env = parse_env(payload.get("env"))
     if is_planning_scene(payload):
-        return parse_planning_scene(payload, env)
+        return parse_planning_scene(payload, env, frames)
     return parse_native_scene(payload, env)
 
 
