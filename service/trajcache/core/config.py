@@ -119,7 +119,7 @@ class Settings(BaseSettings):
         default=30.0, gt=0, description="Largest planner time budget a request may ask for (s)."
     )
     default_planner: str = Field(
-        default="rrtconnect", min_length=1, description="Planner used when a request names none."
+        default="compiled", min_length=1, description="Planner used when a request names none."
     )
     negative_cache_ttl_s: float = Field(
         default=30.0,

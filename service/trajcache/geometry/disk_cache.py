@@ -15,6 +15,7 @@ import os
 import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import overload
 
 import numpy as np
 import platformdirs
@@ -44,10 +45,29 @@ def _folder() -> Path | None:
     return Path(platformdirs.user_cache_dir("trajcache", appauthor=False)) / "planner"
 
 
+@overload
 def cached_arrays(
     kind: str, key: str, build: Callable[[], dict[str, np.ndarray]]
-) -> dict[str, np.ndarray]:
-    """The arrays stored under `kind` and `key`, else `build()`'s, stored for next time."""
+) -> dict[str, np.ndarray]: ...
+
+
+@overload
+def cached_arrays(
+    kind: str,
+    key: str,
+    build: Callable[[], dict[str, np.ndarray]],
+    build_if: Callable[[], bool],
+) -> dict[str, np.ndarray] | None: ...
+
+
+def cached_arrays(
+    kind: str,
+    key: str,
+    build: Callable[[], dict[str, np.ndarray]],
+    build_if: Callable[[], bool] | None = None,
+) -> dict[str, np.ndarray] | None:
+    """The arrays stored under `kind` and `key`, else `build()`'s, stored for next time; None
+    when they are not stored and `build_if()` says not to build them now."""
     folder = _folder()
     path = None if folder is None else folder / kind / f"{key}.npz"
     if path is not None and path.is_file():
@@ -56,6 +76,8 @@ def cached_arrays(
                 return {name: stored[name] for name in stored.files}
         except (OSError, ValueError):
             pass  # unreadable: built again below
+    if build_if is not None and not build_if():
+        return None
     arrays = build()
     if path is not None:
         try:

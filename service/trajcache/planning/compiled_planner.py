@@ -49,6 +49,7 @@ TREE_CAPACITY = 16_384  # nodes per tree
 PENDING = 64  # motions waiting for the exact check
 SIMPLIFY_ITERATIONS = 24
 RANGE = 1.0  # extension step (rad, over all planning values)
+TABLE_SHARE = 0.2  # of the budget, at most, for building missing pair tables (kept after)
 
 
 @dataclass
@@ -166,7 +167,8 @@ def plan_compiled(
     for key in ("search_ms", "simplify_ms", "rounds", "open_motions", "exact_checks", "tree_nodes"):
         stats[key] = 0.0
     tables_began = time.perf_counter()
-    search = _Search(query, sphere_tables(query.checker.checker), stats)
+    tables = sphere_tables(query.checker.checker, TABLE_SHARE * budget_s)
+    search = _Search(query, tables, stats)
     stats["tables_ms"] = (time.perf_counter() - tables_began) * 1e3
     stats["endpoints_ms"] = (tables_began - began) * 1e3
     stats["plan_ms"] = stats["endpoints_ms"] + stats["tables_ms"]

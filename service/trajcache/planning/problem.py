@@ -70,7 +70,7 @@ class PlanningProblem:
     start: tuple[float, ...]
     goal: tuple[float, ...]
     budget_s: float = 2.0
-    planner: str = "rrtconnect"
+    planner: str = "compiled"
     seed: int = 0  # the planners' random seed: the same seed repeats the same search
     shortcut_s: float = 0.25
     joint_values: tuple[tuple[str, float], ...] = ()  # the robot's held joint values, if set

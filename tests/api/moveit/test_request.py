@@ -53,7 +53,7 @@ def test_defaults_come_from_the_settings_and_scaling_zero_is_one() -> None:
     request = query.request
     assert request.start == {"shoulder": 0.0, "elbow": 0.0}
     assert request.goal == {"shoulder": 1.0, "elbow": 0.5}
-    assert (request.budget_s, request.planner) == (SETTINGS.plan_budget_s, "rrtconnect")
+    assert (request.budget_s, request.planner) == (SETTINGS.plan_budget_s, SETTINGS.default_planner)
     assert (request.threshold, request.fallback, request.lookup) == (0.2, True, True)
     assert (query.timing.velocity_scaling, query.timing.acceleration_scaling) == (1.0, 1.0)
     assert query.timing.method == "toppra"

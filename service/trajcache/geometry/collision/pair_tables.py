@@ -20,6 +20,7 @@ and process, when a plan first needs it.
 from __future__ import annotations
 
 import math
+import time
 import weakref
 
 import coal
@@ -42,18 +43,22 @@ _TABLES: weakref.WeakKeyDictionary[RobotGeometry, tuple[np.ndarray, ...]] = (
 _DISTANCES: LRU[str, np.ndarray] = LRU(capacity=512)
 
 
-def pair_tables(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
+def pair_tables(robot: RobotGeometry, budget_s: float = math.inf) -> tuple[np.ndarray, ...]:
     """Per pair (P,): its table's joints (P, 2) (−1: none), grid start (P, 2), step (P, 2),
     node count (P, 2), offset into the flat table (P,), motion bound per unit (P, 2); then the
-    flat table of distances."""
+    flat table of distances.
+
+    Tables not yet in memory or on disk are built while `budget_s` lasts; a pair left without
+    one is checked down its trees (slower, as sound), and a later call builds the rest."""
     packed = _TABLES.get(robot)
     if packed is None:
-        packed = _build(robot)
-        _TABLES[robot] = packed
+        packed, complete = _build(robot, time.perf_counter() + budget_s)
+        if complete:
+            _TABLES[robot] = packed
     return packed
 
 
-def _build(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
+def _build(robot: RobotGeometry, until: float) -> tuple[tuple[np.ndarray, ...], bool]:
     model = robot.model
     count = len(robot.pair_i)
     dofs = np.full((count, 2), -1, dtype=np.int64)
@@ -64,6 +69,7 @@ def _build(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
     tables: list[np.ndarray] = []
     total = 0
     _, whole = robot.pair_motion()
+    complete = True
     for p in range(count):
         moving = np.flatnonzero(robot.pair_mask[p])
         lo, hi = model.lower[moving], model.upper[moving]
@@ -74,7 +80,11 @@ def _build(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
             continue
         axes = [np.linspace(low, h, n) for low, h, n in zip(lo, hi, sizes, strict=True)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(moving))
-        tables.append(_cached_distances(robot, p, moving, grid))
+        distances = _cached_distances(robot, p, moving, grid, until)
+        if distances is None:
+            complete = False
+            continue
+        tables.append(distances)
         k = len(moving)
         dofs[p, :k] = moving
         start[p, :k] = lo
@@ -84,12 +94,12 @@ def _build(robot: RobotGeometry) -> tuple[np.ndarray, ...]:
         bound[p, :k] = whole[moving, p]
         total += len(grid)
     flat = np.concatenate(tables) if tables else np.zeros(0)
-    return dofs, start, step, nodes, offset, bound, np.ascontiguousarray(flat)
+    return (dofs, start, step, nodes, offset, bound, np.ascontiguousarray(flat)), complete
 
 
 def _cached_distances(
-    robot: RobotGeometry, p: int, moving: np.ndarray, grid: np.ndarray
-) -> np.ndarray:
+    robot: RobotGeometry, p: int, moving: np.ndarray, grid: np.ndarray, until: float
+) -> np.ndarray | None:
     """The pair's distances, from memory or the disk cache (`geometry/disk_cache.py`), keyed
     by all they depend on: the kinematics, both elements' links, origins and shapes, the grid."""
     i, j = int(robot.pair_i[p]), int(robot.pair_j[p])
@@ -106,8 +116,13 @@ def _cached_distances(
     hit = _DISTANCES.get(key)
     if hit is None:
         arrays = cached_arrays(
-            "pair-tables", key, lambda: {"distance": _distances(robot, p, moving, grid)}
+            "pair-tables",
+            key,
+            lambda: {"distance": _distances(robot, p, moving, grid)},
+            build_if=lambda: time.perf_counter() < until,
         )
+        if arrays is None:
+            return None
         hit = _DISTANCES.put(key, arrays["distance"])
     return hit
 

@@ -7,6 +7,7 @@ ones the exact check uses.
 
 from __future__ import annotations
 
+import math
 import weakref
 from dataclasses import dataclass
 
@@ -78,6 +79,7 @@ class SphereTables:
             np.zeros((STACK, 2), dtype=np.int64),
             np.zeros((len(self.robot[1]), 3, 4)),  # type: ignore[arg-type]
             np.zeros(2, dtype=np.int64),
+            np.zeros((len(self.robot[1]), 3)),  # type: ignore[arg-type]
         )
 
 
@@ -92,7 +94,26 @@ def _object_size(shape: Shape) -> list[float]:
     return [float(v) for v in shape.half_extents()]
 
 
-def sphere_tables(checker: CollisionChecker) -> SphereTables:
+def _element_boxes(robot: RobotGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """Each element's box in its own frame (centre, half extents): a mesh's vertices' box, a
+    primitive's own (about its origin)."""
+    centres, halves = [], []
+    for element in robot.model.elements:
+        shape = element.shape
+        if shape.kind is ShapeKind.MESH and shape.vertices is not None:
+            lo, hi = shape.vertices.min(axis=0), shape.vertices.max(axis=0)
+            centres.append((lo + hi) / 2.0)
+            halves.append((hi - lo) / 2.0 + 1e-9)
+        else:
+            centres.append(np.zeros(3))
+            halves.append(np.asarray(shape.half_extents(), dtype=float) + 1e-9)
+    return (
+        np.ascontiguousarray(np.array(centres, dtype=float).reshape(-1, 3)),
+        np.ascontiguousarray(np.array(halves, dtype=float).reshape(-1, 3)),
+    )
+
+
+def sphere_tables(checker: CollisionChecker, table_budget_s: float = math.inf) -> SphereTables:
     """The arrays of one model (variant) in one scene."""
     robot, scene = checker.robot, checker.scene
     elements = len(robot.model.elements)
@@ -109,6 +130,7 @@ def sphere_tables(checker: CollisionChecker) -> SphereTables:
             *planner_trees(robot),
             np.ascontiguousarray(robot.element_origin),
             robot.support.kernel_args,
+            *_element_boxes(robot),
         ),
         scene=(
             kinds,
@@ -123,6 +145,6 @@ def sphere_tables(checker: CollisionChecker) -> SphereTables:
         pairs=(
             np.ascontiguousarray(robot.pair_i),
             np.ascontiguousarray(robot.pair_j),
-            *pair_tables(robot),
+            *pair_tables(robot, table_budget_s),
         ),
     )

@@ -74,7 +74,7 @@ class PlanRequest:
     max_candidates: int
     fallback: bool = True
     budget_s: float = 2.0
-    planner: str = "rrtconnect"
+    planner: str = "compiled"
     arm_only: bool = False  # match on arm joints only when the base does not move
     lookup: bool = True  # False: skip the cache and plan (a fresh plan is still stored)
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 
 import numba
+import numpy as np
 
 from trajcache.geometry.collision.compiled.slabs import self_slabs
 from trajcache.geometry.model.kernels import forward_kinematics_kernel
@@ -143,14 +144,16 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
 
     robot: (element link (E,), element root node (E,), node centres in their link's frame
     (N, 3), radii (N,), first child (N,) (−1: a leaf), child count (N,), reach (N,), element
-    origins (E, 4, 4), support table); scene: (kind (M,), rotation (M, 3, 3), position (M, 3),
+    origins (E, 4, 4), support table, element box centres (E, 3) and half extents (E, 3) in the
+    element's frame); scene: (kind (M,), rotation (M, 3, 3), position (M, 3),
     size (M, 3), allowed (E, M), poses (M, 3, 4), support table, box half extents (M, 3));
     pairs: (i (P,), j (P,), then the distance tables of `pair_tables.py`); work: (links
     (1, L, 4, 4), world centres (N, 3), stamps (N,),
     clock (1,), stack (S,), pair stack (S, 2), element poses (E, 3, 4), counts (2,) of the
-    states checked and of those found OPEN).
+    states checked and of those found OPEN, element box centres (E, 3)).
 
-    Before a pair's trees are descended, the cheaper proofs: its distance table, the elements'
+    Before trees are descended, the cheaper proofs: oriented boxes apart (an element's box
+    holds it; an object's box holds it), and for a pair its distance table, the elements'
     bounding balls and separating slabs (`slabs.py`, as the certification uses them)."""
     pose_links(q, fk, work[0])
     work[3][0] += 1
@@ -158,9 +161,14 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     _pose_elements(robot, work)
     allowed = scene[4]
     status = FREE
+    poses, box_centre, box_half = work[6], work[8], robot[10]
     for e in range(robot[1].shape[0]):
         for m in range(scene[0].shape[0]):
             if allowed[e, m]:
+                continue
+            if obb_apart(
+                poses[e], box_centre[e], box_half[e], scene[1][m], scene[2][m], scene[7][m]
+            ):
                 continue
             row = _scene_row(e, m, robot, scene, work)
             if row == COLLIDING:
@@ -183,6 +191,37 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
 
 
 @numba.njit(cache=True, nogil=True)
+def obb_apart(ra, ca, ha, rb, cb, hb):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Whether two oriented boxes (rotation whose columns are the axes, centre, half extents)
+    are apart: a separating axis among the 15 of the separating axis theorem. The rotation
+    terms are grown by 1e-9 so that round-off never claims a separation."""
+    c = np.empty((3, 3))
+    a = np.empty((3, 3))
+    t = np.empty(3)
+    for i in range(3):
+        t[i] = ra[0, i] * (cb[0] - ca[0]) + ra[1, i] * (cb[1] - ca[1]) + ra[2, i] * (cb[2] - ca[2])
+        for j in range(3):
+            c[i, j] = ra[0, i] * rb[0, j] + ra[1, i] * rb[1, j] + ra[2, i] * rb[2, j]
+            a[i, j] = abs(c[i, j]) + 1e-9
+    for i in range(3):
+        if abs(t[i]) > ha[i] + hb[0] * a[i, 0] + hb[1] * a[i, 1] + hb[2] * a[i, 2]:
+            return True
+    for j in range(3):
+        proj = t[0] * c[0, j] + t[1] * c[1, j] + t[2] * c[2, j]
+        if abs(proj) > ha[0] * a[0, j] + ha[1] * a[1, j] + ha[2] * a[2, j] + hb[j]:
+            return True
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            reach_a = ha[i1] * a[i2, j] + ha[i2] * a[i1, j]
+            reach_b = hb[j1] * a[i, j2] + hb[j2] * a[i, j1]
+            if abs(t[i2] * c[i1, j] - t[i1] * c[i2, j]) > reach_a + reach_b:
+                return True
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
 def _pose_elements(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """World poses (E, 3, 4) of the elements into work[6]."""
     links, poses, link, origin = work[0], work[6], robot[0], robot[7]
@@ -193,6 +232,7 @@ def _pose_elements(robot, work):  # type: ignore[no-untyped-def]  # pragma: no c
                 acc = frame[r, 0] * origin[e, 0, c] + frame[r, 1] * origin[e, 1, c]
                 acc += frame[r, 2] * origin[e, 2, c]
                 poses[e, r, c] = acc + (frame[r, 3] if c == 3 else 0.0)
+        _place(poses[e], robot[9][e], work[8][e])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -203,6 +243,9 @@ def _pair_slab(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no
     wi, wj = _node(root[i], i, robot, work), _node(root[j], j, robot, work)
     gap = math.sqrt((wi[0] - wj[0]) ** 2 + (wi[1] - wj[1]) ** 2 + (wi[2] - wj[2]) ** 2)
     if gap > radius[root[i]] + radius[root[j]]:
+        return True
+    centre, half = work[8], robot[10]
+    if obb_apart(poses[i], centre[i], half[i], poses[j], centre[j], half[j]):
         return True
     if self_slabs(poses[i], poses[j], robot[8], i, j, False) > 0.0:
         return True
