@@ -56,9 +56,10 @@ def test_state_error_codes_follow_the_state_named_first() -> None:
     ("planner_id", "native"),
     [
         ("", ""),
-        ("RRTConnect", "rrtconnect"),
-        ("RRTConnectkConfigDefault", "rrtconnect"),
-        ("geometric::RRTConnect", "rrtconnect"),
+        ("RRTConnect", ""),  # MoveIt's RRTConnect ids: the service's default planner
+        ("RRTConnectkConfigDefault", ""),
+        ("geometric::RRTConnect", ""),
+        ("rrtconnect", "rrtconnect"),  # the native name: OMPL's RRTConnect
         ("BITstar", "bitstar"),
         ("geometric::BITstarkConfigDefault", "bitstar"),
         ("BIT*", "bitstar"),

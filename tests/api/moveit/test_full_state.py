@@ -79,8 +79,9 @@ def test_an_unknown_planner_id_falls_back_to_the_default_with_a_warning() -> Non
     lbkpiece = _query(ARM, _message({"shoulder": 0.0, "elbow": 0.0}, planner_id="LBKPIECE1"))
     assert lbkpiece.request.planner == SETTINGS.default_planner
     _warned(lbkpiece, "'LBKPIECE1'")
-    for known, native in [("RRTConnectkConfigDefault", "rrtconnect"), ("RRTConnect", "rrtconnect"),
-                          ("KPIECE1", "kpiece")]:  # fmt: skip
+    for known, native in [("RRTConnectkConfigDefault", SETTINGS.default_planner),
+                          ("RRTConnect", SETTINGS.default_planner), ("KPIECE1", "kpiece"),
+                          ("rrtconnect", "rrtconnect")]:  # fmt: skip
         query = _query(ARM, _message({"shoulder": 0.0, "elbow": 0.0}, planner_id=known))
         assert query.request.planner == native
         assert not any("planner_id" in w for w in query.warnings)

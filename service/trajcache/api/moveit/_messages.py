@@ -233,9 +233,9 @@ class MotionPlanRequestIn(_Message):
     planner_id: Name = Field(
         default="",
         description="A trajcache planner (" + ", ".join(PLANNER_NAMES) + "), case-insensitive, "
-        "or a MoveIt/OMPL id such as 'RRTConnect', 'RRTConnectkConfigDefault', "
-        "'geometric::BITstar'; empty: the service default; any other id: the service default, "
-        "with a warning.",
+        "or a MoveIt/OMPL id such as 'RRTConnectkConfigDefault', 'geometric::BITstar'; MoveIt's "
+        "RRTConnect ids (any spelling but the native 'rrtconnect') and empty: the service "
+        "default; any other id: the service default, with a warning.",
     )
     group_name: Name = Field(default="", description="Echoed in the response.")
     num_planning_attempts: int = Field(default=0, ge=0, description="Ignored.")
@@ -306,9 +306,14 @@ def known_planner(planner_id: str) -> str | None:
     """The native planner name of a MoveIt/OMPL planner id ('' stays ''); None if it names none.
 
     Only exact names count (after `geometric::` and `kConfigDefault` go, in any case): an id is
-    never guessed from a prefix, so `BKPIECEGood` or `LBKPIECE1` name no planner here."""
+    never guessed from a prefix, so `BKPIECEGood` or `LBKPIECE1` name no planner here. MoveIt's
+    own RRTConnect ids (`RRTConnect`, `RRTConnectkConfigDefault`, `geometric::RRTConnect`: any
+    spelling but the native `rrtconnect`) mean the service's default planner, the compiled
+    RRT-Connect, which plans the same way; `rrtconnect` in lower case names OMPL's."""
     given = planner_id.strip().lower()
     key = given.removeprefix("geometric::").removesuffix("kconfigdefault")
+    if key == "rrtconnect" and planner_id.strip() != "rrtconnect":
+        return ""
     key = PLANNER_ALIASES.get(key, key)
     return key if not given or key in PLANNER_NAMES else None
 
