@@ -11,8 +11,9 @@ team would over HTTP:
   (`application/yaml`), and one native plan request (`POST /v1/robots/{id}/plan`): start and goal
   are the request's seven arm joint values (a goal outside the joint limits is clamped into them
   and counted, `clamped_goals`), fallback planning with --budget seconds and `lookup: false`
-  (the MoveIt request itself is not sent: its planner id and finger joints are not accepted
-  as sent). --planner names the planner of every request.
+  (the native request, so that --budget and --planner apply as given; the MoveIt request files
+  themselves are accepted as sent, `tests/api/test_mbm_requests.py`). --planner names the
+  planner of every request.
 - Replays each solved problem once, start and goal moved by uniform noise of up to ±0.02 rad per
   joint (seeded per problem, within the limits, redrawn until free by the dense check), with the
   lookup on: whether the cache answers (`source` "cache"), and the server's time then.
@@ -130,7 +131,9 @@ class ServiceRun:
         tally.solved += 1
         tally.planner_ms.append(planner_ms(answer.timings_ms))
         tally.plan_ms.append(float(answer.timings_ms["total"]))
-        tally.record_extras({**answer.timings_ms, **(answer.model_extra or {})})
+        tally.record_extras(
+            {**answer.timings_ms, **(answer.model_extra or {}), "planner": answer.planner}
+        )
         states = np.asarray(answer.states, dtype=float)
         tally.path_lengths.append(path_length(states))
         check_path(tally, self.checker, states, (start, goal))
