@@ -35,6 +35,7 @@ import argparse
 import json
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -160,6 +161,28 @@ class ServiceRun:
                 tally.notes[f"replay: candidate {rejected.reason[:100]}"] += 1
         check_path(tally, self.checker, np.asarray(answer.states, dtype=float), (start, goal))
 
+    def moveit(self, tally: Tally, problem: Problem) -> None:
+        """Send the problem's MotionPlanRequest file as it is to `/motion-plan` (its scene is
+        up); count it accepted (HTTP 200) and solved, and dense-check the trajectory."""
+        tally.counts["moveit_sent"] += 1
+        try:
+            answer = self.client.motion_plan(f"mbm-{problem.label}", problem.request_text)
+        except APIError as exc:
+            tally.counts["http_5xx" if exc.status_code >= 500 else "http_4xx"] += 1
+            tally.notes[f"moveit {exc.status_code}: {exc.detail[:150]}"] += 1
+            return
+        tally.counts["moveit_accepted"] += 1
+        if answer["error_code"]["val"] != 1:
+            tally.notes[f"moveit: error code {answer['error_code']['val']}"] += 1
+            return
+        tally.counts["moveit_solved"] += 1
+        trajectory = answer["trajectory"]["joint_trajectory"]
+        order = [trajectory["joint_names"].index(n) for n in self.checker.robot.joint_names]
+        states = np.array([[p["positions"][k] for k in order] for p in trajectory["points"]])
+        ends = (clamp(problem.start, self.lower, self.upper)[0],
+                clamp(problem.goal, self.lower, self.upper)[0])  # fmt: skip
+        check_path(tally, self.checker, states, ends)
+
     def noisy(self, state: FloatArray, rng: np.random.Generator) -> FloatArray | None:
         """The state with uniform noise, within the limits and free; None after NOISY_DRAWS."""
         for _ in range(NOISY_DRAWS):
@@ -177,6 +200,8 @@ class ServiceRun:
             ends = self.plan(tally, problem)
             if ends is not None:
                 self.replay(tally, problem, ends)
+            if self.args.moveit:
+                self.moveit(tally, problem)
         return list(tallies.values())
 
 
@@ -192,6 +217,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=1, help="of the replays' noise")
     parser.add_argument("--in-process", action="store_true", help="the planner alone, no HTTP")
     parser.add_argument("--smoke", action="store_true", help=f"{SMOKE_PER_FAMILY} per family")
+    parser.add_argument(
+        "--moveit", action="store_true", help="also send each request file as is to /motion-plan"
+    )
     args = parser.parse_args(argv)
     args.families = args.families.split(",") if args.families else list(FAMILIES)
     if unknown := set(args.families) - set(FAMILIES):
@@ -229,6 +257,13 @@ def main(argv: list[str] | None = None) -> int:
         "wall_s": round(wall_s, 1),
         "smoke": args.smoke,
     }
+    if args.moveit and not args.in_process:
+        counts = sum((t.counts for t in tallies), Counter[str]())
+        sent = counts["moveit_sent"]
+        figures["as_sent_accepted_rate"] = (
+            round(counts["moveit_accepted"] / sent, 4) if sent else None
+        )
+        figures["as_sent_solved_rate"] = round(counts["moveit_solved"] / sent, 4) if sent else None
     print(json.dumps(figures))
     return 1 if figures["collisions"] or figures["self_collisions"] or figures["http_5xx"] else 0
 

@@ -51,6 +51,7 @@ class Problem:
     scene: dict[str, Any]
     start: FloatArray
     goal: FloatArray
+    request_text: str = ""  # the MotionPlanRequest YAML as shipped
 
     @property
     def label(self) -> str:
@@ -94,9 +95,9 @@ def load_problem(problems: Path, family: str, index: int) -> Problem:
     """Problem `index` of `family` (its folder is `<family>_panda`)."""
     folder = problems / f"{family}_panda"
     scene_text = (folder / f"scene{index:04d}.yaml").read_text(encoding="utf-8")
-    request = yaml.safe_load((folder / f"request{index:04d}.yaml").read_text(encoding="utf-8"))
-    start, goal = _request_states(request)
-    return Problem(family, index, scene_text, yaml.safe_load(scene_text), start, goal)
+    request_text = (folder / f"request{index:04d}.yaml").read_text(encoding="utf-8")
+    start, goal = _request_states(yaml.safe_load(request_text))
+    return Problem(family, index, scene_text, yaml.safe_load(scene_text), start, goal, request_text)
 
 
 def family_indices(problems: Path, family: str) -> list[int]:

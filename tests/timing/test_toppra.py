@@ -188,7 +188,7 @@ def test_bad_calls_are_refused(limits: KinematicLimits, corner_path: np.ndarray)
         time_trajectory(corner_path[:, :5], planar=True, limits=limits)
 
 
-def test_a_profile_with_nan_speeds_is_refused_not_returned(
+def test_a_profile_with_nan_speeds_is_not_returned_a_jerk_limited_one_is(
     limits: KinematicLimits, corner_path: np.ndarray, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import toppra.algorithm
@@ -202,5 +202,11 @@ def test_a_profile_with_nan_speeds_is_refused_not_returned(
         return sdd, sd, v
 
     monkeypatch.setattr(toppra.algorithm.TOPPRA, "compute_parameterization", with_a_nan)
-    with pytest.raises(TimingError, match="stops inside a segment"):
-        time_trajectory(corner_path, planar=True, limits=limits)
+    timed = time_trajectory(corner_path, planar=True, limits=limits)
+    # toppra failed on the spline and on the polyline: rest to rest along each segment instead
+    assert timed.method is TimingMethod.JERK_LIMITED and timed.path is PathShape.LINEAR
+    _, q, v, a = dense(timed)
+    assert np.all(np.isfinite(q)) and np.all(np.isfinite(v)) and np.all(np.isfinite(a))
+    velocity, acceleration = limit_ratios(timed, limits)
+    assert velocity <= 1.0 + TOL and acceleration <= 1.0 + TOL
+    assert on_polyline(timed, corner_path) < 1e-6

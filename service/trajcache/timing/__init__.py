@@ -108,12 +108,26 @@ def time_trajectory(
             samples[:, 2] = wrap_angle(samples[:, 2])
         if certify_fn(samples):
             spline, revalidated = candidate, True
+    profile = None
     if spline is not None:
-        profile = time_optimal(spline, grid, limits, np.empty(0, dtype=np.int64))
-        used = PathShape.SPLINE
-    else:
+        try:
+            profile = time_optimal(spline, grid, limits, np.empty(0, dtype=np.int64))
+            used = PathShape.SPLINE
+        except TimingError:  # toppra's rare uncontrollable instance: the polyline, as below
+            spline, revalidated = None, False
+    if profile is None:
         polyline = PolylinePath(ss, points)
-        profile = time_optimal(polyline, grid, limits, at_point[1:-1][_corners(polyline)])
+        try:
+            profile = time_optimal(polyline, grid, limits, at_point[1:-1][_corners(polyline)])
+        except TimingError:  # still none: rest to rest along each segment, jerk-limited
+            segments = jerk_limited(points, limits)
+            return TimedTrajectory(
+                TimingMethod.JERK_LIMITED,
+                PathShape.LINEAR,
+                segments.duration,
+                segments.starts[index],
+                segments.evaluate,
+            )
         used = PathShape.LINEAR
     return TimedTrajectory(
         method,
