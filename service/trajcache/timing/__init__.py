@@ -97,7 +97,6 @@ def time_trajectory(
         return TimedTrajectory(
             method, PathShape.LINEAR, segments.duration, segments.starts[index], segments.evaluate
         )
-    grid, at_point = gridpoints(ss, grid_points)
     spline, revalidated = None, False
     wants_spline = path is PathShape.SPLINE and not is_straight(points)
     if wants_spline and certify_fn is not None and motion_bound is not None:
@@ -108,18 +107,37 @@ def time_trajectory(
             samples[:, 2] = wrap_angle(samples[:, 2])
         if certify_fn(samples):
             spline, revalidated = candidate, True
+    return _time_optimal_or_rest_to_rest(
+        points, ss, index, limits, method, spline, revalidated, grid_points
+    )
+
+
+def _time_optimal_or_rest_to_rest(
+    points: FloatArray,
+    ss: FloatArray,
+    index: np.ndarray,
+    limits: KinematicLimits,
+    method: TimingMethod,
+    spline: SplinePath | None,
+    revalidated: bool,
+    grid_points: int,
+) -> TimedTrajectory:
+    """toppra along the certified spline, else along the polyline (stopping at its corners);
+    where toppra finds no profile on either (a rare uncontrollable instance), rest to rest
+    along each segment, jerk-limited."""
+    grid, at_point = gridpoints(ss, grid_points)
     profile = None
     if spline is not None:
         try:
             profile = time_optimal(spline, grid, limits, np.empty(0, dtype=np.int64))
             used = PathShape.SPLINE
-        except TimingError:  # toppra's rare uncontrollable instance: the polyline, as below
-            spline, revalidated = None, False
+        except TimingError:
+            revalidated = False
     if profile is None:
         polyline = PolylinePath(ss, points)
         try:
             profile = time_optimal(polyline, grid, limits, at_point[1:-1][_corners(polyline)])
-        except TimingError:  # still none: rest to rest along each segment, jerk-limited
+        except TimingError:
             segments = jerk_limited(points, limits)
             return TimedTrajectory(
                 TimingMethod.JERK_LIMITED,
