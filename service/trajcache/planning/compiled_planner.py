@@ -1,12 +1,12 @@
-"""The compiled planner (`compiled`): RRT-Connect whose loop runs in numba on sphere covers.
+"""The compiled planner (`compiled`): RRT-Connect whose loop runs in numba on sphere trees.
 
 The search and its simplification run in `planning/compiled/search.py` with no Python per
 iteration: sampling, nearest neighbour, extension and motion checks (at the spec's resolution,
-coarse samples first) on the robot's sphere covers against the scene's primitives
-(`geometry/collision/compiled/spheres.py`). Where the covers neither prove a state free nor
+coarse samples first) on the robot's sphere trees against the scene's primitives
+(`geometry/collision/compiled/spheres.py`). Where the trees neither prove a state free nor
 colliding, the motion waits in a buffer; between rounds of at most `ROUND_ITERATIONS`
 iterations, Python checks those states exactly (FCL, the checker every planner uses) and the
-deadline, and the next round adds the motions found free. So the covers never block a motion
+deadline, and the next round adds the motions found free. So the trees never block a motion
 that the exact check lets through, and the budget is overrun by at most one round.
 
 The path found is then finished as every planner's is (`attempts.plan_until_certified`):
@@ -50,6 +50,7 @@ PENDING = 64  # motions waiting for the exact check
 SIMPLIFY_ITERATIONS = 24
 RANGE = 1.0  # extension step (rad, over all planning values)
 TABLE_SHARE = 0.2  # of the budget, at most, for building missing pair tables (kept after)
+_COUNTERS = ("search_ms", "simplify_ms", "rounds", "open_motions", "exact_checks", "tree_nodes")
 
 
 @dataclass
@@ -81,7 +82,7 @@ class _Search:
         return (self.space, t.fk, t.robot, t.scene, t.pairs, self.work)
 
     def motion_free(self, a: FloatArray, b: FloatArray) -> bool:
-        """A motion the covers prove free, or whose open states the exact check finds free."""
+        """A motion the trees prove free, or whose open states the exact check finds free."""
         n = sample_count(a, b, self.space)
         opened = np.empty((n, len(a)))
         status, count = motion(a, b, *self._args(), opened)  # type: ignore[call-arg]
@@ -163,9 +164,7 @@ def plan_compiled(
     validator = TrajectoryValidator(
         problem_model, scene, resolution=resolution, certified=certified
     )
-    stats: dict[str, float] = {"straight": 0.0}
-    for key in ("search_ms", "simplify_ms", "rounds", "open_motions", "exact_checks", "tree_nodes"):
-        stats[key] = 0.0
+    stats: dict[str, float] = {"straight": 0.0, **dict.fromkeys(_COUNTERS, 0.0)}
     tables_began = time.perf_counter()
     tables = sphere_tables(query.checker.checker, TABLE_SHARE * budget_s)
     search = _Search(query, tables, stats)
@@ -206,9 +205,7 @@ def warm_compiled(model: RobotModel, scene: Scene, start: FloatArray, goal: Floa
     query = prepare_query(model, scene, start, goal)
     if isinstance(query, PlanResult):
         raise ValueError(f"warm-up query refused: {query.message}")
-    stats = dict.fromkeys(("search_ms", "simplify_ms", "rounds", "open_motions", "exact_checks",
-                           "tree_nodes"), 0.0)  # fmt: skip
-    search = _Search(query, sphere_tables(query.checker.checker), stats)
+    search = _Search(query, sphere_tables(query.checker.checker), dict.fromkeys(_COUNTERS, 0.0))
     search.motion_free(query.start, query.goal)
     search.run(Deadline(0.01))
     path = np.ascontiguousarray(np.stack([query.start, query.goal, query.start]))

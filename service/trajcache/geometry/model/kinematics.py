@@ -188,23 +188,8 @@ def link_transforms(model: RobotModel, states: ArrayLike) -> FloatArray:
 
 def forward_kinematics(model: RobotModel, q: FloatArray) -> FloatArray:
     """`link_transforms` of states already checked: a finite (N, D) float array (compiled)."""
-    tables = _tables(model)
     tf = np.empty((q.shape[0], len(model.link_names), 4, 4))
-    forward_kinematics_kernel(
-        np.ascontiguousarray(q, dtype=float),
-        model.base is BaseType.PLANAR,
-        tables.parent,
-        tables.child,
-        tables.value_index,
-        tables.value_scale,
-        tables.value_offset,
-        tables.default,
-        tables.fixed,
-        tables.sine,
-        tables.versine,
-        tables.slide,
-        tf,
-    )
+    forward_kinematics_kernel(np.ascontiguousarray(q, dtype=float), *fk_tables(model), tf)  # type: ignore[call-arg, arg-type]
     return tf
 
 

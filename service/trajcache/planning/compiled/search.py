@@ -1,4 +1,4 @@
-"""RRT-Connect and path simplification whose loops run compiled, on sphere covers.
+"""RRT-Connect and path simplification whose loops run compiled, on sphere trees.
 
 Every state a motion passes through (at the spec's resolution, coarse samples first) is FREE,
 OPEN or COLLIDING by `geometry/collision/compiled/spheres.sphere_state`. A motion with a
@@ -6,7 +6,7 @@ COLLIDING sample is blocked; one whose samples are all FREE is taken. A motion w
 and no COLLIDING one is neither: it goes into the pending buffer and the loop goes on as if it
 were blocked. The loop returns to Python after `iterations` iterations (or when the buffer is
 full); Python checks the OPEN samples of each pending motion exactly (FCL) and marks it free or
-not; the next call first adds the motions found free to their trees. So the covers decide only
+not; the next call first adds the motions found free to their trees. So the spheres decide only
 what they prove, and the exact check decides the rest: spheres never make a motion blocked that
 the exact check finds free, they only delay it by one round.
 

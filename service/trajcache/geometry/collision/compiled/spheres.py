@@ -1,4 +1,4 @@
-"""One robot state against the scene and itself on sphere covers, compiled: free, open or
+"""One robot state against the scene and itself on sphere trees, compiled: free, open or
 colliding, for planners whose whole loop is compiled (`planning/compiled/`).
 
 The robot is its elements' sphere trees (`model/sphere_tree.py`: every ball holds what its
