@@ -23,13 +23,12 @@ def support_at(sup, k, x, y, z, exact):  # type: ignore[no-untyped-def]  # pragm
     """h(n) of shape k of a packed support table (`support.SupportTable`) at local direction
     (x, y, z); a mesh as its bounding box unless `exact`, then as its hull (hill climbing)."""
     centre, packed, slot, vertices, anchors, anchor_start, anchor_count, neighbours, start = sup
-    p = packed[k]
-    value = (
-        abs(x) * p[0]
-        + abs(y) * p[1]
-        + abs(z) * p[2]
-        + p[3] * math.sqrt(x * x + y * y)
-        + p[4]
+    value = (  # scalar indexing: no view of packed[k] per call
+        abs(x) * packed[k, 0]
+        + abs(y) * packed[k, 1]
+        + abs(z) * packed[k, 2]
+        + packed[k, 3] * math.sqrt(x * x + y * y)
+        + packed[k, 4]
         + x * centre[k, 0]
         + y * centre[k, 1]
         + z * centre[k, 2]
@@ -63,73 +62,98 @@ def slab_bound(nx, ny, nz, pose_a, sup_a, ka, pose_b, sup_b, kb, exact):  # type
     return gap - support_at(sup_a, ka, ax, ay, az, exact) - support_at(sup_b, kb, bx, by, bz, exact)
 
 
-@numba.njit(cache=True, nogil=True)
-def best_slab(dirs, pose_a, sup_a, ka, pose_b, sup_b, kb, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """max over the directions `dirs` (Q, 3) of the slab bound, meshes as their boxes; with
-    `exact`, also along the best few of them with meshes as their hulls (a hull's bound along a
-    direction is at least its box's, and the best exact direction is nearly always among the
-    best box ones)."""
-    count = dirs.shape[0]
-    values = np.empty(count)
-    best = 0.0
-    for q in range(count):
-        values[q] = slab_bound(
-            dirs[q, 0], dirs[q, 1], dirs[q, 2], pose_a, sup_a, ka, pose_b, sup_b, kb, False
-        )
-        best = max(best, values[q])
-    if not exact or (sup_a[2][ka] < 0 and sup_b[2][kb] < 0):
-        return best
-    for _round in range(min(_EXACT_DIRECTIONS, count)):
-        pick = np.argmax(values)
-        values[pick] = -np.inf
-        value = slab_bound(
-            dirs[pick, 0], dirs[pick, 1], dirs[pick, 2], pose_a, sup_a, ka, pose_b, sup_b, kb, True
-        )
-        best = max(best, value)
-    return best
+@numba.njit(cache=True, nogil=True, inline="always")
+def _keep(value, q, v1, q1, v2, q2, v3, q3):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The best three (value, direction index) after `value` at q is seen (first on ties)."""
+    if value > v1:
+        return value, q, v1, q1, v2, q2
+    if value > v2:
+        return v1, q1, value, q, v2, q2
+    if value > v3:
+        return v1, q1, v2, q2, value, q
+    return v1, q1, v2, q2, v3, q3
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _scene_direction(q, pose_e, pose_m, half):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Direction q of `scene_slabs`: 0-11 the box's and the element's face normals (each
+    axis, each sign, box first), 12 the way from the element's origin to the nearest point
+    of the object's box (local = R_mᵀ(t_e − t_m), clipped into the box)."""
+    if q < 12:
+        axis, rest = q // 4, q % 4
+        sign = -1.0 if rest < 2 else 1.0
+        pose = pose_m if rest % 2 == 0 else pose_e
+        return sign * pose[0, axis], sign * pose[1, axis], sign * pose[2, axis]
+    dx = pose_e[0, 3] - pose_m[0, 3]
+    dy = pose_e[1, 3] - pose_m[1, 3]
+    dz = pose_e[2, 3] - pose_m[2, 3]
+    x = y = z = 0.0
+    for axis in range(3):
+        loc = pose_m[0, axis] * dx + pose_m[1, axis] * dy + pose_m[2, axis] * dz
+        gap = min(max(loc, -half[axis]), half[axis]) - loc
+        x += pose_m[0, axis] * gap
+        y += pose_m[1, axis] * gap
+        z += pose_m[2, axis] * gap
+    return x, y, z
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _self_direction(q, pose_i, pose_j):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Direction q of `self_slabs`: 0 the line between the elements, 1 and 2 across both z
+    axes (both ways), 3-14 both elements' face normals (each axis, each sign, i first)."""
+    if q == 0:
+        return pose_j[0, 3] - pose_i[0, 3], pose_j[1, 3] - pose_i[1, 3], pose_j[2, 3] - pose_i[2, 3]
+    if q < 3:
+        sign = 1.0 if q == 1 else -1.0
+        x = pose_i[1, 2] * pose_j[2, 2] - pose_i[2, 2] * pose_j[1, 2]
+        y = pose_i[2, 2] * pose_j[0, 2] - pose_i[0, 2] * pose_j[2, 2]
+        z = pose_i[0, 2] * pose_j[1, 2] - pose_i[1, 2] * pose_j[0, 2]
+        return sign * x, sign * y, sign * z
+    axis, rest = (q - 3) // 4, (q - 3) % 4
+    sign = -1.0 if rest < 2 else 1.0
+    pose = pose_i if rest % 2 == 0 else pose_j
+    return sign * pose[0, axis], sign * pose[1, axis], sign * pose[2, axis]
 
 
 @numba.njit(cache=True, nogil=True)
 def scene_slabs(pose_e, sup_r, e, pose_m, sup_s, m, half, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Level 2 for an element and an object: the box's and the element's face normals and the
-    way from the element's origin to the nearest point of the object's box (`best_slab`)."""
-    dirs = np.empty((13, 3))
-    q = 0
-    for axis in range(3):
-        for sign in (-1.0, 1.0):
-            for r in range(3):
-                dirs[q, r] = sign * pose_m[r, axis]
-                dirs[q + 1, r] = sign * pose_e[r, axis]
-            q += 2
-    # toward the nearest box point: local = R_mᵀ(t_e − t_m), clipped into the box
-    dx = pose_e[0, 3] - pose_m[0, 3]
-    dy = pose_e[1, 3] - pose_m[1, 3]
-    dz = pose_e[2, 3] - pose_m[2, 3]
-    dirs[12, :] = 0.0
-    for axis in range(3):
-        loc = pose_m[0, axis] * dx + pose_m[1, axis] * dy + pose_m[2, axis] * dz
-        gap = min(max(loc, -half[axis]), half[axis]) - loc
-        for r in range(3):
-            dirs[12, r] += pose_m[r, axis] * gap
-    return best_slab(dirs, pose_e, sup_r, e, pose_m, sup_s, m, exact)
+    """Level 2 for an element and an object: the max of the slab bounds along the box's and
+    the element's face normals and the way from the element's origin to the nearest point of
+    the object's box (`_scene_direction`), meshes as their boxes; with `exact`, also along the
+    best three of them with meshes as their hulls (a hull's bound along a direction is at
+    least its box's, and the best exact direction is nearly always among the best box ones).
+    No arrays are allocated: the directions are computed where they are used."""
+    best = v1 = v2 = v3 = -np.inf
+    q1 = q2 = q3 = -1
+    for q in range(13):
+        x, y, z = _scene_direction(q, pose_e, pose_m, half)
+        value = slab_bound(x, y, z, pose_e, sup_r, e, pose_m, sup_s, m, False)
+        best = max(best, value)
+        v1, q1, v2, q2, v3, q3 = _keep(value, q, v1, q1, v2, q2, v3, q3)
+    best = max(best, 0.0)
+    if not exact or (sup_r[2][e] < 0 and sup_s[2][m] < 0):
+        return best
+    for q in (q1, q2, q3):
+        x, y, z = _scene_direction(q, pose_e, pose_m, half)
+        best = max(best, slab_bound(x, y, z, pose_e, sup_r, e, pose_m, sup_s, m, True))
+    return best
 
 
 @numba.njit(cache=True, nogil=True)
 def self_slabs(pose_i, pose_j, sup, i, j, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Level 2 for a robot pair: the line between the elements, across both z axes (both ways)
-    and both elements' face normals (`best_slab`)."""
-    dirs = np.empty((15, 3))
-    for r in range(3):
-        dirs[0, r] = pose_j[r, 3] - pose_i[r, 3]
-    dirs[1, 0] = pose_i[1, 2] * pose_j[2, 2] - pose_i[2, 2] * pose_j[1, 2]
-    dirs[1, 1] = pose_i[2, 2] * pose_j[0, 2] - pose_i[0, 2] * pose_j[2, 2]
-    dirs[1, 2] = pose_i[0, 2] * pose_j[1, 2] - pose_i[1, 2] * pose_j[0, 2]
-    dirs[2, :] = -dirs[1, :]
-    q = 3
-    for axis in range(3):
-        for sign in (-1.0, 1.0):
-            for r in range(3):
-                dirs[q, r] = sign * pose_i[r, axis]
-                dirs[q + 1, r] = sign * pose_j[r, axis]
-            q += 2
-    return best_slab(dirs, pose_i, sup, i, pose_j, sup, j, exact)
+    """Level 2 for a robot pair: as `scene_slabs`, along the line between the elements,
+    across both z axes (both ways) and both elements' face normals (`_self_direction`)."""
+    best = v1 = v2 = v3 = -np.inf
+    q1 = q2 = q3 = -1
+    for q in range(15):
+        x, y, z = _self_direction(q, pose_i, pose_j)
+        value = slab_bound(x, y, z, pose_i, sup, i, pose_j, sup, j, False)
+        best = max(best, value)
+        v1, q1, v2, q2, v3, q3 = _keep(value, q, v1, q1, v2, q2, v3, q3)
+    best = max(best, 0.0)
+    if not exact or (sup[2][i] < 0 and sup[2][j] < 0):
+        return best
+    for q in (q1, q2, q3):
+        x, y, z = _self_direction(q, pose_i, pose_j)
+        best = max(best, slab_bound(x, y, z, pose_i, sup, i, pose_j, sup, j, True))
+    return best

@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
 from trajcache.geometry.collision.compiled.slabs import self_slabs
 from trajcache.geometry.model.kernels import forward_kinematics_kernel
@@ -37,33 +36,31 @@ FREE, OPEN, COLLIDING = 0, 1, 2
 BOX, SPHERE, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
 
 
-@numba.njit(cache=True, nogil=True)
-def signed_distance(kind, rot, pos, size, x, y, z):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Signed distance from world point (x, y, z) to an object (negative inside); a mesh is
-    its oriented bounding box (`size` = half extents), which contains it."""
-    dx, dy, dz = x - pos[0], y - pos[1], z - pos[2]
-    px = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz
-    py = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz
-    pz = rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz
+@numba.njit(cache=True, nogil=True, inline="always")
+def signed_distance(kind, rot, pos, size, m, x, y, z):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Signed distance from world point (x, y, z) to object m of kind `kind` (negative
+    inside); a mesh is its oriented bounding box (`size` = half extents), which contains it.
+
+    Hot helpers here take arrays and indices, never tuples of arrays nor views: numba counts
+    references of every array in a tuple it passes, and of every view it makes, and that cost
+    more than the arithmetic."""
+    dx, dy, dz = x - pos[m, 0], y - pos[m, 1], z - pos[m, 2]
+    px = rot[m, 0, 0] * dx + rot[m, 1, 0] * dy + rot[m, 2, 0] * dz
+    py = rot[m, 0, 1] * dx + rot[m, 1, 1] * dy + rot[m, 2, 1] * dz
+    pz = rot[m, 0, 2] * dx + rot[m, 1, 2] * dy + rot[m, 2, 2] * dz
     if kind == BOX or kind == MESH:  # noqa: SIM109  (compiled: plain comparisons)
-        qx, qy, qz = abs(px) - size[0], abs(py) - size[1], abs(pz) - size[2]
+        qx, qy, qz = abs(px) - size[m, 0], abs(py) - size[m, 1], abs(pz) - size[m, 2]
         out = math.sqrt(max(qx, 0.0) ** 2 + max(qy, 0.0) ** 2 + max(qz, 0.0) ** 2)
         return out + min(max(qx, max(qy, qz)), 0.0)
     if kind == SPHERE:
-        return math.sqrt(px * px + py * py + pz * pz) - size[0]
+        return math.sqrt(px * px + py * py + pz * pz) - size[m, 0]
     if kind == CYLINDER:
-        dr = math.sqrt(px * px + py * py) - size[0]
-        dh = abs(pz) - size[1]
+        dr = math.sqrt(px * px + py * py) - size[m, 0]
+        dh = abs(pz) - size[m, 1]
         return math.sqrt(max(dr, 0.0) ** 2 + max(dh, 0.0) ** 2) + min(max(dr, dh), 0.0)
     # capsule: a segment on z of half length size[1], grown by size[0]
-    cz = min(max(pz, -size[1]), size[1])
-    return math.sqrt(px * px + py * py + (pz - cz) ** 2) - size[0]
-
-
-@numba.njit(cache=True, nogil=True)
-def _place(pose, local, out):  # type: ignore[no-untyped-def]  # pragma: no cover
-    for r in range(3):
-        out[r] = pose[r, 0] * local[0] + pose[r, 1] * local[1] + pose[r, 2] * local[2] + pose[r, 3]
+    cz = min(max(pz, -size[m, 1]), size[m, 1])
+    return math.sqrt(px * px + py * py + (pz - cz) ** 2) - size[m, 0]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -75,28 +72,39 @@ def pose_links(q, fk, links):  # type: ignore[no-untyped-def]  # pragma: no cove
     )  # fmt: skip
 
 
-@numba.njit(cache=True, nogil=True)
-def _node(k, e, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """World centre of node k of element e's tree, placed once per state."""
-    links, world, stamp, clock = work[0], work[1], work[2], work[3]
-    if stamp[k] != clock[0]:
-        _place(links[0, robot[0][e]], robot[2][k], world[k])
-        stamp[k] = clock[0]
-    return world[k]
+@numba.njit(cache=True, nogil=True, inline="always")
+def _node(k, link, links, local, world, stamp, clock):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Place node k (of an element on link `link`) in the world (world[k]), once per state."""
+    if stamp[k] != clock:
+        for r in range(3):
+            world[k, r] = (
+                links[0, link, r, 0] * local[k, 0] + links[0, link, r, 1] * local[k, 1]
+                + links[0, link, r, 2] * local[k, 2] + links[0, link, r, 3]
+            )  # fmt: skip
+        stamp[k] = clock
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _gap(a, b, world):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Distance between the placed centres of nodes a and b."""
+    dx, dy, dz = world[a, 0] - world[b, 0], world[a, 1] - world[b, 1], world[a, 2] - world[b, 2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 @numba.njit(cache=True, nogil=True)
 def _scene_row(e, m, robot, scene, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """FREE, OPEN or COLLIDING for element e and object m, down e's tree."""
-    root, radius, first, count, reach = robot[1], robot[3], robot[4], robot[5], robot[6]
-    kind, rot, pos, size = scene[0][m], scene[1][m], scene[2][m], scene[3][m]
-    stack = work[4]
-    stack[0], top, status = root[e], 1, FREE
+    link, local, radius, first, count, reach = (
+        robot[0][e], robot[2], robot[3], robot[4], robot[5], robot[6],
+    )  # fmt: skip
+    kind, rot, pos, size = scene[0][m], scene[1], scene[2], scene[3]
+    links, world, stamp, clock, stack = work[0], work[1], work[2], work[3][0], work[4]
+    stack[0], top, status = robot[1][e], 1, FREE
     while top > 0:
         top -= 1
         k = stack[top]
-        w = _node(k, e, robot, work)
-        d = signed_distance(kind, rot, pos, size, w[0], w[1], w[2])
+        _node(k, link, links, local, world, stamp, clock)
+        d = signed_distance(kind, rot, pos, size, m, world[k, 0], world[k, 1], world[k, 2])
         if d > radius[k]:
             continue
         if first[k] < 0:
@@ -115,15 +123,17 @@ def _scene_row(e, m, robot, scene, work):  # type: ignore[no-untyped-def]  # pra
 @numba.njit(cache=True, nogil=True)
 def _pair_open(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Whether leaves of elements i and j meet (down both trees, the larger ball split)."""
-    root, radius, first, count = robot[1], robot[3], robot[4], robot[5]
-    stack = work[5]
-    stack[0, 0], stack[0, 1], top = root[i], root[j], 1
+    link_i, link_j, local, radius, first, count = (
+        robot[0][i], robot[0][j], robot[2], robot[3], robot[4], robot[5],
+    )  # fmt: skip
+    links, world, stamp, clock, stack = work[0], work[1], work[2], work[3][0], work[5]
+    stack[0, 0], stack[0, 1], top = robot[1][i], robot[1][j], 1
     while top > 0:
         top -= 1
         a, b = stack[top, 0], stack[top, 1]
-        wa, wb = _node(a, i, robot, work), _node(b, j, robot, work)
-        gap = math.sqrt((wa[0] - wb[0]) ** 2 + (wa[1] - wb[1]) ** 2 + (wa[2] - wb[2]) ** 2)
-        if gap > radius[a] + radius[b]:
+        _node(a, link_i, links, local, world, stamp, clock)
+        _node(b, link_j, links, local, world, stamp, clock)
+        if _gap(a, b, world) > radius[a] + radius[b]:
             continue
         if first[a] < 0 and first[b] < 0:
             return True
@@ -162,13 +172,12 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     allowed = scene[4]
     status = FREE
     poses, box_centre, box_half = work[6], work[8], robot[10]
+    rot_m, centre_m, half_m = scene[1], scene[2], scene[7]
     for e in range(robot[1].shape[0]):
         for m in range(scene[0].shape[0]):
             if allowed[e, m]:
                 continue
-            if obb_apart(
-                poses[e], box_centre[e], box_half[e], scene[1][m], scene[2][m], scene[7][m]
-            ):
+            if obb_apart(poses, e, box_centre, box_half, rot_m, m, centre_m, half_m):
                 continue
             row = _scene_row(e, m, robot, scene, work)
             if row == COLLIDING:
@@ -178,11 +187,21 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     if status == OPEN:
         work[7][1] += 1
         return OPEN
-    pi, pj = pairs[0], pairs[1]
+    pi, pj, dofs = pairs[0], pairs[1], pairs[2]
+    link, root, local, radius = robot[0], robot[1], robot[2], robot[3]
+    links, world, stamp, clock = work[0], work[1], work[2], work[3][0]
     for p in range(pi.shape[0]):
-        if pairs[2][p, 0] >= 0 and _table_bound(q, p, pairs) > 0.0:
+        if dofs[p, 0] >= 0 and _table_bound(q, p, pairs) > 0.0:
             continue
-        if _pair_slab(pi[p], pj[p], robot, work):
+        i, j = pi[p], pj[p]
+        a, b = root[i], root[j]
+        _node(a, link[i], links, local, world, stamp, clock)
+        _node(b, link[j], links, local, world, stamp, clock)
+        if _gap(a, b, world) > radius[a] + radius[b]:
+            continue  # the elements' bounding balls are apart
+        if obb_apart(poses, i, box_centre, box_half, poses, j, box_centre, box_half):
+            continue
+        if _pair_slab(i, j, robot, work):
             continue
         if _pair_open(pi[p], pj[p], robot, work):
             work[7][1] += 1
@@ -190,72 +209,95 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     return FREE
 
 
-@numba.njit(cache=True, nogil=True)
-def obb_apart(ra, ca, ha, rb, cb, hb):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Whether two oriented boxes (rotation whose columns are the axes, centre, half extents)
-    are apart: a separating axis among the 15 of the separating axis theorem. The rotation
-    terms are grown by 1e-9 so that round-off never claims a separation."""
-    c = np.empty((3, 3))
-    a = np.empty((3, 3))
-    t = np.empty(3)
-    for i in range(3):
-        t[i] = ra[0, i] * (cb[0] - ca[0]) + ra[1, i] * (cb[1] - ca[1]) + ra[2, i] * (cb[2] - ca[2])
-        for j in range(3):
-            c[i, j] = ra[0, i] * rb[0, j] + ra[1, i] * rb[1, j] + ra[2, i] * rb[2, j]
-            a[i, j] = abs(c[i, j]) + 1e-9
-    for i in range(3):
-        if abs(t[i]) > ha[i] + hb[0] * a[i, 0] + hb[1] * a[i, 1] + hb[2] * a[i, 2]:
-            return True
-    for j in range(3):
-        proj = t[0] * c[0, j] + t[1] * c[1, j] + t[2] * c[2, j]
-        if abs(proj) > ha[0] * a[0, j] + ha[1] * a[1, j] + ha[2] * a[2, j] + hb[j]:
-            return True
-    for i in range(3):
-        i1, i2 = (i + 1) % 3, (i + 2) % 3
-        for j in range(3):
-            j1, j2 = (j + 1) % 3, (j + 2) % 3
-            reach_a = ha[i1] * a[i2, j] + ha[i2] * a[i1, j]
-            reach_b = hb[j1] * a[i, j2] + hb[j2] * a[i, j1]
-            if abs(t[i2] * c[i1, j] - t[i1] * c[i2, j]) > reach_a + reach_b:
-                return True
-    return False
+@numba.njit(cache=True, nogil=True, inline="always")
+def _axis_terms(ra, i, rb, j, row):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Row `row` of C = R_aᵀ R_b, and of |C| grown by 1e-9."""
+    c0 = ra[i, 0, row] * rb[j, 0, 0] + ra[i, 1, row] * rb[j, 1, 0] + ra[i, 2, row] * rb[j, 2, 0]
+    c1 = ra[i, 0, row] * rb[j, 0, 1] + ra[i, 1, row] * rb[j, 1, 1] + ra[i, 2, row] * rb[j, 2, 1]
+    c2 = ra[i, 0, row] * rb[j, 0, 2] + ra[i, 1, row] * rb[j, 1, 2] + ra[i, 2, row] * rb[j, 2, 2]
+    return c0, c1, c2, abs(c0) + 1e-9, abs(c1) + 1e-9, abs(c2) + 1e-9
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
+def obb_apart(ra, i, ca, ha, rb, j, cb, hb):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Whether oriented boxes i of (ra, ca, ha) and j of (rb, cb, hb) are apart (rotations
+    (·, 3, ≥3) whose columns are the axes, centres (·, 3), half extents (·, 3)): a separating
+    axis among the 15 of the separating axis theorem. The rotation terms are grown by 1e-9 so
+    that round-off never claims a separation. Scalars only: this runs for every (element,
+    object) row of every state."""
+    dx, dy, dz = cb[j, 0] - ca[i, 0], cb[j, 1] - ca[i, 1], cb[j, 2] - ca[i, 2]
+    t0 = ra[i, 0, 0] * dx + ra[i, 1, 0] * dy + ra[i, 2, 0] * dz
+    t1 = ra[i, 0, 1] * dx + ra[i, 1, 1] * dy + ra[i, 2, 1] * dz
+    t2 = ra[i, 0, 2] * dx + ra[i, 1, 2] * dy + ra[i, 2, 2] * dz
+    h0, h1, h2, g0, g1, g2 = ha[i, 0], ha[i, 1], ha[i, 2], hb[j, 0], hb[j, 1], hb[j, 2]
+    c00, c01, c02, a00, a01, a02 = _axis_terms(ra, i, rb, j, 0)
+    if abs(t0) > h0 + g0 * a00 + g1 * a01 + g2 * a02:
+        return True
+    c10, c11, c12, a10, a11, a12 = _axis_terms(ra, i, rb, j, 1)
+    if abs(t1) > h1 + g0 * a10 + g1 * a11 + g2 * a12:
+        return True
+    c20, c21, c22, a20, a21, a22 = _axis_terms(ra, i, rb, j, 2)
+    if abs(t2) > h2 + g0 * a20 + g1 * a21 + g2 * a22:
+        return True
+    if abs(t0 * c00 + t1 * c10 + t2 * c20) > h0 * a00 + h1 * a10 + h2 * a20 + g0:
+        return True
+    if abs(t0 * c01 + t1 * c11 + t2 * c21) > h0 * a01 + h1 * a11 + h2 * a21 + g1:
+        return True
+    if abs(t0 * c02 + t1 * c12 + t2 * c22) > h0 * a02 + h1 * a12 + h2 * a22 + g2:
+        return True
+    # the nine cross axes A_i × B_j: |t·(A_i × B_j)| against both boxes' reach along it
+    if abs(t2 * c10 - t1 * c20) > h1 * a20 + h2 * a10 + g1 * a02 + g2 * a01:
+        return True
+    if abs(t2 * c11 - t1 * c21) > h1 * a21 + h2 * a11 + g0 * a02 + g2 * a00:
+        return True
+    if abs(t2 * c12 - t1 * c22) > h1 * a22 + h2 * a12 + g0 * a01 + g1 * a00:
+        return True
+    if abs(t0 * c20 - t2 * c00) > h0 * a20 + h2 * a00 + g1 * a12 + g2 * a11:
+        return True
+    if abs(t0 * c21 - t2 * c01) > h0 * a21 + h2 * a01 + g0 * a12 + g2 * a10:
+        return True
+    if abs(t0 * c22 - t2 * c02) > h0 * a22 + h2 * a02 + g0 * a11 + g1 * a10:
+        return True
+    if abs(t1 * c00 - t0 * c10) > h0 * a10 + h1 * a00 + g1 * a22 + g2 * a21:
+        return True
+    if abs(t1 * c01 - t0 * c11) > h0 * a11 + h1 * a01 + g0 * a22 + g2 * a20:
+        return True
+    return abs(t1 * c02 - t0 * c12) > h0 * a12 + h1 * a02 + g0 * a21 + g1 * a20
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def _pose_elements(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """World poses (E, 3, 4) of the elements into work[6]."""
-    links, poses, link, origin = work[0], work[6], robot[0], robot[7]
+    """World poses (E, 3, 4) of the elements into work[6], their box centres into work[8]."""
+    links, poses, link, origin, local, centre = (
+        work[0], work[6], robot[0], robot[7], robot[9], work[8],
+    )  # fmt: skip
     for e in range(link.shape[0]):
-        frame = links[0, link[e]]
+        f = link[e]
         for r in range(3):
             for c in range(4):
-                acc = frame[r, 0] * origin[e, 0, c] + frame[r, 1] * origin[e, 1, c]
-                acc += frame[r, 2] * origin[e, 2, c]
-                poses[e, r, c] = acc + (frame[r, 3] if c == 3 else 0.0)
-        _place(poses[e], robot[9][e], work[8][e])
+                acc = links[0, f, r, 0] * origin[e, 0, c] + links[0, f, r, 1] * origin[e, 1, c]
+                acc += links[0, f, r, 2] * origin[e, 2, c]
+                poses[e, r, c] = acc + (links[0, f, r, 3] if c == 3 else 0.0)
+        for r in range(3):
+            centre[e, r] = (
+                poses[e, r, 0] * local[e, 0] + poses[e, r, 1] * local[e, 1]
+                + poses[e, r, 2] * local[e, 2] + poses[e, r, 3]
+            )  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)
 def _pair_slab(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Whether the elements' bounding balls, or a separating slab (`slabs.self_slabs`, with
-    meshes as boxes, then as hulls), prove elements i and j apart."""
-    root, radius, poses = robot[1], robot[3], work[6]
-    wi, wj = _node(root[i], i, robot, work), _node(root[j], j, robot, work)
-    gap = math.sqrt((wi[0] - wj[0]) ** 2 + (wi[1] - wj[1]) ** 2 + (wi[2] - wj[2]) ** 2)
-    if gap > radius[root[i]] + radius[root[j]]:
+    """Whether a separating slab (`slabs.self_slabs`, with meshes as boxes, then as hulls)
+    proves elements i and j apart."""
+    poses, sup = work[6], robot[8]
+    if self_slabs(poses[i], poses[j], sup, i, j, False) > 0.0:
         return True
-    centre, half = work[8], robot[10]
-    if obb_apart(poses[i], centre[i], half[i], poses[j], centre[j], half[j]):
-        return True
-    if self_slabs(poses[i], poses[j], robot[8], i, j, False) > 0.0:
-        return True
-    sup = robot[8]
     if sup[2][i] >= 0 or sup[2][j] >= 0:
         return self_slabs(poses[i], poses[j], sup, i, j, True) > 0.0
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _table_bound(q, p, pairs):  # type: ignore[no-untyped-def]  # pragma: no cover
     """A lower bound on pair p's distance at q from its table (`pair_tables.py`)."""
     dofs, start, step, nodes, offset, bound, table = (
