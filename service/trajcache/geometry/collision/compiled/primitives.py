@@ -77,6 +77,20 @@ def box_distance(px, py, pz, rot, pos, half):  # type: ignore[no-untyped-def]  #
     return math.sqrt(total)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def box_distance_at(px, py, pz, rot, pos, half, m):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """`box_distance` to box m of (rot (M, 3, 3), pos (M, 3), half (M, 3)), by index: no
+    views made in hot loops (numba counts a reference for each)."""
+    dx, dy, dz = px - pos[m, 0], py - pos[m, 1], pz - pos[m, 2]
+    total = 0.0
+    for axis in range(3):
+        loc = rot[m, 0, axis] * dx + rot[m, 1, axis] * dy + rot[m, 2, axis] * dz
+        out = abs(loc) - half[m, axis]
+        if out > 0.0:
+            total += out * out
+    return math.sqrt(total)
+
+
 @numba.njit(cache=True, nogil=True)
 def pose_all(links, element_link, element_origin, axis_link, axis_local):  # type: ignore[no-untyped-def]  # pragma: no cover
     """World poses (N, E, 3, 4) of every element, and origins and directions (N, R, 3) of the
@@ -134,6 +148,16 @@ def box_gap(lo_a, hi_a, lo_b, hi_b):  # type: ignore[no-untyped-def]  # pragma: 
     gap = -np.inf
     for a in range(3):
         gap = max(gap, lo_b[a] - hi_a[a], lo_a[a] - hi_b[a])
+    return gap
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def box_gap_at(lo_a, hi_a, n, e, lo_b, hi_b, m):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """`box_gap` between box (n, e) of (lo_a, hi_a) (N, E, 3) and box m of (lo_b, hi_b)
+    (M, 3), by index."""
+    gap = -np.inf
+    for a in range(3):
+        gap = max(gap, lo_b[m, a] - hi_a[n, e, a], lo_a[n, e, a] - hi_b[m, a])
     return gap
 
 

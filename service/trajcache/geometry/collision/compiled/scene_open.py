@@ -8,7 +8,8 @@ import numpy as np
 from trajcache.geometry.collision.compiled.primitives import (
     GROW,
     box_distance,
-    box_gap,
+    box_distance_at,
+    box_gap_at,
     cover_motion,
     grow,
     object_poses,
@@ -21,6 +22,19 @@ from trajcache.geometry.collision.compiled.primitives import (
 from trajcache.geometry.collision.compiled.slabs import scene_slabs, slab_bound
 
 _COVER_SLABS = 4  # slabs along the ways of the closest cover balls, per end
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _ball_bound(n, ball, poses, e, radius, rot_m, pos_m, half_m, m):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """`scene_bound`'s level 1 (the element's ball against object m's box at sample n), with
+    arrays and indices only: it runs for every (sample, element, object) the advancement
+    visits, where passing the support tables' tuples would cost more than the bound."""
+    if ball[n] < 0.0:
+        gap = box_distance_at(
+            poses[n, e, 0, 3], poses[n, e, 1, 3], poses[n, e, 2, 3], rot_m, pos_m, half_m, m
+        )
+        ball[n] = max(gap - radius[e], 0.0)
+    return ball[n]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -115,14 +129,11 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
             while at < n_seg:
                 # ahead from `at` while the summed motion stays below the bound there
                 ahead = at
-                d = scene_bound(
-                    at, 1, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s, m,
-                    scene,
-                )  # fmt: skip
+                d = _ball_bound(at, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
                 while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
                     ahead += 1
                 if ahead == at:  # the world boxes' gap, with the motion of any point
-                    d = box_gap(box_lo[at, e], box_hi[at, e], lo_m[m], hi_m[m])
+                    d = box_gap_at(box_lo, box_hi, at, e, lo_m, hi_m, m)
                     while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
                         ahead += 1
                 if ahead == at:
@@ -140,11 +151,16 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 at += 1
                 settled = False
                 moving = whole_sum[hi] - whole_sum[lo]
-                box_a = box_gap(box_lo[lo, e], box_hi[lo, e], lo_m[m], hi_m[m])
-                box_b = box_gap(box_lo[hi, e], box_hi[hi, e], lo_m[m], hi_m[m])
+                box_a = box_gap_at(box_lo, box_hi, lo, e, lo_m, hi_m, m)
+                box_b = box_gap_at(box_lo, box_hi, hi, e, lo_m, hi_m, m)
                 if box_a + box_b > moving:
                     continue
-                for want in range(1, 4):
+                da = _ball_bound(lo, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
+                db = _ball_bound(hi, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
+                settled = da + db > centre_sum[hi] - centre_sum[lo]
+                for want in range(2, 4):
+                    if settled:
+                        break
                     da = scene_bound(
                         lo, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
                         m, scene,
@@ -153,10 +169,7 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                         hi, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
                         m, scene,
                     )  # fmt: skip
-                    limit = centre_sum[hi] - centre_sum[lo] if want == 1 else moving
-                    if da + db > limit:
-                        settled = True
-                        break
+                    settled = da + db > moving
                 if settled:
                     continue
                 k = lo
