@@ -111,38 +111,30 @@ def forward_kinematics_kernel(
     v·slide[j] (`kinematics._Tables`); v is q[n, value_index[j]]·scale + offset, or the held
     default when value_index[j] < 0. Joints are in an order where a parent is posed first.
     """
-    local = np.empty((4, 4))
+    # Scalar indexing throughout: a view per joint (out[n, parent[j]]) costs numba a reference
+    # count each, more than the joint's arithmetic.
+    fx, si, ve, sl = fixed, sine, versine, slide
     for n in range(q.shape[0]):
-        root = out[n, 0]
-        root[:, :] = 0.0
+        out[n, 0, :, :] = 0.0
         for i in range(4):
-            root[i, i] = 1.0
+            out[n, 0, i, i] = 1.0
         if planar:
             c, s = math.cos(q[n, 2]), math.sin(q[n, 2])
-            root[0, 0], root[0, 1], root[1, 0], root[1, 1] = c, -s, s, c
-            root[0, 3], root[1, 3] = q[n, 0], q[n, 1]
+            out[n, 0, 0, 0], out[n, 0, 0, 1], out[n, 0, 1, 0], out[n, 0, 1, 1] = c, -s, s, c
+            out[n, 0, 0, 3], out[n, 0, 1, 3] = q[n, 0], q[n, 1]
         for j in range(parent.shape[0]):
             if value_index[j] >= 0:
                 v = q[n, value_index[j]] * value_scale[j] + value_offset[j]
             else:
                 v = default[j]
             sv, cv = math.sin(v), 1.0 - math.cos(v)
-            for r in range(3):
-                for c in range(4):
-                    local[r, c] = (
-                        fixed[j, r, c]
-                        + sv * sine[j, r, c]
-                        + cv * versine[j, r, c]
-                        + v * slide[j, r, c]
-                    )
-            top = out[n, parent[j]]
-            dst = out[n, child[j]]
-            for r in range(3):
-                for c in range(4):
-                    acc = (
-                        top[r, 0] * local[0, c] + top[r, 1] * local[1, c] + top[r, 2] * local[2, c]
-                    )
-                    if c == 3:
-                        acc += top[r, 3]
-                    dst[r, c] = acc
-            dst[3, 0], dst[3, 1], dst[3, 2], dst[3, 3] = 0.0, 0.0, 0.0, 1.0
+            top, dst = parent[j], child[j]
+            for c in range(4):
+                l0 = fx[j, 0, c] + sv * si[j, 0, c] + cv * ve[j, 0, c] + v * sl[j, 0, c]
+                l1 = fx[j, 1, c] + sv * si[j, 1, c] + cv * ve[j, 1, c] + v * sl[j, 1, c]
+                l2 = fx[j, 2, c] + sv * si[j, 2, c] + cv * ve[j, 2, c] + v * sl[j, 2, c]
+                for r in range(3):
+                    acc = out[n, top, r, 0] * l0 + out[n, top, r, 1] * l1 + out[n, top, r, 2] * l2
+                    out[n, dst, r, c] = acc + (out[n, top, r, 3] if c == 3 else 0.0)
+            out[n, dst, 3, 0], out[n, dst, 3, 1], out[n, dst, 3, 2] = 0.0, 0.0, 0.0
+            out[n, dst, 3, 3] = 1.0
