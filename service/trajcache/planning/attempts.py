@@ -56,11 +56,13 @@ def plan_until_certified(
     shortcut_s: float,
     stats: dict[str, float],
     none_found: str,
+    repair_s: float | None = None,
 ) -> PlanResult:
     """Search, finish and repair paths until one is certified or the budget is spent.
 
-    `shortcut_segment_fn` checks the shortcuts' segments; `none_found` is the TIMEOUT message.
-    Every attempt's counts and times go into `stats`.
+    `shortcut_segment_fn` checks the shortcuts' segments; `none_found` is the TIMEOUT message;
+    `repair_s` bounds one path's repair (a planner whose searches are fast does better to search
+    again; default `REPAIR_S`). Every attempt's counts and times go into `stats`.
     """
     stuck = _stuck_endpoint(query, validator)
     if stuck is not None:
@@ -74,6 +76,7 @@ def plan_until_certified(
         rng=rng,
         shortcut_s=shortcut_s,
         stats=stats,
+        repair_s=REPAIR_S if repair_s is None else repair_s,
     )
     found, reason = 0, ""
     for key in ("attempts", "paths_found", "repairs", "repair_ms", *_SUMMED):
@@ -117,6 +120,7 @@ class _Finisher:
     rng: np.random.Generator
     shortcut_s: float
     stats: dict[str, float]
+    repair_s: float
     certify: SegmentFn = field(init=False)
 
     def __post_init__(self) -> None:
@@ -142,9 +146,9 @@ class _Finisher:
         return self.repair(finished.short), finished.message
 
     def repair(self, path: Sequence[FloatArray]) -> FloatArray | None:
-        """`path` with certified detours for its failing segments, within `REPAIR_S`; or None."""
+        """`path` with certified detours for its failing segments, within `repair_s`; or None."""
         began = time.perf_counter()
-        budget = self.deadline.sub(REPAIR_S)
+        budget = self.deadline.sub(self.repair_s)
         repair = repair_path(
             path,
             certify_fn=self.certify,

@@ -49,6 +49,7 @@ TREE_CAPACITY = 16_384  # nodes per tree
 PENDING = 64  # motions waiting for the exact check
 SIMPLIFY_ITERATIONS = 24
 RANGE = 1.0  # extension step (rad, over all planning values)
+REPAIR_S = 0.1  # one path's repair: past that, a new compiled search is the better bet
 TABLE_SHARE = 0.2  # of the budget, at most, for building missing pair tables (kept after)
 _COUNTERS = ("search_ms", "simplify_ms", "rounds", "open_motions", "exact_checks", "tree_nodes")
 
@@ -191,6 +192,7 @@ def plan_compiled(
         shortcut_s=shortcut_s,
         stats=stats,
         none_found="no path found within the time budget",
+        repair_s=REPAIR_S,
     )
     stats.update(query.checker.stats())
     counts = search.work[7]

@@ -25,6 +25,7 @@ import numpy as np
 from trajcache.geometry.collision.compiled.spheres import COLLIDING, FREE, OPEN, sphere_state
 
 SOLVED, ROUND, FULL = 1, 0, -1
+WAIT = -2  # `_connect`: a motion that would join the trees awaits the exact check
 
 
 @numba.njit(cache=True, nogil=True)
@@ -179,7 +180,8 @@ def _join(tree, t, i, j, out):  # type: ignore[no-untyped-def]  # pragma: no cov
 
 @numba.njit(cache=True, nogil=True)
 def _connect(tree, t, target_index, space, fk, robot, scene, pairs, work, pending, out):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Grow tree 1 − t toward node `target_index` of tree t; the path length when they meet."""
+    """Grow tree 1 − t toward node `target_index` of tree t; the path length when they meet,
+    WAIT when the motion that would join them went to the pending buffer."""
     nodes, count = tree[0], tree[2]
     b = 1 - t
     target = nodes[t, target_index]
@@ -191,7 +193,7 @@ def _connect(tree, t, target_index, space, fk, robot, scene, pairs, work, pendin
         status, _ = motion(nodes[b, j], q, space, fk, robot, scene, pairs, work, none)
         if status == OPEN:
             _pend(pending, b, j, q, target_index if reached else -1)
-            return 0
+            return WAIT if reached else 0
         if status != FREE:
             return 0
         k = _add(tree, b, j, q)
@@ -204,7 +206,8 @@ def _connect(tree, t, target_index, space, fk, robot, scene, pairs, work, pendin
 @numba.njit(cache=True, nogil=True)
 def rrt_connect(tree, pending, space, fk, robot, scene, pairs, work, iterations, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Run up to `iterations` iterations: (SOLVED, path length in `out`), (ROUND, 0) or
-    (FULL, 0) when a tree is full. Resolved pending motions are added first."""
+    (FULL, 0) when a tree is full. Resolved pending motions are added first. A round ends
+    early when a motion that would join the trees awaits the exact check."""
     nodes, count = tree[0], tree[2]
     p_tree, p_parent, p_state, p_target, p_ok, p_count = pending
     for k in range(p_count[0]):
@@ -238,6 +241,8 @@ def rrt_connect(tree, pending, space, fk, robot, scene, pairs, work, iterations,
             if added < 0:
                 return FULL, 0
             length = _connect(tree, t, added, space, fk, robot, scene, pairs, work, pending, out)
+            if length == WAIT:
+                return ROUND, 0  # the exact check may join the trees now: no need to grow more
             if length < 0:
                 return FULL, 0
             if length > 0:
