@@ -132,6 +132,7 @@ class ServiceRun:
         tally.solved += 1
         tally.planner_ms.append(planner_ms(answer.timings_ms))
         tally.plan_ms.append(float(answer.timings_ms["total"]))
+        tally.record_phases(answer.timings_ms)
         tally.record_extras(
             {**answer.timings_ms, **(answer.model_extra or {}), "planner": answer.planner}
         )

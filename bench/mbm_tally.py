@@ -59,6 +59,7 @@ class Tally:
     hit_server_ms: list[float] = field(default_factory=list)
     counts: Counter[str] = field(default_factory=Counter)  # paths, collisions, 4xx, …
     notes: Counter[str] = field(default_factory=Counter)  # messages, contact pairs
+    phases: dict[str, list[float]] = field(default_factory=dict)  # planned answers' timings_ms
 
     def record_extras(self, extras: Mapping[str, Any]) -> None:
         """Note what a planned answer says of its planner, spheres and repairs."""
@@ -69,6 +70,13 @@ class Tally:
             found = [extras[k] for k in keys if k in extras]
             if found:
                 seen.append(bool(found[0]))
+            elif keys is REPAIR_KEYS and "repair" in extras:  # through HTTP: its time, if any
+                seen.append(float(extras["repair"]) > 0.0)
+
+    def record_phases(self, timings: Mapping[str, float]) -> None:
+        """Keep a planned answer's timings, phase by phase."""
+        for name, value in timings.items():
+            self.phases.setdefault(name, []).append(float(value))
 
 
 def percentile(values: list[float], q: float = 50) -> float | None:
@@ -111,6 +119,10 @@ def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
         out["setup_ms_p95"] = percentile(_all(tallies, "setup_ms"), 95)
     else:
         out["plan_ms_median"] = percentile(_all(tallies, "plan_ms"))
+        names = sorted({name for t in tallies for name in t.phases})
+        out["plan_phases_ms_median"] = {
+            name: percentile([v for t in tallies for v in t.phases.get(name, [])]) for name in names
+        }
     replays = sum(t.replays for t in tallies)
     out |= {
         "compiled_share": _share(planners[COMPILED], sum(planners.values())),

@@ -58,6 +58,7 @@ def result_message(result: PlanResult) -> dict[str, Any]:
         "message": result.message,
         "stats": {str(k): float(v) for k, v in result.stats.items()},
         "seed": result.seed,
+        "certificate": result.certificate,
     }
 
 
@@ -71,4 +72,5 @@ def result_from_message(message: dict[str, Any]) -> PlanResult:
         message=str(message.get("message", "")),
         stats={str(k): float(v) for k, v in (message.get("stats") or {}).items()},
         seed=None if seed is None else int(seed),
+        certificate=str(message.get("certificate") or ""),
     )

@@ -93,8 +93,10 @@ def plan_until_certified(
         found += 1
         stats["paths_found"] += 1
         path, reason = finisher.finish(raw)
-        if path is not None:
-            return PlanResult(PlannerStatus.SOLVED, path, stats=stats)
+        if path is not None:  # certified: whole, or segment by segment (the same verdict)
+            return PlanResult(
+                PlannerStatus.SOLVED, path, stats=stats, certificate=validator.certificate(path)
+            )
     if not found:
         return PlanResult(PlannerStatus.TIMEOUT, message=none_found, stats=stats)
     message = (

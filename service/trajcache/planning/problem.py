@@ -99,6 +99,7 @@ class PlanResult:
     stats: dict[str, float] = field(default_factory=dict)
     seed: int | None = None  # the seed the planner ran with (None: no planner ran)
     detail: str = ""
+    certificate: str = ""  # the worker's validator's, for `path` (geometry/validation/stamp.py)
 
     @property
     def solved(self) -> bool:

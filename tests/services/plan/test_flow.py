@@ -19,8 +19,9 @@ from tests.services.hit_setup import context, count_statements, store, two_joint
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.scene.parse import parse_scene
-from trajcache.geometry.validation.validator import Resolution, interpolate
+from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+from trajcache.planning.run import run_planning
 from trajcache.services.catalog.robots import put_robot
 from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
@@ -295,3 +296,69 @@ def test_the_clock_gives_each_phase_its_time(
     assert timings["db"] < 40.0 and timings["lookup"] < 40.0
     parts = timings["lookup"] + timings["validate"] + timings["plan"] + timings["db"]
     assert parts <= timings["total"] + 0.01
+
+
+class WorkerPlanner(FakePlanner):
+    """A planner pool that runs the worker's own task in this process, then lets `edit` change
+    its result; it counts the validations done until it answers."""
+
+    def __init__(self, edit: Any = None) -> None:
+        super().__init__(PlanResult(PlannerStatus.ERROR))
+        self.edit = edit or (lambda result: result)
+        self.validations_before_answer = -1
+
+    def submit(self, problem: PlanningProblem) -> PlanResult:
+        self.problems.append(problem)
+        result = self.edit(run_planning(problem))
+        self.validations_before_answer = VALIDATIONS[0]
+        return result
+
+
+VALIDATIONS = [0]
+
+
+@pytest.fixture
+def counted(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Counts every TrajectoryValidator.validate call in this process."""
+    VALIDATIONS[0] = 0
+    original = TrajectoryValidator.validate
+
+    def validate(self: TrajectoryValidator, key_states: np.ndarray) -> Any:
+        VALIDATIONS[0] += 1
+        return original(self, key_states)
+
+    monkeypatch.setattr(TrajectoryValidator, "validate", validate)
+    return VALIDATIONS
+
+
+def test_the_worker_s_certificate_stands_for_the_service_s_validation(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch, counted: list[int]
+) -> None:
+    setup_robot(ctx, [blocker()], DETOUR)
+    planner = WorkerPlanner()
+    use_planner(ctx, monkeypatch, planner)
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, max_candidates=0)
+    assert (answer.status, answer.source) == (PlanStatus.SUCCESS, PlanSource.PLANNER)
+    assert planner.validations_before_answer > 0  # the worker certified its path
+    assert counted[0] == planner.validations_before_answer  # the service did not again
+
+
+@pytest.mark.parametrize("edit", ["forged", "moved", "none"])
+def test_a_certificate_that_does_not_name_the_path_here_is_validated_again(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch, counted: list[int], edit: str
+) -> None:
+    setup_robot(ctx, [blocker()], DETOUR)
+    through = np.array([[0.02, 0.0], [-1.0, 0.0], [0.98, 0.0]])  # through the blocker
+
+    def change(result: PlanResult) -> PlanResult:
+        if edit == "forged":  # a certificate from elsewhere, for a path that collides
+            return PlanResult(PlannerStatus.SOLVED, through, certificate="0" * 64)
+        if edit == "moved":  # the certified path's certificate, on a colliding path
+            return PlanResult(PlannerStatus.SOLVED, through, certificate=result.certificate)
+        return PlanResult(PlannerStatus.SOLVED, through)
+
+    use_planner(ctx, monkeypatch, WorkerPlanner(change))
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, max_candidates=0)
+    assert answer.status is PlanStatus.FAILURE
+    assert answer.message.startswith("planned path failed validation")
+    assert "blocker" in answer.message

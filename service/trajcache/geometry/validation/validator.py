@@ -41,6 +41,7 @@ from trajcache.geometry.model.space import segment_deltas, state_steps
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certify import SegmentCertifier
 from trajcache.geometry.validation.segments import Finding, SegmentStatus
+from trajcache.geometry.validation.stamp import certificate_digest
 
 IntArray = NDArray[np.int64]
 
@@ -157,6 +158,14 @@ class TrajectoryValidator:
         result = self._validate_samples(samples)
         result.elapsed_ms = (time.perf_counter() - began) * 1e3
         return result
+
+    def certificate(self, key_states: FloatArray) -> str:
+        """The digest that names this validator's valid verdict on exactly these key states
+        (`geometry/validation/stamp.py`): issued only for states it certified, compared by a
+        process that would otherwise validate them again."""
+        return certificate_digest(
+            self.model.model_id, self.scene_hash, self.settings_key, key_states
+        )
 
     def _validate_samples(self, samples: FloatArray) -> ValidationResult:
         bad = self._limit_violation(samples)

@@ -45,9 +45,9 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
     if not outcome.solved or outcome.path is None:
         return _unsolved(attempt, outcome, seed)
     with attempt.clock.measure("validate"):
-        result = attempt.validator.validate(outcome.path)
-    if not result.valid:
-        message = f"planned path failed validation: {result.message}"
+        failure = _validation_failure(attempt, outcome)
+    if failure:
+        message = f"planned path failed validation: {failure}"
         return answer_without_path(attempt, PlanStatus.FAILURE, message, seed=seed)
     model, scene, settings = attempt.model, attempt.scene, attempt.ctx.settings
     with attempt.clock.measure("db"):
@@ -97,6 +97,19 @@ def planner_phases(stats: Mapping[str, float], plan_ms: float) -> dict[str, floa
         "worker": round(run, 3),
         "pool": round(max(plan_ms - run, 0.0), 3),
     }
+
+
+def _validation_failure(attempt: PlanAttempt, outcome: PlanResult) -> str:
+    """Why the planned path is not valid here ("" when it is). The worker's certificate
+    stands for this service's own validation when its validator names the same verdict
+    (`geometry/validation/stamp.py`: same certifier, model variant, scene, settings and
+    states); otherwise the path is validated as a cached one would be."""
+    assert outcome.path is not None
+    validator = attempt.validator
+    if outcome.certificate and outcome.certificate == validator.certificate(outcome.path):
+        return ""
+    result = validator.validate(outcome.path)
+    return "" if result.valid else result.message
 
 
 def _problem(attempt: PlanAttempt) -> PlanningProblem:
