@@ -36,7 +36,7 @@ from trajcache.geometry.validation.validator import (
     ValidationStatus,
 )
 
-__all__ = ["MemoScope", "MemoUse", "ValidationMemo", "validate_with_memo"]
+__all__ = ["MemoScope", "MemoUse", "ValidationMemo", "remember_path", "validate_with_memo"]
 
 ValidateFn = Callable[[FloatArray], ValidationResult]
 
@@ -117,10 +117,16 @@ def validate_with_memo(
         return result, MemoUse.ENDS
     result = validate_fn(states)
     if result.valid:
-        memo.remember(scope, states)
-        if len(states) >= 4:
-            memo.remember(scope, interior)
+        remember_path(memo, scope, states)
     return result, MemoUse.NONE
+
+
+def remember_path(memo: ValidationMemo, scope: MemoScope, states: FloatArray) -> None:
+    """Remember a path that passed certified validation in `scope`, and its interior (what an
+    adaptation of it to new ends keeps)."""
+    memo.remember(scope, states)
+    if len(states) >= 4:
+        memo.remember(scope, states[1:-1])
 
 
 def _validate_ends(states: FloatArray, validate_fn: ValidateFn) -> ValidationResult:

@@ -16,6 +16,7 @@ import pytest
 import sqlalchemy as sa
 
 from tests.services.hit_setup import context, count_statements, store, two_joint
+from trajcache.cache.memo import MemoUse
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.scene.parse import parse_scene
@@ -341,6 +342,10 @@ def test_the_worker_s_certificate_stands_for_the_service_s_validation(
     assert (answer.status, answer.source) == (PlanStatus.SUCCESS, PlanSource.PLANNER)
     assert planner.validations_before_answer > 0  # the worker certified its path
     assert counted[0] == planner.validations_before_answer  # the service did not again
+    # the path is known certified here now, as if the service had validated it
+    again = ask(ctx, [0.02, 0.0], [0.98, 0.0], max_candidates=1)
+    assert (again.status, again.source) == (PlanStatus.SUCCESS, PlanSource.CACHE)
+    assert again.trajectory_id == answer.trajectory_id and again.memo is MemoUse.WHOLE
 
 
 @pytest.mark.parametrize("edit", ["forged", "moved", "none"])

@@ -11,6 +11,9 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 
+import numpy as np
+
+from trajcache.cache.memo import remember_path
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import (
@@ -107,6 +110,9 @@ def _validation_failure(attempt: PlanAttempt, outcome: PlanResult) -> str:
     assert outcome.path is not None
     validator = attempt.validator
     if outcome.certificate and outcome.certificate == validator.certificate(outcome.path):
+        scope = attempt.memo_scope
+        if scope is not None:  # as if validated here: a replay's interior is known
+            remember_path(attempt.ctx.memo, scope, np.asarray(outcome.path, dtype=float))
         return ""
     result = validator.validate(outcome.path)
     return "" if result.valid else result.message

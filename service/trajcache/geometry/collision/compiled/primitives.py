@@ -161,6 +161,15 @@ def box_gap_at(lo_a, hi_a, n, e, lo_b, hi_b, m):  # type: ignore[no-untyped-def]
     return gap
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def box_gap_pair(lo, hi, n, i, j):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """`box_gap` between boxes (n, i) and (n, j) of (lo, hi) (N, E, 3), by index."""
+    gap = -np.inf
+    for a in range(3):
+        gap = max(gap, lo[n, j, a] - hi[n, i, a], lo[n, i, a] - hi[n, j, a])
+    return gap
+
+
 @numba.njit(cache=True, nogil=True)
 def grow(rows, lows, count):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The output arrays with twice the room once `count` fills them."""

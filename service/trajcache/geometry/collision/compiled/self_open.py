@@ -9,7 +9,7 @@ import numpy as np
 
 from trajcache.geometry.collision.compiled.primitives import (
     GROW,
-    box_gap,
+    box_gap_pair,
     cover_motion,
     grow,
     place_cover,
@@ -19,6 +19,20 @@ from trajcache.geometry.collision.compiled.primitives import (
     world_boxes,
 )
 from trajcache.geometry.collision.compiled.slabs import self_slabs, slab_bound
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _ball_bound(n, ball, poses, i, j, radius):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """`self_bound`'s level 1 (the elements' balls) at sample n, by index: it runs for every
+    (sample, pair) the advancement visits, where the support tuple would cost more."""
+    if ball[n] < 0.0:
+        gap = math.sqrt(
+            (poses[n, i, 0, 3] - poses[n, j, 0, 3]) ** 2
+            + (poses[n, i, 1, 3] - poses[n, j, 1, 3]) ** 2
+            + (poses[n, i, 2, 3] - poses[n, j, 2, 3]) ** 2
+        )
+        ball[n] = max(gap - radius[i] - radius[j], 0.0)
+    return ball[n]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -80,11 +94,11 @@ def self_open_kernel(links, step, robot, half, sup, motion, pairs, first_only): 
         at = 0  # every segment before sample `at` is certified
         while at < n_seg:
             ahead = at
-            d = self_bound(at, 1, ball_low, low, level, poses, i, j, radius, sup)
+            d = _ball_bound(at, ball_low, poses, i, j, radius)
             while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
                 ahead += 1
             if ahead == at:  # the world boxes' gap, with the motion of any point
-                d = box_gap(box_lo[at, i], box_hi[at, i], box_lo[at, j], box_hi[at, j])
+                d = box_gap_pair(box_lo, box_hi, at, i, j)
                 while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
                     ahead += 1
             if ahead == at:
@@ -98,17 +112,19 @@ def self_open_kernel(links, step, robot, half, sup, motion, pairs, first_only): 
             at += 1
             settled = False
             moving = whole_sum[hi] - whole_sum[lo]
-            box_a = box_gap(box_lo[lo, i], box_hi[lo, i], box_lo[lo, j], box_hi[lo, j])
-            box_b = box_gap(box_lo[hi, i], box_hi[hi, i], box_lo[hi, j], box_hi[hi, j])
+            box_a = box_gap_pair(box_lo, box_hi, lo, i, j)
+            box_b = box_gap_pair(box_lo, box_hi, hi, i, j)
             if box_a + box_b > moving:
                 continue
-            for want in range(1, 4):
+            da = _ball_bound(lo, ball_low, poses, i, j, radius)
+            db = _ball_bound(hi, ball_low, poses, i, j, radius)
+            settled = da + db > centre_sum[hi] - centre_sum[lo]
+            for want in range(2, 4):
+                if settled:
+                    break
                 da = self_bound(lo, want, ball_low, low, level, poses, i, j, radius, sup)
                 db = self_bound(hi, want, ball_low, low, level, poses, i, j, radius, sup)
-                limit = centre_sum[hi] - centre_sum[lo] if want == 1 else moving
-                if da + db > limit:
-                    settled = True
-                    break
+                settled = da + db > moving
             if settled:
                 continue
             k = lo
