@@ -297,6 +297,15 @@ class MeshChecker:
                     depth = max(depth, abs(float(contact.penetration_depth)))
         return own, scene, depth
 
+    def scene_clearance(self, state: ArrayLike) -> float:
+        """The least distance between the robot and the scene at `state` (coal; ∞ without
+        scene objects)."""
+        q = self.configuration(state)
+        pin.computeDistances(self.model, self.data, self.geoms, self.geom_data, q)
+        results = self.geom_data.distanceResults
+        return min((results[k].min_distance for k in range(self.n_self, len(results))),
+                   default=float("inf"))  # fmt: skip
+
     def base_clear(self) -> bool:
         """Whether the body that stands still (fixed base, or a planar base at rest) is clear of
         the scene: else no state is free."""

@@ -222,20 +222,39 @@ def free_state(checker: MeshChecker, ws: Workspace, rng: np.random.Generator) ->
 
 
 def goal_state(
-    checker: MeshChecker, ws: Workspace, rng: np.random.Generator, region: Region
+    checker: MeshChecker,
+    ws: Workspace,
+    rng: np.random.Generator,
+    region: Region,
+    clearance: tuple[float, float] | None = None,
 ) -> tuple[FloatArray | None, bool]:
-    """A free state with the end effector in `region` if one turns up, else any free state."""
+    """A free state with the end effector in `region` if one turns up, else any free state.
+
+    With `clearance` (low, high), only a goal in the region whose least distance to the scene
+    lies within it (m), as tight as MotionBenchMaker's goals in shelves and boxes; None when
+    none turns up."""
     for _ in range(GOAL_TRIES):
         state = sample_state(ws, rng)
         if region.contains(checker.tip_position(state)) and checker.is_free(state):
-            return state, True
+            if clearance is None:
+                return state, True
+            if clearance[0] <= checker.scene_clearance(state) <= clearance[1]:
+                return state, True
+    if clearance is not None:
+        return None, False
     return free_state(checker, ws, rng), False
 
 
 def generate_problem(
-    checker: MeshChecker, ws: Workspace, family: str, index: int, seed: int
+    checker: MeshChecker,
+    ws: Workspace,
+    family: str,
+    index: int,
+    seed: int,
+    clearance: tuple[float, float] | None = None,
 ) -> Problem | None:
-    """Problem `index` of `family` (seeded); None when no scene of SCENE_TRIES gave free states.
+    """Problem `index` of `family` (seeded); None when no scene of SCENE_TRIES gave free states
+    (with `clearance`, a goal that near the scene: `goal_state`).
 
     Leaves `checker` set to the problem's scene."""
     rng = np.random.default_rng([seed, FAMILIES.index(family), index])
@@ -247,7 +266,7 @@ def generate_problem(
         start = free_state(checker, ws, rng)
         if start is None:
             continue
-        goal, in_region = goal_state(checker, ws, rng, region)
+        goal, in_region = goal_state(checker, ws, rng, region, clearance)
         if goal is not None:
             return Problem(family, index, tuple(objects), start, goal, in_region)
     return None
