@@ -71,9 +71,11 @@ class RobotGeometry:
         ]
         self.pair_i = np.array([p[0] for p in pairs], dtype=np.int64)
         self.pair_j = np.array([p[1] for p in pairs], dtype=np.int64)
-        # Dofs that move both elements of a pair alike do not change their distance.
+        # The dofs that change a pair's distance: those that move one of its elements, and not
+        # both alike (as `free_pairs`); a dof that moves neither changes nothing either.
         li, lj = self.element_link[self.pair_i], self.element_link[self.pair_j]
-        self.pair_mask = ~self.motion.alike(li, lj)  # (P, D)
+        above = self.motion.ancestors[li] | self.motion.ancestors[lj]
+        self.pair_mask = above & ~self.motion.alike(li, lj)  # (P, D)
         self.proven_free: list[tuple[int, int]] = []  # element pairs dropped by `drop_pairs`
         self._local = threading.local()
 

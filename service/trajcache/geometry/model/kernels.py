@@ -127,7 +127,7 @@ def forward_kinematics_kernel(
                 v = q[n, value_index[j]] * value_scale[j] + value_offset[j]
             else:
                 v = default[j]
-            sv, cv = math.sin(v), 1.0 - math.cos(v)
+            sv, cv = (math.sin(v), 1.0 - math.cos(v)) if v != 0.0 else (0.0, 0.0)  # fixed: 0
             top, dst = parent[j], child[j]
             for c in range(4):
                 l0 = fx[j, 0, c] + sv * si[j, 0, c] + cv * ve[j, 0, c] + v * sl[j, 0, c]

@@ -29,6 +29,7 @@ import math
 
 import numba
 
+from trajcache.geometry.collision.compiled.primitives import box_distance_at
 from trajcache.geometry.collision.compiled.slabs import self_slabs
 from trajcache.geometry.model.kernels import forward_kinematics_kernel
 
@@ -169,14 +170,30 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     work[3][0] += 1
     work[7][0] += 1
     _pose_elements(robot, work)
+    link, root, local, radius = robot[0], robot[1], robot[2], robot[3]
+    links, world, stamp, clock = work[0], work[1], work[2], work[3][0]
+    for e in range(root.shape[0]):  # every root ball, once: the loops below only read them
+        k, f = root[e], link[e]  # written out here: a call per element costs more than this
+        for r in range(3):
+            world[k, r] = (
+                links[0, f, r, 0] * local[k, 0] + links[0, f, r, 1] * local[k, 1]
+                + links[0, f, r, 2] * local[k, 2] + links[0, f, r, 3]
+            )  # fmt: skip
+        stamp[k] = clock
     allowed = scene[4]
     status = FREE
     poses, box_centre, box_half = work[6], work[8], robot[10]
     rot_m, centre_m, half_m = scene[1], scene[2], scene[7]
-    for e in range(robot[1].shape[0]):
+    for e in range(root.shape[0]):
+        k = root[e]
         for m in range(scene[0].shape[0]):
             if allowed[e, m]:
                 continue
+            if (
+                box_distance_at(world[k, 0], world[k, 1], world[k, 2], rot_m, centre_m, half_m, m)
+                > radius[k]
+            ):
+                continue  # the element's bounding ball misses the object's box
             if obb_apart(poses, e, box_centre, box_half, rot_m, m, centre_m, half_m):
                 continue
             row = _scene_row(e, m, robot, scene, work)
@@ -188,17 +205,14 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
         work[7][1] += 1
         return OPEN
     pi, pj, dofs = pairs[0], pairs[1], pairs[2]
-    link, root, local, radius = robot[0], robot[1], robot[2], robot[3]
-    links, world, stamp, clock = work[0], work[1], work[2], work[3][0]
     for p in range(pi.shape[0]):
         if dofs[p, 0] >= 0 and _table_bound(q, p, pairs) > 0.0:
             continue
-        i, j = pi[p], pj[p]
-        a, b = root[i], root[j]
-        _node(a, link[i], links, local, world, stamp, clock)
-        _node(b, link[j], links, local, world, stamp, clock)
-        if _gap(a, b, world) > radius[a] + radius[b]:
+        a, b = root[pi[p]], root[pj[p]]
+        dx, dy, dz = world[a, 0] - world[b, 0], world[a, 1] - world[b, 1], world[a, 2] - world[b, 2]
+        if math.sqrt(dx * dx + dy * dy + dz * dz) > radius[a] + radius[b]:
             continue  # the elements' bounding balls are apart
+        i, j = pi[p], pj[p]
         if obb_apart(poses, i, box_centre, box_half, poses, j, box_centre, box_half):
             continue
         if _pair_slab(i, j, robot, work):
