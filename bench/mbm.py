@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from rich.console import Console
 
+import mbm_check
 from dense_mesh import FloatArray
 from harness.service import running_service
 from mbm_check import SceneChecker, check_path, panda_description, path_length
@@ -138,7 +139,7 @@ class ServiceRun:
         )
         states = np.asarray(answer.states, dtype=float)
         tally.path_lengths.append(path_length(states))
-        check_path(tally, self.checker, states, (start, goal))
+        check_path(tally, self.checker, states, (start, goal), f"plan {problem.label}")
         return start, goal
 
     def replay(self, tally: Tally, problem: Problem, ends: tuple[FloatArray, FloatArray]) -> None:
@@ -160,7 +161,10 @@ class ServiceRun:
             tally.counts["replays_planned"] += 1
             for rejected in answer.rejected:  # why the cached path did not serve
                 tally.notes[f"replay: candidate {rejected.reason[:100]}"] += 1
-        check_path(tally, self.checker, np.asarray(answer.states, dtype=float), (start, goal))
+        check_path(
+            tally, self.checker, np.asarray(answer.states, dtype=float), (start, goal),
+            f"replay {problem.label}",
+        )  # fmt: skip
 
     def moveit(self, tally: Tally, problem: Problem) -> None:
         """Send the problem's MotionPlanRequest file as it is to `/motion-plan` (its scene is
@@ -182,7 +186,7 @@ class ServiceRun:
         states = np.array([[p["positions"][k] for k in order] for p in trajectory["points"]])
         ends = (clamp(problem.start, self.lower, self.upper)[0],
                 clamp(problem.goal, self.lower, self.upper)[0])  # fmt: skip
-        check_path(tally, self.checker, states, ends)
+        check_path(tally, self.checker, states, ends, f"moveit {problem.label}")
 
     def noisy(self, state: FloatArray, rng: np.random.Generator) -> FloatArray | None:
         """The state with uniform noise, within the limits and free; None after NOISY_DRAWS."""
@@ -221,7 +225,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--moveit", action="store_true", help="also send each request file as is to /motion-plan"
     )
+    parser.add_argument("--dump-contacts", type=Path, help="append colliding paths here (JSONL)")
     args = parser.parse_args(argv)
+    if args.dump_contacts:
+        mbm_check.DUMP.append(args.dump_contacts)
     args.families = args.families.split(",") if args.families else list(FAMILIES)
     if unknown := set(args.families) - set(FAMILIES):
         parser.error(f"unknown families {sorted(unknown)}; use {', '.join(FAMILIES)}")

@@ -10,6 +10,7 @@ links (a self pair), or a link and an object (a scene pair). Everything else is 
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -86,11 +87,24 @@ def path_length(states: FloatArray) -> float:
     return float(np.linalg.norm(np.diff(states, axis=0), axis=1).sum())
 
 
+DUMP: list[Path] = []  # where to append the paths that collide (`--dump-contacts`)
+
+
 def check_path(
-    tally: Tally, checker: SceneChecker, states: FloatArray, ends: tuple[FloatArray, FloatArray]
+    tally: Tally,
+    checker: SceneChecker,
+    states: FloatArray,
+    ends: tuple[FloatArray, FloatArray],
+    label: str = "",
 ) -> None:
-    """Dense-check a returned path in the checker's scene, and that it runs between `ends`."""
+    """Dense-check a returned path in the checker's scene, and that it runs between `ends`;
+    a path that collides is appended to `DUMP[0]` (JSON lines) when set, with `label`."""
     verdict = checker.check_path(states)
+    if DUMP and (verdict.collides or verdict.self_collides):
+        with DUMP[0].open("a", encoding="utf-8") as out:
+            line = {"label": label, "states": np.asarray(states).tolist(),
+                    "pairs": dict(verdict.scene_pairs + verdict.self_pairs)}  # fmt: skip
+            out.write(json.dumps(line) + "\n")
     counts = tally.counts
     counts["paths"] += 1
     counts["dense_samples"] += verdict.samples

@@ -22,6 +22,7 @@ import numpy as np
 from mbm_check import SceneChecker, check_path, path_length
 from mbm_problems import ARM_JOINTS, FAMILIES, Problem, allowed_pairs, clamp, scene_objects
 from mbm_tally import Tally
+from trajcache.core.config import Settings
 from trajcache.geometry.collision.shared import PROCESS_GEOMETRY, robot_geometry, scene_geometry
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.parse import parse_scene
@@ -30,7 +31,8 @@ from trajcache.geometry.warm import warm
 from trajcache.planning import run
 from trajcache.planning.problem import SEED_LIMIT, ModelSource, PlanningProblem, SceneSource
 
-DEFAULT_PLANNER = "rrtconnect"  # the service's default (settings), when --planner is not given
+# the service's default (its settings: TRAJCACHE_DEFAULT_PLANNER), when --planner is not given
+DEFAULT_PLANNER = Settings.model_fields["default_planner"].default
 
 
 def model_source(args: argparse.Namespace) -> ModelSource:
@@ -99,7 +101,7 @@ def plan_problem(
     states = np.asarray(result.path, dtype=float)
     tally.path_lengths.append(path_length(states))
     checker.set_scene(scene_objects(problem.scene), allowed_pairs(problem.scene))
-    check_path(tally, checker, states, (start, goal))
+    check_path(tally, checker, states, (start, goal), f"plan {problem.label}")
 
 
 def run_in_process(

@@ -53,8 +53,18 @@ NOISE = 0.02
 COLUMNS = ("problems", "success_rate", "plan_ms_median", "plan_ms_p95", "hit_rate",
            "hit_server_ms_median", "collisions", "self_collisions", "limit_violations")  # fmt: skip
 HIT_PARTS = ("validate", "lookup", "db")  # of a hit's server time
-PLAN_PARTS = ("plan", "search", "simplify", "certify", "repair", "worker", "pool", "validate", "db",
-              "total")  # of a solved first request's server time
+PLAN_PARTS = (
+    "plan",
+    "search",
+    "simplify",
+    "certify",
+    "repair",
+    "worker",
+    "pool",
+    "validate",
+    "db",
+    "total",
+)  # of a solved first request's server time
 SMOKE_ROBOTS, SMOKE_FAMILIES = ("panda", "ur5"), ("table", "shelf")
 # TIAGo planning with its torso (arm + torso lift, 8 joints) on a fixed base, in scenes as tight
 # as MotionBenchMaker's: goals 2-5 cm from the shelf boards, box walls and cage bars.

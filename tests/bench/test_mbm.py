@@ -135,3 +135,49 @@ def test_smoke_sizes_and_the_planner_time_key() -> None:
     assert planner_ms({"plan": 40.0, "search": 10.0, "simplify": 5.0}) == 15.0
     with pytest.raises(SystemExit):
         parse_args(["--families", "kitchen"])
+
+
+def test_obj_meshes_are_checked_as_written_not_as_assimp_reads_them(
+    checker: SceneChecker, problems_dir: Path
+) -> None:
+    """cage-0019 planned a path whose link6 passes 1.78 mm from side_frontB: the file's
+    triangles say so (checked against every triangle); assimp's import of link6.obj holds a
+    triangle 8 mm off the mesh that touched the bar. The check reads the file as written."""
+    import coal
+    from dense_mesh import obj_triangles
+
+    vertices, faces = obj_triangles(DEFAULT_DATA / "robot" / "meshes" / "collision" / "link6.obj")
+    assert faces.shape == (1308, 3) and len(vertices) == 966
+    state = np.array([0.48975271, -0.20445973, -0.70796647, -2.08036428, -0.93503753,
+                      1.79678925, -1.26743874])  # fmt: skip
+    [problem] = [p for p in load_problems(problems_dir, ["cage"], 19) if p.index == 19]
+    checker.set_scene(scene_objects(problem.scene), allowed_pairs(problem.scene))
+    assert checker.is_free(state)
+    # the file's own triangles, one by one, against the bar: none within 1.7 mm
+    bar = next(o for o in scene_objects(problem.scene) if o["id"] == "side_frontB")
+    q = checker.configuration(state)
+    import pinocchio as pin
+
+    pin.forwardKinematics(checker.model, checker.data, q)
+    pin.updateGeometryPlacements(checker.model, checker.data, checker.geoms, checker.geom_data, q)
+    link6 = next(
+        g for g, o in enumerate(checker.robot_geoms.geometryObjects) if "link6" in o.name
+    )
+    placed = checker.geom_data.oMg[link6]
+    from dense_mesh import _quaternion_placement, scene_geometry
+
+    box_pose = _quaternion_placement(bar["pose"])
+    world = vertices @ placed.rotation.T + placed.translation
+    least = np.inf
+    for face in faces:
+        triangle = coal.BVHModelOBBRSS()
+        triangle.beginModel(1, 3)
+        triangle.addVertices(world[face])
+        triangle.addTriangles(np.array([[0, 1, 2]], dtype=np.int64))
+        triangle.endModel()
+        least = min(least, coal.distance(
+            triangle, coal.Transform3s(), scene_geometry(bar),
+            coal.Transform3s(box_pose.rotation, box_pose.translation),
+            coal.DistanceRequest(), coal.DistanceResult(),
+        ))  # fmt: skip
+    assert 0.0017 < least < 0.0019
