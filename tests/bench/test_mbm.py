@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import coal
 import numpy as np
+import pinocchio as pin
 import pytest
 
+from dense_mesh import _quaternion_placement, obj_triangles, scene_geometry
 from mbm import parse_args, planner_ms
 from mbm_check import SceneChecker, panda_description
 from mbm_problems import (
@@ -143,9 +146,6 @@ def test_obj_meshes_are_checked_as_written_not_as_assimp_reads_them(
     """cage-0019 planned a path whose link6 passes 1.78 mm from side_frontB: the file's
     triangles say so (checked against every triangle); assimp's import of link6.obj holds a
     triangle 8 mm off the mesh that touched the bar. The check reads the file as written."""
-    import coal
-    from dense_mesh import obj_triangles
-
     vertices, faces = obj_triangles(DEFAULT_DATA / "robot" / "meshes" / "collision" / "link6.obj")
     assert faces.shape == (1308, 3) and len(vertices) == 966
     state = np.array([0.48975271, -0.20445973, -0.70796647, -2.08036428, -0.93503753,
@@ -156,16 +156,10 @@ def test_obj_meshes_are_checked_as_written_not_as_assimp_reads_them(
     # the file's own triangles, one by one, against the bar: none within 1.7 mm
     bar = next(o for o in scene_objects(problem.scene) if o["id"] == "side_frontB")
     q = checker.configuration(state)
-    import pinocchio as pin
-
     pin.forwardKinematics(checker.model, checker.data, q)
     pin.updateGeometryPlacements(checker.model, checker.data, checker.geoms, checker.geom_data, q)
-    link6 = next(
-        g for g, o in enumerate(checker.robot_geoms.geometryObjects) if "link6" in o.name
-    )
+    link6 = next(g for g, o in enumerate(checker.robot_geoms.geometryObjects) if "link6" in o.name)
     placed = checker.geom_data.oMg[link6]
-    from dense_mesh import _quaternion_placement, scene_geometry
-
     box_pose = _quaternion_placement(bar["pose"])
     world = vertices @ placed.rotation.T + placed.translation
     least = np.inf
