@@ -1,4 +1,5 @@
-"""Fallback planning: OMPL RRTConnect (batched checks), RRIS and a naive OMPL baseline.
+"""Fallback planning: the compiled planner (the default), OMPL RRTConnect (batched checks), RRIS
+and a naive OMPL baseline.
 
 Workload (deterministic, from `--seed`): planning calls drawn from the reference workload
 generator (REFERENCE.md): three cleaning runs, each with its own door angles and execution noise,
@@ -7,6 +8,7 @@ scene in force when the run makes it (doors, seats). Both arm moves at a station
 between stations (arm stowed) are drawn; the table reports how many are straight-line free.
 
 Planners, side by side on the same pairs and seeds, budget 2 s each:
+- compiled: `run_planning` → the compiled RRT-Connect on sphere trees (`compiled_` keys);
 - rrtconnect: `run_planning` → OMPL RRTConnect with the batched segment MotionValidator;
 - rris: `run_planning` → RRIS;
 - naive: OMPL RRTConnect with a per-state Python validity callback (one check call per state)
@@ -173,7 +175,7 @@ def main() -> None:
         f"{len(scenes)} scenes; built in {time.perf_counter() - began:.1f} s"
     )
     summary: dict[str, dict[str, float]] = {}
-    for planner in ("rrtconnect", "rris", "naive"):
+    for planner in ("compiled", "rrtconnect", "rris", "naive"):
         t = time.perf_counter()
         results = run_pairs(pairs, planner, model, scenes)
         summary[planner] = summarize(results)
@@ -212,6 +214,11 @@ def main() -> None:
         "speedup_vs_naive": round(naive["median_ms"] / max(ours["median_ms"], 1e-9), 2),
         "detour_median_ms": round(ours["detour_median_ms"], 2),
         "naive_detour_median_ms": round(naive["detour_median_ms"], 2),
+        "compiled_success_rate": round(summary["compiled"]["success_rate"], 4),
+        "compiled_median_ms": round(summary["compiled"]["median_ms"], 2),
+        "compiled_p95_ms": round(summary["compiled"]["p95_ms"], 2),
+        "compiled_median_total_ms": round(summary["compiled"]["median_total_ms"], 2),
+        "compiled_detour_median_ms": round(summary["compiled"]["detour_median_ms"], 2),
         "pairs": len(pairs),
         "straight_free_pairs": straight,
         "budget_s": BUDGET_S,
