@@ -94,9 +94,21 @@ def _object_size(shape: Shape) -> list[float]:
     return [float(v) for v in shape.half_extents()]
 
 
+_BOXES: weakref.WeakKeyDictionary[RobotGeometry, tuple[np.ndarray, np.ndarray]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
 def _element_boxes(robot: RobotGeometry) -> tuple[np.ndarray, np.ndarray]:
     """Each element's box in its own frame (centre, half extents): a mesh's vertices' box, a
-    primitive's own (about its origin)."""
+    primitive's own (about its origin). Built once per model (variant)."""
+    boxes = _BOXES.get(robot)
+    if boxes is None:
+        boxes = _BOXES[robot] = _boxes(robot)
+    return boxes
+
+
+def _boxes(robot: RobotGeometry) -> tuple[np.ndarray, np.ndarray]:
     centres, halves = [], []
     for element in robot.model.elements:
         shape = element.shape
