@@ -4,8 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from tests.robots import TWO_JOINT_URDF
+from trajcache.core.config import Settings
+from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.scene.scene import make_scene
 from trajcache.geometry.validation import stamp
 from trajcache.geometry.validation.stamp import certificate_digest, certifier_digest
+from trajcache.geometry.validation.validator import (
+    build_validator,
+    certificate_for,
+    settings_key_of,
+)
 
 STATES = np.array([[0.0, 0.1], [0.5, 0.2]])
 SETTINGS = (0.035, True)
@@ -41,3 +50,13 @@ def test_another_certifier_source_gives_another_certificate(tmp_path, monkeypatc
         assert certificate_digest("model", "scene", SETTINGS, STATES) != base
     finally:
         certifier_digest.cache_clear()
+
+
+def test_a_certificate_named_without_a_validator_is_the_validator_s() -> None:
+    model = load_robot_model(TWO_JOINT_URDF, base="fixed")
+    scene = make_scene([])
+    settings = Settings(step_joint_rad=0.02)
+    validator = build_validator(model, scene, settings)
+    assert settings_key_of(settings) == validator.settings_key
+    assert certificate_for(model, scene, settings, STATES) == validator.certificate(STATES)
+    assert certificate_for(model, scene, Settings(), STATES) != validator.certificate(STATES)

@@ -120,6 +120,16 @@ def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolutio
     return np.vstack([dense, key[-1:]])
 
 
+MIN_PAD, MAX_DEPTH = 1e-4, 24  # the certifier's defaults
+
+
+def settings_key(
+    resolution: Resolution, certified: bool, min_pad: float = MIN_PAD, max_depth: int = MAX_DEPTH
+) -> tuple[object, ...]:
+    """Every setting a verdict depends on besides the model, the scene and the states."""
+    return (resolution, certified, min_pad, max_depth)
+
+
 class TrajectoryValidator:
     """Validates trajectories of one model in one scene; cheap to build, geometry is cached."""
 
@@ -130,8 +140,8 @@ class TrajectoryValidator:
         *,
         resolution: Resolution | None = None,
         certified: bool = True,
-        min_pad: float = 1e-4,
-        max_depth: int = 24,
+        min_pad: float = MIN_PAD,
+        max_depth: int = MAX_DEPTH,
         compiled: bool = True,
         geometry: GeometryCache | None = None,
     ) -> None:
@@ -141,7 +151,7 @@ class TrajectoryValidator:
         self.resolution = resolution or Resolution()
         self.certified = certified
         # Every setting a verdict depends on besides the model, the scene and the states.
-        self.settings_key: tuple[object, ...] = (self.resolution, certified, min_pad, max_depth)
+        self.settings_key = settings_key(self.resolution, certified, min_pad, max_depth)
         self.certifier = SegmentCertifier(
             self.checker,
             planar=model.base is BaseType.PLANAR,
@@ -349,6 +359,19 @@ def build_validator(
         certified=settings.certified_validation,
         geometry=geometry,
     )
+
+
+def certificate_for(
+    model: RobotModel, scene: Scene, settings: ValidationSettings, key_states: FloatArray
+) -> str:
+    """The certificate `build_validator(model, scene, settings)` would issue for these states,
+    without building it (its collision geometry is not needed to name a verdict)."""
+    return certificate_digest(model.model_id, scene.hash, settings_key_of(settings), key_states)
+
+
+def settings_key_of(settings: ValidationSettings) -> tuple[object, ...]:
+    """The `settings_key` of the validators `build_validator` makes under these settings."""
+    return settings_key(_resolution(settings), settings.certified_validation)
 
 
 def _resolution(settings: ValidationSettings) -> Resolution:

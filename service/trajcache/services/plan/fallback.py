@@ -13,8 +13,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from trajcache.cache.memo import remember_path
+from trajcache.cache.memo import MemoScope, remember_path
 from trajcache.geometry.scene.payload import scene_to_payload
+from trajcache.geometry.validation.validator import certificate_for, settings_key_of
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import (
     PlannerStatus,
@@ -108,13 +109,14 @@ def _validation_failure(attempt: PlanAttempt, outcome: PlanResult) -> str:
     (`geometry/validation/stamp.py`: same certifier, model variant, scene, settings and
     states); otherwise the path is validated as a cached one would be."""
     assert outcome.path is not None
-    validator = attempt.validator
-    if outcome.certificate and outcome.certificate == validator.certificate(outcome.path):
-        scope = attempt.memo_scope
-        if scope is not None:  # as if validated here: a replay's interior is known
+    settings, scene = attempt.ctx.settings, attempt.scene
+    here = certificate_for(attempt.checked, scene, settings, outcome.path)
+    if outcome.certificate and outcome.certificate == here:
+        if scene.hash:  # as if validated here: a replay's interior is known
+            scope = MemoScope(attempt.checked.model_id, scene.hash, settings_key_of(settings))
             remember_path(attempt.ctx.memo, scope, np.asarray(outcome.path, dtype=float))
         return ""
-    result = validator.validate(outcome.path)
+    result = attempt.validator.validate(outcome.path)
     return "" if result.valid else result.message
 
 
