@@ -163,9 +163,11 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     clock (1,), stack (S,), pair stack (S, 2), element poses (E, 3, 4), counts (2,) of the
     states checked and of those found OPEN, element box centres (E, 3)).
 
-    Before trees are descended, the cheaper proofs: oriented boxes apart (an element's box
-    holds it; an object's box holds it), and for a pair its distance table, the elements'
-    bounding balls and separating slabs (`slabs.py`, as the certification uses them)."""
+    Before trees are descended, the cheaper proofs: for a scene row, the element's root ball
+    (which holds all its tree covers) missing the object's box, then the oriented boxes apart
+    (an element's box holds it; an object's box holds it); for a pair its distance table, the
+    elements' root balls apart, their boxes apart and separating slabs (`slabs.py`, as the
+    certification uses them). Every root ball is placed once per state, first."""
     pose_links(q, fk, work[0])
     work[3][0] += 1
     work[7][0] += 1
