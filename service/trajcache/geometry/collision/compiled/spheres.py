@@ -20,7 +20,17 @@ the object (negative inside):
 - OPEN otherwise: the trees neither prove the state free nor colliding, and the exact check
   (FCL, in Python) decides. Self-collision pairs are never proven colliding here.
 
-`sphere_state` returns 0 (FREE), 1 (OPEN) or 2 (COLLIDING).
+`sphere_state` returns 0 (FREE), 1 (OPEN) or 2 (COLLIDING). Its arrays:
+- robot: element link (E,), element root node (E,), node centres in their link's frame (N, 3),
+  radii (N,), first child (N,) (−1: a leaf), child count (N,), reach (N,), element origins
+  (E, 4, 4), support table, element box centres (E, 3) and half extents (E, 3) in the element's
+  frame;
+- scene: kind (M,), rotation (M, 3, 3), position (M, 3), size (M, 3), allowed (E, M), poses
+  (M, 3, 4), support table, box half extents (M, 3);
+- pairs: i (P,), j (P,), then the distance tables of `pair_tables.py`;
+- work: links (1, L, 4, 4), world centres (N, 3), stamps (N,), clock (1,), stack (S,), pair
+  stack (S, 2), element poses (E, 3, 4), counts (2,) of the states checked and of those found
+  OPEN, element box centres (E, 3).
 """
 
 from __future__ import annotations
@@ -151,17 +161,8 @@ def _pair_open(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no
 
 @numba.njit(cache=True, nogil=True)
 def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """FREE, OPEN or COLLIDING (module docstring) for state q (D,).
-
-    robot: (element link (E,), element root node (E,), node centres in their link's frame
-    (N, 3), radii (N,), first child (N,) (−1: a leaf), child count (N,), reach (N,), element
-    origins (E, 4, 4), support table, element box centres (E, 3) and half extents (E, 3) in the
-    element's frame); scene: (kind (M,), rotation (M, 3, 3), position (M, 3),
-    size (M, 3), allowed (E, M), poses (M, 3, 4), support table, box half extents (M, 3));
-    pairs: (i (P,), j (P,), then the distance tables of `pair_tables.py`); work: (links
-    (1, L, 4, 4), world centres (N, 3), stamps (N,),
-    clock (1,), stack (S,), pair stack (S, 2), element poses (E, 3, 4), counts (2,) of the
-    states checked and of those found OPEN, element box centres (E, 3)).
+    """FREE, OPEN or COLLIDING (module docstring) for state q (D,); the arrays as the module
+    docstring lays them out.
 
     Before trees are descended, the cheaper proofs: for a scene row, the element's root ball
     (which holds all its tree covers) missing the object's box, then the oriented boxes apart
@@ -172,16 +173,7 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     work[3][0] += 1
     work[7][0] += 1
     _pose_elements(robot, work)
-    link, root, local, radius = robot[0], robot[1], robot[2], robot[3]
-    links, world, stamp, clock = work[0], work[1], work[2], work[3][0]
-    for e in range(root.shape[0]):  # every root ball, once: the loops below only read them
-        k, f = root[e], link[e]  # written out here: a call per element costs more than this
-        for r in range(3):
-            world[k, r] = (
-                links[0, f, r, 0] * local[k, 0] + links[0, f, r, 1] * local[k, 1]
-                + links[0, f, r, 2] * local[k, 2] + links[0, f, r, 3]
-            )  # fmt: skip
-        stamp[k] = clock
+    root, radius, world = robot[1], robot[3], work[1]
     allowed = scene[4]
     status = FREE
     poses, box_centre, box_half = work[6], work[8], robot[10]
@@ -283,12 +275,20 @@ def obb_apart(ra, i, ca, ha, rb, j, cb, hb):  # type: ignore[no-untyped-def]  # 
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _pose_elements(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """World poses (E, 3, 4) of the elements into work[6], their box centres into work[8]."""
+    """World poses (E, 3, 4) of the elements into work[6], their box centres into work[8], and
+    their root balls' centres placed (work[1], stamped): the loops after only read them."""
     links, poses, link, origin, local, centre = (
         work[0], work[6], robot[0], robot[7], robot[9], work[8],
     )  # fmt: skip
+    root, node, world, stamp, clock = robot[1], robot[2], work[1], work[2], work[3][0]
     for e in range(link.shape[0]):
-        f = link[e]
+        f, k = link[e], root[e]  # written out: a call per element costs more than this
+        for r in range(3):
+            world[k, r] = (
+                links[0, f, r, 0] * node[k, 0] + links[0, f, r, 1] * node[k, 1]
+                + links[0, f, r, 2] * node[k, 2] + links[0, f, r, 3]
+            )  # fmt: skip
+        stamp[k] = clock
         for r in range(3):
             for c in range(4):
                 acc = links[0, f, r, 0] * origin[e, 0, c] + links[0, f, r, 1] * origin[e, 1, c]
