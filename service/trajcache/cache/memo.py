@@ -29,11 +29,15 @@ from enum import Enum
 import numpy as np
 
 from trajcache.core.lru import LRU
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
     ValidationResult,
+    ValidationSettings,
     ValidationStatus,
+    settings_key_of,
 )
 
 __all__ = ["MemoScope", "MemoUse", "ValidationMemo", "remember_path", "validate_with_memo"]
@@ -48,6 +52,16 @@ class MemoScope:
     model_id: str
     scene_hash: str
     settings: tuple[object, ...]  # the validator's `settings_key` (resolution, certified mode, …)
+
+    @classmethod
+    def under(
+        cls, model: RobotModel, scene: Scene, settings: ValidationSettings
+    ) -> MemoScope | None:
+        """The scope of the verdicts of `build_validator(model, scene, settings)`, without
+        building it (None: the scene has no content hash)."""
+        if not scene.hash:
+            return None
+        return cls(model.model_id, scene.hash, settings_key_of(settings))
 
     @classmethod
     def of(cls, validator: TrajectoryValidator) -> MemoScope | None:

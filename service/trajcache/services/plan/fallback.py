@@ -15,7 +15,7 @@ import numpy as np
 
 from trajcache.cache.memo import MemoScope, remember_path
 from trajcache.geometry.scene.payload import scene_to_payload
-from trajcache.geometry.validation.validator import certificate_for, settings_key_of
+from trajcache.geometry.validation.validator import certificate_for
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import (
     PlannerStatus,
@@ -109,11 +109,11 @@ def _validation_failure(attempt: PlanAttempt, outcome: PlanResult) -> str:
     (`geometry/validation/stamp.py`: same certifier, model variant, scene, settings and
     states); otherwise the path is validated as a cached one would be."""
     assert outcome.path is not None
-    settings, scene = attempt.ctx.settings, attempt.scene
-    here = certificate_for(attempt.checked, scene, settings, outcome.path)
+    model, scene, settings = attempt.checked, attempt.scene, attempt.ctx.settings
+    here = certificate_for(model, scene, settings, outcome.path)
     if outcome.certificate and outcome.certificate == here:
-        if scene.hash:  # as if validated here: a replay's interior is known
-            scope = MemoScope(attempt.checked.model_id, scene.hash, settings_key_of(settings))
+        scope = MemoScope.under(model, scene, settings)
+        if scope is not None:  # as if validated here: a replay's interior is known
             remember_path(attempt.ctx.memo, scope, np.asarray(outcome.path, dtype=float))
         return ""
     result = attempt.validator.validate(outcome.path)

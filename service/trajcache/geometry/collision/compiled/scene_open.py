@@ -44,10 +44,8 @@ def scene_bound(n, want, ball, low, level, poses, e, radius, sup_r, pose_m, sup_
     meshes as boxes; with 3, by slabs with meshes as hulls. Cached in ball[n] (−1: not yet) and
     low[n], level[n] (0: not yet)."""
     pose = poses[n, e]
-    rot_m, pos_m, half_m = scene[0], scene[1], scene[2]
-    if ball[n] < 0.0:
-        gap = box_distance(pose[0, 3], pose[1, 3], pose[2, 3], rot_m[m], pos_m[m], half_m[m])
-        ball[n] = max(gap - radius[e], 0.0)
+    half_m = scene[2]
+    _ball_bound(n, ball, poses, e, radius, scene[0], scene[1], half_m, m)
     if want == 1:
         return ball[n]
     if level[n] < 2:

@@ -39,11 +39,7 @@ def _ball_bound(n, ball, poses, i, j, radius):  # type: ignore[no-untyped-def]  
 def self_bound(n, want, ball, low, level, poses, i, j, radius, sup):  # type: ignore[no-untyped-def]  # pragma: no cover
     """A lower bound for elements i and j at sample n, as `scene_bound`."""
     pi, pj = poses[n, i], poses[n, j]
-    if ball[n] < 0.0:
-        gap = math.sqrt(
-            (pi[0, 3] - pj[0, 3]) ** 2 + (pi[1, 3] - pj[1, 3]) ** 2 + (pi[2, 3] - pj[2, 3]) ** 2
-        )
-        ball[n] = max(gap - radius[i] - radius[j], 0.0)
+    _ball_bound(n, ball, poses, i, j, radius)
     if want == 1:
         return ball[n]
     if level[n] < 2:

@@ -115,45 +115,49 @@ def _self_direction(q, pose_i, pose_j):  # type: ignore[no-untyped-def]  # pragm
     return sign * pose[0, axis], sign * pose[1, axis], sign * pose[2, axis]
 
 
-@numba.njit(cache=True, nogil=True)
-def scene_slabs(pose_e, sup_r, e, pose_m, sup_s, m, half, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Level 2 for an element and an object: the max of the slab bounds along the box's and
-    the element's face normals and the way from the element's origin to the nearest point of
-    the object's box (`_scene_direction`), meshes as their boxes; with `exact`, also along the
+_SCENE_DIRECTIONS, _SELF_DIRECTIONS = 13, 15
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _best_slab(pose_a, sup_a, ka, pose_b, sup_b, kb, half, count, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The max of the slab bounds along the `count` directions of `scene_slabs` (13, `half` the
+    object's box) or `self_slabs` (15), meshes as their boxes; with `exact`, also along the
     best three of them with meshes as their hulls (a hull's bound along a direction is at
     least its box's, and the best exact direction is nearly always among the best box ones).
     No arrays are allocated: the directions are computed where they are used."""
     best = v1 = v2 = v3 = -np.inf
     q1 = q2 = q3 = -1
-    for q in range(13):
-        x, y, z = _scene_direction(q, pose_e, pose_m, half)
-        value = slab_bound(x, y, z, pose_e, sup_r, e, pose_m, sup_s, m, False)
+    for q in range(count):
+        x, y, z = _direction(q, count, pose_a, pose_b, half)
+        value = slab_bound(x, y, z, pose_a, sup_a, ka, pose_b, sup_b, kb, False)
         best = max(best, value)
         v1, q1, v2, q2, v3, q3 = _keep(value, q, v1, q1, v2, q2, v3, q3)
     best = max(best, 0.0)
-    if not exact or (sup_r[2][e] < 0 and sup_s[2][m] < 0):
+    if not exact or (sup_a[2][ka] < 0 and sup_b[2][kb] < 0):
         return best
     for q in (q1, q2, q3):
-        x, y, z = _scene_direction(q, pose_e, pose_m, half)
-        best = max(best, slab_bound(x, y, z, pose_e, sup_r, e, pose_m, sup_s, m, True))
+        x, y, z = _direction(q, count, pose_a, pose_b, half)
+        best = max(best, slab_bound(x, y, z, pose_a, sup_a, ka, pose_b, sup_b, kb, True))
     return best
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _direction(q, count, pose_a, pose_b, half):  # type: ignore[no-untyped-def]  # pragma: no cover
+    if count == _SCENE_DIRECTIONS:
+        return _scene_direction(q, pose_a, pose_b, half)
+    return _self_direction(q, pose_a, pose_b)
+
+
+@numba.njit(cache=True, nogil=True)
+def scene_slabs(pose_e, sup_r, e, pose_m, sup_s, m, half, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Level 2 for an element and an object (`_best_slab`): along the box's and the element's
+    face normals and the way from the element's origin to the nearest point of the object's
+    box (`_scene_direction`)."""
+    return _best_slab(pose_e, sup_r, e, pose_m, sup_s, m, half, _SCENE_DIRECTIONS, exact)
 
 
 @numba.njit(cache=True, nogil=True)
 def self_slabs(pose_i, pose_j, sup, i, j, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Level 2 for a robot pair: as `scene_slabs`, along the line between the elements,
-    across both z axes (both ways) and both elements' face normals (`_self_direction`)."""
-    best = v1 = v2 = v3 = -np.inf
-    q1 = q2 = q3 = -1
-    for q in range(15):
-        x, y, z = _self_direction(q, pose_i, pose_j)
-        value = slab_bound(x, y, z, pose_i, sup, i, pose_j, sup, j, False)
-        best = max(best, value)
-        v1, q1, v2, q2, v3, q3 = _keep(value, q, v1, q1, v2, q2, v3, q3)
-    best = max(best, 0.0)
-    if not exact or (sup[2][i] < 0 and sup[2][j] < 0):
-        return best
-    for q in (q1, q2, q3):
-        x, y, z = _self_direction(q, pose_i, pose_j)
-        best = max(best, slab_bound(x, y, z, pose_i, sup, i, pose_j, sup, j, True))
-    return best
+    """Level 2 for a robot pair (`_best_slab`): along the line between the elements, across
+    both z axes (both ways) and both elements' face normals (`_self_direction`)."""
+    return _best_slab(pose_i, sup, i, pose_j, sup, j, pose_i[0], _SELF_DIRECTIONS, exact)
