@@ -46,7 +46,8 @@ from trajcache.geometry.validation.stamp import certificate_digest
 IntArray = NDArray[np.int64]
 
 _CHUNK = 256
-_SPREAD = 9  # samples checked first, spread along the trajectory
+_SPREAD = 9  # samples checked first, spread along the trajectory, when it has
+_SPREAD_ABOVE = 32  # more samples than this (below, certifying them all costs no more)
 
 
 class ValidationStatus(str, Enum):
@@ -169,6 +170,28 @@ class TrajectoryValidator:
         result.elapsed_ms = (time.perf_counter() - began) * 1e3
         return result
 
+    def validate_segments(self, key_states: FloatArray, segments: list[int]) -> ValidationResult:
+        """Check only the straight motions from key state i to i + 1, for i in `segments`, each
+        as `validate` checks it; the first finding, in the order of `segments`, is the verdict
+        (its counters cover every piece checked)."""
+        began = time.perf_counter()
+        key = check_states(self.model, key_states, name="trajectory state")
+        total = ValidationResult(ValidationStatus.VALID, 0, 0)
+        for i in segments:
+            result = self._validate_samples(
+                interpolate(key[i : i + 2], self.model, self.resolution)
+            )
+            total.samples += result.samples
+            total.narrow_checks += result.narrow_checks
+            total.subdivisions += result.subdivisions
+            if not result.valid:
+                result.samples, result.narrow_checks = total.samples, total.narrow_checks
+                result.subdivisions = total.subdivisions
+                total = result
+                break
+        total.elapsed_ms = (time.perf_counter() - began) * 1e3
+        return total
+
     def certificate(self, key_states: FloatArray) -> str:
         """The digest that names this validator's valid verdict on exactly these key states
         (`geometry/validation/stamp.py`): issued only for states it certified, compared by a
@@ -203,16 +226,18 @@ class TrajectoryValidator:
                     )
             return _result(ValidationStatus.VALID, samples, self.checker.narrow_checks - before)
         probes = 0
-        # A few spread samples first: when one collides, only the samples up to it need
-        # certifying (the earliest colliding sample is the finding either way).
-        spread = np.unique(np.linspace(0, len(samples) - 1, _SPREAD).round().astype(np.int64))
-        verdict = self.checker.check(samples[spread], stop_at_first=True)
-        hit = verdict.first_collision
-        if hit == 0:  # the first sample
-            checks = self.checker.narrow_checks - before
-            return _result(ValidationStatus.COLLISION, samples, checks, state=samples[0],
-                           contacts=verdict.contacts)  # fmt: skip
-        upto = samples[: spread[hit] + 1] if hit > 0 else samples
+        upto = samples
+        if len(samples) > _SPREAD_ABOVE:
+            # A few spread samples first: when one collides, only the samples up to it need
+            # certifying (the earliest colliding sample is the finding either way).
+            spread = np.unique(np.linspace(0, len(samples) - 1, _SPREAD).round().astype(np.int64))
+            verdict = self.checker.check(samples[spread], stop_at_first=True)
+            hit = verdict.first_collision
+            if hit == 0:  # the first sample
+                checks = self.checker.narrow_checks - before
+                return _result(ValidationStatus.COLLISION, samples, checks, state=samples[0],
+                               contacts=verdict.contacts)  # fmt: skip
+            upto = samples[: spread[hit] + 1] if hit > 0 else samples
         for lo in range(0, len(upto) - 1, _CHUNK):
             chunk = upto[lo : lo + _CHUNK + 1]  # consecutive chunks share their end sample
             found = self.certifier.certify(chunk)

@@ -282,6 +282,7 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
                 result, memo_use = validate_with_memo(
                     adapted,
                     validate_fn=attempt.validator.validate,
+                    segments_fn=attempt.validator.validate_segments,
                     memo=attempt.ctx.memo,
                     scope=attempt.memo_scope,
                 )
