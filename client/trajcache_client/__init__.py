@@ -57,6 +57,7 @@ from trajcache_client._models import (
     TrajectoryCreated,
     TrajectoryQuality,
     TrajectorySummary,
+    ValidationReuse,
 )
 from trajcache_client._moveit_models import MotionPlanResponse
 from trajcache_client._operations import Operation
@@ -148,5 +149,6 @@ __all__ = [
     "UnexpectedResponseError",
     "UnsupportedMediaTypeError",
     "ValidationError",
+    "ValidationReuse",
     "__version__",
 ]

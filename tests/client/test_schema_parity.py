@@ -39,6 +39,7 @@ MODELS: dict[Any, str] = {
     tc.TimingOptions: "TimingOptions",
     tc.PlanResult: "PlanResponse",
     tc.Rejection: "Rejection",
+    tc.ValidationReuse: "ValidationReuse",
     tc.RejectedCandidate: "RejectedCandidateOut",
     tc.ContactPair: "ContactPairOut",
     tc.TrajectoryQuality: "TrajectoryQuality",

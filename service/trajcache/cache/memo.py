@@ -78,6 +78,7 @@ class MemoUse(str, Enum):
     NONE = "none"  # the whole path was validated
     ENDS = "ends"  # only the first and last segments were validated
     WHOLE = "whole"  # the exact path was certified before
+    CERTIFICATE = "certificate"  # the ends, and the interior against objects its certificate lacks
 
 
 class ValidationMemo:

@@ -83,6 +83,10 @@ class Settings(BaseSettings):
         description="Pad link geometry by its largest motion between samples so no collision "
         "can hide between them.",
     )
+    certificates: bool = Field(default=True, description="Keep what each valid verdict proved "
+        "with its trajectory: later validations prove only new ends and objects.")  # fmt: skip
+    certificate_audit: bool = Field(default=False, description="Debugging: prove every verdict "
+        "a certificate shortened again in full; fail on any disagreement.")  # fmt: skip
     index_sync_interval_s: float = Field(
         default=0.0,
         ge=0,

@@ -20,6 +20,7 @@ from trajcache.db.session import make_engine, make_sessionmaker
 from trajcache.geometry.scene.variant import VariantCache, variant_cache
 from trajcache.geometry.validation.validator import ValidatorCache
 from trajcache.jobs.pool import PlannerPool, make_pool
+from trajcache.services.catalog.certificates import CertificateStore
 from trajcache.services.catalog.index_store import IndexStore
 from trajcache.services.catalog.keys import KeyCache
 from trajcache.services.catalog.models import ModelRegistry
@@ -52,6 +53,7 @@ class ServiceContext:
     facts: RankingFactsCache = field(default_factory=RankingFactsCache)  # what ranking reads
     variants: VariantCache = field(default_factory=variant_cache)  # models as robots hold them
     validators: ValidatorCache = field(default_factory=ValidatorCache)  # and their geometry
+    certificates: CertificateStore = field(default_factory=CertificateStore)  # what was proved
     planner: PlannerPool | None = None  # started by planner_pool(), closed by close()
     _planner_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
@@ -88,6 +90,7 @@ class ServiceContext:
         self.facts.clear()
         self.variants.clear()
         self.validators.clear()
+        self.certificates.clear()
 
     def ping(self) -> None:
         """Run `SELECT 1`; raise UnavailableError when the database cannot be reached."""

@@ -277,7 +277,7 @@ def test_the_clock_gives_each_phase_its_time(
 ) -> None:
     """State checks and validation count as validation, the planner as planning, never as db."""
     setup_robot(ctx, [blocker()], DETOUR)
-    check_states, validate_with_memo = flow.check_states, flow.validate_with_memo
+    check_states, validate_candidate = flow.check_states, flow.validate_candidate
 
     def slow_check(*args: Any, **kwargs: Any) -> Any:
         time.sleep(0.02)
@@ -285,10 +285,10 @@ def test_the_clock_gives_each_phase_its_time(
 
     def slow_validate(*args: Any, **kwargs: Any) -> Any:
         time.sleep(0.05)
-        return validate_with_memo(*args, **kwargs)
+        return validate_candidate(*args, **kwargs)
 
     monkeypatch.setattr(flow, "check_states", slow_check)  # start and goal: 40 ms
-    monkeypatch.setattr(flow, "validate_with_memo", slow_validate)  # one candidate: 50 ms
+    monkeypatch.setattr(flow, "validate_candidate", slow_validate)  # one candidate: 50 ms
     result = PlanResult(PlannerStatus.TIMEOUT, message="no path", seed=1)
     use_planner(ctx, monkeypatch, FakePlanner(result, delay_s=0.06))
     timings = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True).timings_ms

@@ -98,4 +98,17 @@ def _response_body(answer: PlanAnswer) -> dict[str, object]:
             {"trajectory_id": r["trajectory_id"], "status": r["status"], "reason": r["reason"]}
             for r in answer.rejected
         ],
+        "validation": _validation(answer),
+    }
+
+
+def _validation(answer: PlanAnswer) -> dict[str, object] | None:
+    """What a cache answer's validation skipped (`ValidationReuse`)."""
+    if answer.memo is None:
+        return None
+    use = answer.certificate
+    return {
+        "reused": answer.memo.value,
+        "objects": use.objects if use is not None else None,
+        "objects_reproved": use.reproved if use is not None else None,
     }

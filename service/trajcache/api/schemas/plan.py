@@ -131,6 +131,18 @@ class Rejection(BaseModel):
     reason: str
 
 
+class ValidationReuse(BaseModel):
+    """What a cache answer's validation could skip: `reused` is "none" (the whole path was
+    proved), "ends" (only its new first and last segments: the rest was proved in this scene),
+    "whole" (the exact path was proved in this scene) or "certificate" (the ends, and the rest
+    only against the scene's objects its stored certificate lacks: `objects_reproved` of
+    `objects`)."""
+
+    reused: Literal["none", "ends", "whole", "certificate"]
+    objects: int | None = None
+    objects_reproved: int | None = None
+
+
 class PlanResponse(BaseModel):
     """The answer: a trajectory and where it came from, or a status saying why there is none."""
 
@@ -154,3 +166,7 @@ class PlanResponse(BaseModel):
     rejected: list[Rejection] = []
     joint_trajectory: JointTrajectory | None = None
     quality: TrajectoryQuality | None = None
+    validation: ValidationReuse | None = Field(
+        default=None,
+        description="A cache answer's validation: what it could skip (null for other answers).",
+    )

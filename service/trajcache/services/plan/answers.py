@@ -49,6 +49,7 @@ def answer_hit(
         rejected=attempt.rejected,
         record=record,
         memo=memo,
+        certificate=attempt.certificate_use if memo is MemoUse.CERTIFICATE else None,
     )
 
 
@@ -140,7 +141,16 @@ def _record(
             lambda: {"rejections": rejection_entries(validator, start, goal, rejected, held)}
         )
     record = records.submit(
-        PlanRecord(at, served, failed, event, real=real, quality=quality, details=details)
+        PlanRecord(
+            at,
+            served,
+            failed,
+            event,
+            real=real,
+            quality=quality,
+            details=details,
+            certificates=tuple(attempt.certificates),
+        )
     )
     if served is not None:
         attempt.ctx.facts.record(served=served, failed=attempt.failed, real=real, at=at)

@@ -51,7 +51,7 @@ from sqlalchemy.orm import Session
 
 from trajcache.cache.adapt import adapt_trajectory, base_is_still
 from trajcache.cache.index import Match
-from trajcache.cache.memo import MemoUse, validate_with_memo
+from trajcache.cache.memo import MemoUse
 from trajcache.cache.ranking import RANKING_COLUMNS, facts_from_row, rank_matches
 from trajcache.db.models import Trajectory, utcnow
 from trajcache.geometry.errors import CollisionStateError
@@ -80,6 +80,7 @@ from trajcache.services.plan.attempt import (
     PlanStatus,
     Requester,
 )
+from trajcache.services.plan.certified import validate_candidate
 from trajcache.services.plan.fallback import plan_fallback
 from trajcache.services.plan.options import PlanOptions, resolve_request
 from trajcache.services.plan.quality import AnswerExtras, answer_details
@@ -279,13 +280,7 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
             )
             result = next((r for path, r in seen if np.array_equal(path, adapted)), None)
             if result is None:
-                result, memo_use = validate_with_memo(
-                    adapted,
-                    validate_fn=attempt.validator.validate,
-                    segments_fn=attempt.validator.validate_segments,
-                    memo=attempt.ctx.memo,
-                    scope=attempt.memo_scope,
-                )
+                result, memo_use = validate_candidate(attempt, match, adapted)
                 if result.valid:
                     return _Hit(match, adapted, memo_use)
                 seen.append((adapted, result))
