@@ -72,6 +72,7 @@ _ANSWER_EXAMPLES: list[Any] = [
         "candidates_tried": 1,
         "timings_ms": {"lookup": 0.4, "validate": 6.1, "plan": 0.0, "db": 2.3, "total": 9.2},
         "message": "",
+        "warnings": [],
         "rejected": [],
     },
     {
@@ -151,6 +152,11 @@ class PlanResponse(BaseModel):
         "whole run) and pool (the round trip around it)."
     )
     message: str = ""
+    warnings: list[str] = Field(
+        default=[],
+        description="What the caller should know of the answer: 'no scene uploaded: checked "
+        "for self-collision only' when the robot never uploaded a scene.",
+    )
     rejected: list[Rejection] = []
     joint_trajectory: JointTrajectory | None = None
     quality: TrajectoryQuality | None = None

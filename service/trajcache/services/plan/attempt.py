@@ -108,6 +108,7 @@ class PlanAnswer:
     memo: MemoUse | None = None  # how the served cached trajectory was validated
     details: AnswerDetails | None = None  # quality and timing, when the caller asked for extras
     planner: str | None = None  # the planner that found a planned answer's path
+    warnings: list[str] = field(default_factory=list)  # what the caller should know (no scene)
 
 
 class PhaseClock:
