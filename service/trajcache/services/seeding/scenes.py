@@ -9,9 +9,10 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import Field, ValidationError
 
 from trajcache.core.config import Settings
+from trajcache.core.request_model import RequestModel
 from trajcache.geometry.errors import GeometryError
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.payload import apply_patch
@@ -24,10 +25,8 @@ from trajcache.services.seeding.spec import FiniteFloat, Sweep
 GENERATOR_PARAMS = ("doors_deg", "seats_deg")
 
 
-class _Restroom(BaseModel):
+class _Restroom(RequestModel):
     """Parameters of the restroom generator."""
-
-    model_config = ConfigDict(extra="forbid")
 
     generator: Literal["restroom"] = "restroom"
     doors_deg: FiniteFloat | list[FiniteFloat] = 0.0
