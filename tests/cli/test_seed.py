@@ -175,3 +175,18 @@ def test_the_shipped_example_runs_as_it_is(tmp_path: Path) -> None:
     assert job["model_id"] == reference["model_id"] and not reference["created"]
     # what the planner found is stored as sim; two identical paths are one trajectory
     assert 0 < stored["total"] <= job["planned"]
+
+
+def test_a_locked_service_names_the_key_options(tmp_path: Path) -> None:
+    settings = Settings(database_url=f"sqlite:///{tmp_path / 'locked.db'}", auth_mode="on")
+    with LiveService(settings) as live:
+        named = job_file(tmp_path, [[0.5, 0.5]], model="reference")
+        result = CliRunner().invoke(app, ["seed", str(named), "--url", live.url])
+        output = " ".join(result.output.split())
+        assert result.exit_code == 2 and "model 'reference': 401" in output
+        assert "--api-key or TRAJCACHE_API_KEY" in output
+        given = job_file(tmp_path, [[0.5, 0.5]], model_id="m")
+        result = CliRunner().invoke(app, ["seed", str(given), "--url", live.url, "--api-key", "x"])
+        output = " ".join(result.output.split())
+        assert result.exit_code == 1 and "POST /v1/seed-jobs: 401" in output
+        assert "--api-key or TRAJCACHE_API_KEY" in output

@@ -93,7 +93,8 @@ def _none_of(prefix: tuple[Any, ...], errors: list[Error]) -> Error:
     forms = [str(e.get("msg", "")).removeprefix("Input should be ") for e in errors]
     unique = list(dict.fromkeys(forms))
     message = "Input should be one of: " + "; ".join(unique)
-    return {"type": "union_tag_invalid", "loc": prefix, "msg": message, "input": errors[0].get("input")}
+    given = errors[0].get("input")
+    return {"type": "union_tag_invalid", "loc": prefix, "msg": message, "input": given}
 
 
 def _tag_at(loc: Sequence[Any]) -> int | None:
