@@ -195,7 +195,11 @@ def summary(job: SeedJob) -> Table:
     rate = job.hit_rate
     table.add_row("requests", f"{job.done} of {job.total}")
     table.add_row("cache hits", f"{job.hits}" + ("" if rate is None else f" ({rate:.1%})"))
-    table.add_row("planned (stored as sim)", str(job.planned))
+    if job.stored is None:  # a job begun before stored paths were counted apart
+        table.add_row("planned", str(job.planned))
+    else:
+        table.add_row("planned and stored (as sim)", str(job.stored))
+        table.add_row("planned, already stored", str(job.planned - job.stored))
     table.add_row("failed", str(job.failed))
     if job.message:
         table.add_row("message", str(job.message))

@@ -109,6 +109,7 @@ class PlanAnswer:
     details: AnswerDetails | None = None  # quality and timing, when the caller asked for extras
     planner: str | None = None  # the planner that found a planned answer's path
     warnings: list[str] = field(default_factory=list)  # what the caller should know (no scene)
+    stored: bool | None = None  # a planned path: newly stored (False: identical to a stored one)
 
 
 class PhaseClock:
