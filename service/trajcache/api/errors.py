@@ -22,7 +22,7 @@ from starlette.exceptions import HTTPException
 from starlette.routing import Match, Mount
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from trajcache.api.validation import readable_errors, validation_message
+from trajcache.core.field_errors import readable_errors, validation_message
 from trajcache.geometry.errors import GeometryError
 from trajcache.services.errors import (
     DATABASE_UNAVAILABLE,

@@ -143,6 +143,14 @@ def test_generator_variants_override_the_base() -> None:
         ({"scenes": [{"generator": "kitchen"}]}, ["scenes[0].generator", "kitchen"]),
         ({"scenes": [{"generator": "restroom", "doors_deg": [1, 2]}]}, ["doors_deg", "3"]),
         ({"scenes": [{"generator": "restroom", "lamp": 1}]}, ["scenes[0]", "lamp"]),
+        (
+            {"scenes": [{"generator": "restroom", "doors_dge": 10}]},
+            ["scenes[0]: doors_dge: unknown field 'doors_dge' (did you mean 'doors_deg'?)"],
+        ),
+        (
+            {"scenes": [{"generator": "restroom", "env": {"stall_1_dor": 0.1}}]},
+            ["unknown value 'stall_1_dor' (did you mean 'stall_1_door'?)"],
+        ),
         ({"scenes": [{}, {"objects": [{"id": "a", "type": "box"}]}]}, ["scenes[1]", "size"]),
         (
             {

@@ -1,6 +1,7 @@
 """The message of a request body that fails validation: each mistake named, as it was meant.
 
-Every request schema's errors go through :func:`readable_errors`, so they read alike:
+Every request schema's errors go through :func:`readable_errors` (the API's handler of
+validation errors, and the service's own validation of nested documents), so they read alike:
 
 - a union (a state as a list, a map or a name) reports only the form the input came closest to:
   the branch whose error lies deepest in the input, its tag (pydantic's `list[float]`) dropped
