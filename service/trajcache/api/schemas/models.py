@@ -210,8 +210,8 @@ class RobotModelPage(BaseModel):
     offset: int
 
 
-# A form's fields: the JSON body's, with the archive as a file instead of base64 text.
-FORM_FIELDS = (*(n for n in RobotModelIn.model_fields if n != "archive_base64"), "archive")
+# A form's fields: the JSON body's, and the archive as a file.
+FORM_FIELDS = (*RobotModelIn.model_fields, "archive")
 
 
 def check_form_field(key: str, *, repeated: bool) -> None:
