@@ -254,6 +254,7 @@ class PlanResult(_Answer):
     timings_ms: dict[str, float]
     planner: str | None = None  # the planner that found a planned answer's path
     message: str = ""
+    warnings: list[str] = Field(default_factory=list)  # e.g. no scene uploaded
     rejected: list[Rejection] = Field(default_factory=list)
     quality: TrajectoryQuality | None = None
     joint_trajectory: JointTrajectory | None = None

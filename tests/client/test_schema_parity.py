@@ -99,6 +99,7 @@ ADDED_LATER = {
     ("TrajectoryQuality", "duration_s"),
     ("TrajectoryDetailOut", "usage_history"),
     ("PlanEventOut", "requester"),
+    ("SeedJobOut", "stored"),
 }
 # Read from `detail` and `errors` by the exception classes, not as a model.
 ERROR_BODIES = {"ErrorOut", "FieldErrorOut"}

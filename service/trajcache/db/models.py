@@ -373,6 +373,9 @@ class SeedJob(Base):
     done: Mapped[int] = mapped_column(Integer, default=0)
     hits: Mapped[int] = mapped_column(Integer, default=0)
     planned: Mapped[int] = mapped_column(Integer, default=0)
+    # Of the planned paths, those newly stored (the others were identical to a stored one);
+    # None for jobs created before this counter existed.
+    stored: Mapped[int | None] = mapped_column(Integer, default=0)
     failed: Mapped[int] = mapped_column(Integer, default=0)
     errors: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list)
     message: Mapped[str | None] = mapped_column(String(500))

@@ -367,3 +367,16 @@ def test_a_certificate_that_does_not_name_the_path_here_is_validated_again(
     assert answer.status is PlanStatus.FAILURE
     assert answer.message.startswith("planned path failed validation")
     assert "blocker" in answer.message
+
+
+def test_a_planned_path_identical_to_a_stored_one_is_not_stored_again(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    setup_robot(ctx)
+    path = np.array([[0.02, 0.0], [0.5, 0.1], [0.98, 0.0]])
+    use_planner(ctx, monkeypatch, FakePlanner(PlanResult(PlannerStatus.SOLVED, path, seed=7)))
+    first = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, lookup=False)
+    again = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, lookup=False)
+    assert (first.source, first.stored) == (PlanSource.PLANNER, True)
+    assert (again.source, again.stored) == (PlanSource.PLANNER, False)
+    assert again.trajectory_id == first.trajectory_id

@@ -62,9 +62,11 @@ def answer_planned(
     quality: QualityJob | None,
     planner: str | None = None,
     phases: Mapping[str, float] | None = None,
+    stored: bool = True,
 ) -> PlanAnswer:
     """Answer with the trajectory the planner found (stored); its quality is written later.
-    `phases` are the planner's own times, added to the answer's timings (not to its record)."""
+    `phases` are the planner's own times, added to the answer's timings (not to its record);
+    `stored` is false when the path was identical to a trajectory already stored."""
     timings = attempt.clock.timings()
     record = _record(
         attempt,
@@ -85,6 +87,7 @@ def answer_planned(
         rejected=attempt.rejected,
         record=record,
         planner=planner,
+        stored=stored,
     )
 
 

@@ -111,6 +111,8 @@ class PlanAnswer:
     details: AnswerDetails | None = None  # quality and timing, when the caller asked for extras
     planner: str | None = None  # the planner that found a planned answer's path
     certificate: CertificateUse | None = None  # how the served candidate's certificate served
+    warnings: list[str] = field(default_factory=list)  # what the caller should know (no scene)
+    stored: bool | None = None  # a planned path: newly stored (False: identical to a stored one)
 
 
 class PhaseClock:

@@ -85,6 +85,7 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
         quality=job,
         planner=attempt.request.planner,
         phases=planner_phases(outcome.stats, attempt.clock.seconds("plan") * 1e3),
+        stored=created,
     )
 
 

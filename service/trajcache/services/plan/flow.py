@@ -3,7 +3,9 @@
 `_answer` is the spine and reads top to bottom: look up candidates, validate them, answer the
 first valid one; otherwise check the endpoints and answer a miss, or fall back to the planner
 (`services.plan.fallback`). Each step takes the request's :class:`PlanAttempt`
-(`services.plan.attempt`), which holds what the steps share and times each phase.
+(`services.plan.attempt`), which holds what the steps share and times each phase. A robot that
+never uploaded a scene is planned in the empty world and its answer says so in `warnings`
+(under `require_scene` it is refused).
 
 A cache hit, the hot path, reads the database once: the robot with its current scene version
 (parsed scenes are cached by hash), and in the same query the replica sync (what other replicas
@@ -68,7 +70,7 @@ from trajcache.geometry.validation.validator import ValidationResult
 from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
-from trajcache.services.errors import InvalidInputError
+from trajcache.services.errors import InvalidInputError, SceneRequiredError
 from trajcache.services.plan.answers import answer_hit, answer_without_path
 from trajcache.services.plan.attempt import (
     Origin,
@@ -88,6 +90,7 @@ from trajcache.services.plan.rejections import RejectedCandidate
 from trajcache.timing import TimingError
 
 __all__ = [
+    "NO_SCENE_WARNING",
     "AnswerExtras",
     "PlanAnswer",
     "PlanOptions",
@@ -99,6 +102,9 @@ __all__ = [
     "plan",
     "plan_in_scene",
 ]
+
+
+NO_SCENE_WARNING = "no scene uploaded: checked for self-collision only"
 
 
 @dataclass(frozen=True)
@@ -179,6 +185,11 @@ def _plan_robot(
                 ),
             )
             model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
+        if robot.version == 0 and ctx.settings.require_scene:
+            raise SceneRequiredError(
+                f"robot {robot_id!r} has no scene: upload one (PUT /v1/robots/{robot_id}/scene, "
+                "an empty one if its world is empty) before planning; require_scene is on"
+            )
         origin = Origin(
             "planner",
             robot_id,
@@ -187,7 +198,10 @@ def _plan_robot(
             scene_stored=robot.version > 0,
         )
         attempt = _open(ctx, session, robot_id, origin, model, robot.scene, request, clock)
-        return _answer(attempt), attempt
+        answer = _answer(attempt)
+        if robot.version == 0:
+            answer.warnings.append(NO_SCENE_WARNING)
+        return answer, attempt
 
 
 def _open(
