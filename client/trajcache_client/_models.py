@@ -14,7 +14,7 @@ Source = Literal["real", "sim", "import", "planner"]
 RobotKind = Literal["real", "sim"]
 SkipReason = Literal["adjacent", "rigid", "proven", "srdf"]
 PlanStatus = Literal["success", "miss", "failure", "error"]
-PlanSource = Literal["cache", "planner"]
+PlanSource = Literal["cache", "planner", "repaired"]
 Requester = Literal["robot", "seed_job"]  # who asked for a plan
 
 

@@ -127,7 +127,7 @@ class TrajcacheExtras(TypedDict):
     """Where the answer came from ("invalid": refused before planning), for operators."""
 
     status: Literal["success", "miss", "failure", "invalid"] | str
-    source: Literal["cache", "planner"] | str | None
+    source: Literal["cache", "planner", "repaired"] | str | None
     trajectory_id: int | None
     candidates_tried: int
     timings_ms: dict[str, float]

@@ -26,6 +26,7 @@ class Metrics(_Answer):
 
     requests: int
     hits: int
+    repaired: int
     planner_calls: int
     misses: int
     failures: int

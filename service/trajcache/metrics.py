@@ -112,7 +112,7 @@ def record_plan(
     PLAN_REQUESTS.labels(source=source, status=status, requester=requester).inc()
     LOOKUP_SECONDS.observe(timings.get("lookup", 0.0) / 1e3)
     VALIDATE_SECONDS.observe(timings.get("validate", 0.0) / 1e3)
-    if source == "planner" or status in _PLANNER_STATUSES:
+    if source in ("planner", "repaired") or status in _PLANNER_STATUSES:
         PLANNING_SECONDS.observe(timings.get("plan", 0.0) / 1e3)
     TOTAL_SECONDS.labels(source=source, requester=requester).observe(
         timings.get("total", 0.0) / 1e3

@@ -128,6 +128,8 @@ class Settings(BaseSettings):
     default_planner: str = Field(
         default="compiled", min_length=1, description="Planner used when a request names none."
     )
+    repair_budget_s: float = Field(default=0.25, ge=0, description="Planner budget (s) to mend "
+        "a rejected cached path's failing stretch before planning anew (0: off).")  # fmt: skip
     negative_cache_ttl_s: float = Field(
         default=30.0,
         ge=0,
@@ -138,13 +140,10 @@ class Settings(BaseSettings):
         default="redis://127.0.0.1:6379/0", description="Celery broker URL (celery backend only)."
     )
     celery_result_backend: str = Field(
-        default="redis://127.0.0.1:6379/1",
-        description="Celery result backend URL (celery backend only).",
+        default="redis://127.0.0.1:6379/1", description="Celery result backend URL (celery only)."
     )
     celery_queue: str = Field(
-        default="plan",
-        min_length=1,
-        description="Celery queue that planning tasks are sent to and workers consume.",
+        default="plan", min_length=1, description="Celery queue of planning tasks and workers."
     )
 
     # Timing (time-optimal or jerk-limited) of answered trajectories
@@ -184,9 +183,7 @@ class Settings(BaseSettings):
     max_archive_bytes: int = Field(
         default=64 * MIB, ge=1, description="Largest accepted mesh archive (bytes)."
     )
-    max_archive_entries: int = Field(
-        default=1000, ge=1, description="Most files accepted in a mesh archive."
-    )
+    max_archive_entries: int = Field(default=1000, ge=1, description="Most files in an archive.")
     max_scene_objects: int = Field(
         default=2000, ge=1, description="Most collision objects accepted in a scene."
     )

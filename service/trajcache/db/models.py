@@ -198,6 +198,8 @@ class Trajectory(Base):
     last_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     last_real_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     planning_time_ms: Mapped[float | None] = mapped_column(Float)
+    # A repaired path's provenance: the cached trajectory whose failing stretch was replaced.
+    parent_id: Mapped[int | None] = mapped_column(BigInteger)
     # Quality at store time: state-space and end-effector path lengths, minimum clearance to the
     # recorded scene (m; None without a scene) and time-optimal duration (s); details in `quality`.
     length: Mapped[float | None] = mapped_column(Float)
@@ -227,25 +229,20 @@ class Trajectory(Base):
 
 
 class TrajectoryCertificate(Base):
-    """What validation proved about a trajectory's interior, for later validations to build on
-    (`geometry/validation/certificates.py`): the object digests it was certified against, under
-    a model variant and a stamp. Written by the service's validator only; never exported or
-    imported, and deleted with its trajectory."""
+    """What validation proved about a trajectory's interior (`validation/certificates.py`);
+    written by the service's validator only, never exported, deleted with its trajectory."""
 
     __tablename__ = "trajectory_certificates"
-    __table_args__ = (
-        UniqueConstraint("trajectory_id", "variant", "stamp", "path"),
-        {"sqlite_autoincrement": True},
-    )
+    __table_args__ = (UniqueConstraint("trajectory_id", "variant", "stamp", "path"),)
 
     id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
     trajectory_id: Mapped[int] = mapped_column(
         BigInteger, ForeignKey("trajectories.id", ondelete="CASCADE")
     )
     variant: Mapped[str] = mapped_column(String(64))  # the checked model's id
-    stamp: Mapped[str] = mapped_column(String(64))  # certifier and validator settings
+    stamp: Mapped[str] = mapped_column(String(64))  # of the certifier and validator settings
     path: Mapped[str] = mapped_column(String(64))  # digest of the interior states
-    objects: Mapped[list[str]] = mapped_column(JSON)  # object digests certified against
+    objects: Mapped[list[str]] = mapped_column(JSON)  # digests of the objects it was proved for
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
 

@@ -131,7 +131,7 @@ class TrajcacheExtrasOut(BaseModel):
         description="The native plan status; 'invalid': refused before planning (the native "
         "endpoint's 422), the error code says why."
     )
-    source: Literal["cache", "planner"] | None
+    source: Literal["cache", "planner", "repaired"] | None
     trajectory_id: int | None
     candidates_tried: int
     timings_ms: dict[str, float]

@@ -148,7 +148,7 @@ class PlanResponse(BaseModel):
     model_config = ConfigDict(json_schema_extra={"examples": _ANSWER_EXAMPLES})
 
     status: Literal["success", "miss", "failure", "error"]
-    source: Literal["cache", "planner"] | None
+    source: Literal["cache", "planner", "repaired"] | None
     trajectory_id: int | None
     states: list[list[float]] | None
     candidates_tried: int

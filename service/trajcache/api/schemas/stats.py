@@ -17,6 +17,7 @@ _LATENCY = {"sum_ms": 1520.4, "p50": 5.6, "p95": 14.1, "p99": 21.7}
 _METRICS: dict[str, Any] = {
     "requests": 272,
     "hits": 253,
+    "repaired": 0,
     "planner_calls": 19,
     "misses": 0,
     "failures": 1,
@@ -68,6 +69,10 @@ class MetricsOut(BaseModel):
 
     requests: int
     hits: int = Field(description="Requests served from the cache.")
+    repaired: int = Field(
+        description="Requests served with a cached path whose failing stretch the planner "
+        "replaced (also counted among the planner calls)."
+    )
     planner_calls: int = Field(description="Requests that reached the fallback planner.")
     misses: int = Field(description="Requests answered without a path and without planning.")
     failures: int = Field(description="Requests that ended `failure` or `error`.")

@@ -125,7 +125,7 @@
     const items = [
       ["Requests", fmtInt(t.requests), `in the last ${stats.window}`],
       ["Hit rate", fmtPct(t.hit_rate), `${fmtInt(t.hits)} served from the cache`],
-      ["Planner calls", fmtInt(t.planner_calls), `planning p50 ${fmtMs(t.plan_ms.p50)}`],
+      ["Planner calls", fmtInt(t.planner_calls), `${fmtInt(t.repaired || 0)} repaired cached paths · planning p50 ${fmtMs(t.plan_ms.p50)}`],
       ["Failures", fmtInt(t.failures), `${fmtInt(t.misses)} misses`],
       ["Time saved", fmtMs(t.time_saved_ms), uncredited],
       ["Lookup + validation p50", fmtMs(sum(t.lookup_ms.p50, t.validate_ms.p50)), `validation p95 ${fmtMs(t.validate_ms.p95)}`],

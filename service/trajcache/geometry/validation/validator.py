@@ -40,7 +40,7 @@ from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import state_steps
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certify import SegmentCertifier
-from trajcache.geometry.validation.sampling import Resolution, interpolate
+from trajcache.geometry.validation.sampling import Resolution, interpolate, sample_counts
 from trajcache.geometry.validation.segments import Finding, SegmentStatus
 from trajcache.geometry.validation.stamp import certificate_digest
 
@@ -72,6 +72,8 @@ class ValidationResult:
     contacts: list[Contact] = field(default_factory=list)
     message: str = ""
     elapsed_ms: float = 0.0
+    sample: int = -1  # the sample (of `samples`) at or after which the finding lies
+    segment: int = -1  # `validate`: the key segment (key state i to i + 1) where it lies
 
     @property
     def valid(self) -> bool:
@@ -130,6 +132,10 @@ class TrajectoryValidator:
         key = check_states(self.model, key_states, name="trajectory state")
         samples = interpolate(key, self.model, self.resolution)
         result = self._validate_samples(samples)
+        if result.sample >= 0 and len(key) >= 2:
+            ends = np.cumsum(sample_counts(key, self.model, self.resolution))
+            result.segment = min(int(np.searchsorted(ends, result.sample, side="right")),
+                                 len(key) - 2)  # fmt: skip
         result.elapsed_ms = (time.perf_counter() - began) * 1e3
         return result
 
@@ -172,6 +178,7 @@ class TrajectoryValidator:
                 samples,
                 state=state,
                 message=self._limit_message(state),
+                sample=bad,
             )
         before = self.checker.narrow_checks
         if not self.certified or len(samples) < 2:
@@ -186,6 +193,7 @@ class TrajectoryValidator:
                         checks,
                         state=state,
                         contacts=verdict.contacts,
+                        sample=lo + verdict.first_collision,
                     )
             return _result(ValidationStatus.VALID, samples, self.checker.narrow_checks - before)
         probes = 0
@@ -199,7 +207,7 @@ class TrajectoryValidator:
             if hit == 0:  # the first sample
                 checks = self.checker.narrow_checks - before
                 return _result(ValidationStatus.COLLISION, samples, checks, state=samples[0],
-                               contacts=verdict.contacts)  # fmt: skip
+                               contacts=verdict.contacts, sample=0)  # fmt: skip
             upto = samples[: spread[hit] + 1] if hit > 0 else samples
         for lo in range(0, len(upto) - 1, _CHUNK):
             chunk = upto[lo : lo + _CHUNK + 1]  # consecutive chunks share their end sample
@@ -233,6 +241,7 @@ class TrajectoryValidator:
                 probes,
                 state=state,
                 contacts=found.contacts,
+                sample=lo + found.segment,
             )
         near = "; ".join(
             f"link '{c.link}' near {'object' if c.kind is ContactKind.SCENE else 'link'} "
@@ -248,6 +257,7 @@ class TrajectoryValidator:
             contacts=found.contacts,
             message=f"the motion passes closer than can be certified ({near}) "
             f"between samples {lo + found.segment} and {lo + found.segment + 1}",
+            sample=lo + found.segment,
         )
 
     def _limit_violation(self, samples: FloatArray) -> int | None:
@@ -278,6 +288,7 @@ def _result(
     state: FloatArray | None = None,
     contacts: list[Contact] | None = None,
     message: str | None = None,
+    sample: int = -1,
 ) -> ValidationResult:
     """Every ValidationResult is built here; a collision's message names its contacts."""
     contacts = contacts or []
@@ -291,6 +302,7 @@ def _result(
         state=state,
         contacts=contacts,
         message=message or "",
+        sample=sample,
     )
 
 

@@ -99,6 +99,17 @@ def store_trajectory(
     return new_id, True
 
 
+def set_parent(session: Session, trajectory_id: int, parent_id: int) -> None:
+    """Name the trajectory a stored one was repaired from, unless it already names one (an
+    identical path stored before keeps its own provenance); the caller commits."""
+    _T = tables.Trajectory
+    session.execute(
+        sa.update(_T)
+        .where(_T.id == trajectory_id, _T.parent_id.is_(None), _T.id != parent_id)
+        .values(parent_id=parent_id)
+    )
+
+
 def _stored_meanwhile(session: Session, row: tables.Trajectory) -> int:
     """The id of the identical trajectory another writer stored first."""
     existing = _find(session, row.model_id, row.content_hash)

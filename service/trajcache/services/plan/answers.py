@@ -63,23 +63,25 @@ def answer_planned(
     planner: str | None = None,
     phases: Mapping[str, float] | None = None,
     stored: bool = True,
+    source: PlanSource = PlanSource.PLANNER,
 ) -> PlanAnswer:
     """Answer with the trajectory the planner found (stored); its quality is written later.
     `phases` are the planner's own times, added to the answer's timings (not to its record);
-    `stored` is false when the path was identical to a trajectory already stored."""
+    `stored` is false when the path was identical to a trajectory already stored; `source` is
+    REPAIRED for a cached path the planner mended (`services.plan.repair`)."""
     timings = attempt.clock.timings()
     record = _record(
         attempt,
         PlanStatus.SUCCESS,
         timings,
-        source=PlanSource.PLANNER,
+        source=source,
         trajectory_id=trajectory_id,
         seed=seed,
         quality=quality,
     )
     return PlanAnswer(
         PlanStatus.SUCCESS,
-        PlanSource.PLANNER,
+        source,
         trajectory_id,
         states,
         attempt.tried,

@@ -64,6 +64,7 @@ class PlanSource(str, Enum):
 
     CACHE = "cache"
     PLANNER = "planner"
+    REPAIRED = "repaired"  # a cached path whose failing stretch the planner replaced
 
 
 @dataclass(frozen=True)

@@ -25,16 +25,20 @@ from trajcache.planning.problem import (
     fresh_seed,
 )
 from trajcache.services.catalog.models import model_source
-from trajcache.services.catalog.trajectories import quality_columns, store_trajectory
+from trajcache.services.catalog.trajectories import (
+    quality_columns,
+    set_parent,
+    store_trajectory,
+)
 from trajcache.services.errors import UnavailableError
 from trajcache.services.plan.answers import answer_planned, answer_without_path
-from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanStatus
+from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
 from trajcache.services.plan.certified import certify_planned
 from trajcache.services.plan.records import QualityJob
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["plan_fallback"]
+__all__ = ["plan_fallback", "store_and_answer"]
 
 RECORD_WAIT_S = 10.0  # how long an unavailable planner's answer waits for its record
 
@@ -42,7 +46,7 @@ RECORD_WAIT_S = 10.0  # how long an unavailable planner's answer waits for its r
 def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
     """Plan, validate, store and answer; an unavailable planner is a 503 (UnavailableError)."""
     with attempt.clock.measure("plan"):
-        problem = _problem(attempt)
+        problem = problem_of(attempt)
         attempt.session.rollback()  # nothing is written yet; release the connection
         outcome = planner.submit(problem)
     # A coalesced or remembered answer ran with its leader's seed; an unrun one with none.
@@ -54,12 +58,26 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
     if failure:
         message = f"planned path failed validation: {failure}"
         return answer_without_path(attempt, PlanStatus.FAILURE, message, seed=seed)
+    return store_and_answer(attempt, np.asarray(outcome.path, dtype=float), outcome, seed)
+
+
+def store_and_answer(
+    attempt: PlanAttempt,
+    path: np.ndarray,
+    outcome: PlanResult,
+    seed: int | None,
+    *,
+    source: PlanSource = PlanSource.PLANNER,
+    parent: int | None = None,
+) -> PlanAnswer:
+    """Store a path certified in the attempt's scene (a repaired one names its `parent`), give
+    it its certificate, and answer with it; its quality is computed with the plan record."""
     model, scene, settings = attempt.model, attempt.scene, attempt.ctx.settings
     with attempt.clock.measure("db"):
         trajectory_id, created = store_trajectory(
             session=attempt.session,
             model=model,
-            states=outcome.path,
+            states=path,
             source=attempt.origin.store_source,
             robot_id=attempt.origin.store_robot_id,
             scene_hash=scene.hash,
@@ -67,11 +85,14 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
             planning_time_ms=attempt.clock.seconds("plan") * 1e3,
             max_states=settings.max_trajectory_states,
             compute_quality=False,  # computed after the answer, with the plan record
+            commit=parent is None,
         )
-    certify_planned(attempt, trajectory_id, np.asarray(outcome.path, dtype=float))
+        if parent is not None:
+            set_parent(attempt.session, trajectory_id, parent)
+            attempt.session.commit()
+    certify_planned(attempt, trajectory_id, path)
     job = None
     if created:
-        path = outcome.path
         validators = attempt.ctx.validators
         job = QualityJob(
             trajectory_id,
@@ -80,12 +101,13 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
     return answer_planned(
         attempt,
         trajectory_id,
-        outcome.path,
+        path,
         seed=seed,
         quality=job,
         planner=attempt.request.planner,
         phases=planner_phases(outcome.stats, attempt.clock.seconds("plan") * 1e3),
         stored=created,
+        source=source,
     )
 
 
@@ -123,7 +145,7 @@ def _validation_failure(attempt: PlanAttempt, outcome: PlanResult) -> str:
     return "" if result.valid else result.message
 
 
-def _problem(attempt: PlanAttempt) -> PlanningProblem:
+def problem_of(attempt: PlanAttempt) -> PlanningProblem:
     """The planning problem of the attempt, certified by the worker as the flow validates."""
     ctx, scene, settings = attempt.ctx, attempt.scene, attempt.ctx.settings
     return PlanningProblem(

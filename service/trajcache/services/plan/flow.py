@@ -87,6 +87,7 @@ from trajcache.services.plan.fallback import plan_fallback
 from trajcache.services.plan.options import PlanOptions, resolve_request
 from trajcache.services.plan.quality import AnswerExtras, answer_details
 from trajcache.services.plan.rejections import RejectedCandidate
+from trajcache.services.plan.repair import repair_candidate
 from trajcache.timing import TimingError
 
 __all__ = [
@@ -241,7 +242,8 @@ def _answer(attempt: PlanAttempt) -> PlanAnswer:
         why = "planning is off" if attempt.request.fallback else "fallback planning disabled"
         message = f"no valid cached trajectory; {why}"
         return answer_without_path(attempt, PlanStatus.MISS, message)
-    return plan_fallback(attempt, planner)
+    repaired = repair_candidate(attempt, planner)
+    return repaired if repaired is not None else plan_fallback(attempt, planner)
 
 
 def lookup(attempt: PlanAttempt) -> list[Match]:

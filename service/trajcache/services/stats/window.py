@@ -14,7 +14,9 @@ Groups by robot are keyed by the robot id and the requester together: a seed job
 
 Definitions: a hit is a trajectory served from the cache; a planner call is a request that
 reached the fallback planner (whether it found a path, failed or could not run); failures are
-requests that ended `failure` or `error`; misses ended without planning. Lookup and validation
+requests that ended `failure` or `error`; misses ended without planning; `repaired` requests
+were served a cached path whose failing stretch the planner replaced (planner calls too, but not
+in the median planning time: a repair plans a stretch only). Lookup and validation
 percentiles are over all requests, planning percentiles over planner calls.
 
 Time saved: each hit is credited with the median planning time of the successful planner calls
@@ -71,8 +73,8 @@ QUANTILES = (0.5, 0.95, 0.99)
 # is charted over those ten minutes (15-second buckets), not as one dot in a 24-hour window.
 MIN_SPAN_S = 60
 
-HIT, PLANNED, MISS, FAILURE, ERROR, OTHER = range(6)
-PLANNER_CALLS = (PLANNED, FAILURE, ERROR)
+HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED, OTHER = range(7)
+PLANNER_CALLS = (PLANNED, REPAIRED, FAILURE, ERROR)
 _METRICS = histograms.METRICS
 _PLAN = _METRICS.index("plan")
 
@@ -109,6 +111,7 @@ class Metrics:
 
     requests: int
     hits: int
+    repaired: int
     planner_calls: int
     misses: int
     failures: int
@@ -231,7 +234,8 @@ def _data_span_s(session: Session, since: datetime, until: datetime, **filters: 
 
 
 def categories(status: npt.NDArray[np.object_], source: npt.NDArray[np.object_]) -> np.ndarray:
-    """Each row's category (HIT, PLANNED, MISS, FAILURE, ERROR, OTHER) from status and source."""
+    """Each row's category (HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED, OTHER) from status
+    and source."""
     success = status == "success"
     return np.select(
         [
@@ -240,8 +244,9 @@ def categories(status: npt.NDArray[np.object_], source: npt.NDArray[np.object_])
             status == "miss",
             status == "failure",
             status == "error",
+            success & (source == "repaired"),
         ],
-        [HIT, PLANNED, MISS, FAILURE, ERROR],
+        [HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED],
         OTHER,
     ).astype(np.int64)
 
@@ -362,6 +367,7 @@ def _metrics(cells: _Cells, medians: npt.NDArray[np.float64]) -> list[Metrics]:
             Metrics(
                 requests=requests,
                 hits=int(c[HIT]),
+                repaired=int(c[REPAIRED]),
                 planner_calls=int(c[list(PLANNER_CALLS)].sum()),
                 misses=int(c[MISS]),
                 failures=int(c[FAILURE] + c[ERROR]),

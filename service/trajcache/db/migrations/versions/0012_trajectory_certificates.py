@@ -44,7 +44,6 @@ def upgrade() -> None:
             "path",
             name=op.f("uq_trajectory_certificates_trajectory_id_variant_stamp_path"),
         ),
-        sqlite_autoincrement=True,
     )
 
 
