@@ -52,7 +52,7 @@ bench-smoke: setup
 	$(BIN)/python bench/load.py --smoke
 	$(BIN)/python bench/real_robots.py --smoke
 	$(BIN)/python bench/rejections.py --smoke
-	$(BIN)/python bench/mbm.py --smoke --moveit
+	$(BIN)/python bench/mbm.py --smoke --moveit --cross-scene
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

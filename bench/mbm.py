@@ -162,6 +162,8 @@ class ServiceRun:
             tally.hits += 1
             tally.hit_server_ms.append(float(answer.timings_ms["total"]))
             tally.hit_validate_ms.append(float(answer.timings_ms["validate"]))
+        elif answer.source == "repaired":
+            tally.repaired_server_ms.append(float(answer.timings_ms["total"]))
         else:
             tally.counts["replays_planned"] += 1
             for rejected in answer.rejected:  # why the cached path did not serve

@@ -9,7 +9,8 @@
   checked, on hits that used a certificate).
 - Cross (part 2): the family's next scene (every object elsewhere), the problem's start and goal.
   Counted over the problems whose ends are free there (a start or goal in collision is a 422,
-  counted as `cross_ends_invalid`): `cross_cache_rate`, `cross_server_ms_median`.
+  counted as `cross_ends_invalid`): `cross_cache_rate` (answers from the cache or repaired from
+  a cached path), `cross_repaired`, `cross_server_ms_median` (of those answers).
 
 Every returned path is dense-checked in the scene it was asked in, as the rest of the benchmark.
 """
@@ -38,8 +39,10 @@ def moved_scene(scene: dict[str, Any], rng: np.random.Generator) -> tuple[dict[s
     chosen = objects[int(rng.integers(len(objects)))]
     direction = rng.normal(size=3)
     shift = direction / np.linalg.norm(direction) * rng.uniform(0.0, MOVE_M)
-    poses = [chosen["pose"]] if "pose" in chosen else []
-    poses += chosen.get("primitive_poses", []) + chosen.get("mesh_poses", [])
+    # the object's own pose when it has one (its shapes' poses are relative to it), else each
+    # shape's pose
+    poses = [chosen["pose"]] if chosen.get("pose") else []
+    poses = poses or chosen.get("primitive_poses", []) + chosen.get("mesh_poses", [])
     for pose in poses:
         position = pose["position"]
         if isinstance(position, dict):
@@ -103,6 +106,9 @@ class CrossScenes:
         tally.cross_asked += 1
         if answer.source == "cache":
             tally.cross_hits += 1
+            tally.cross_server_ms.append(float(answer.timings_ms["total"]))
+        elif answer.source == "repaired":
+            tally.cross_repaired += 1
             tally.cross_server_ms.append(float(answer.timings_ms["total"]))
         elif answer.ok:
             tally.counts["cross_planned"] += 1

@@ -58,6 +58,8 @@ class Tally:
     hits: int = 0
     hit_server_ms: list[float] = field(default_factory=list)
     hit_validate_ms: list[float] = field(default_factory=list)  # the hits' timings_ms.validate
+    repaired_server_ms: list[float] = field(default_factory=list)  # replays answered "repaired"
+    cross_repaired: int = 0  # --cross-scene: next-scene asks answered "repaired"
     moved_asked: int = 0  # --cross-scene: one object moved by up to 1 cm
     moved_hits: int = 0
     moved_validate_ms: list[float] = field(default_factory=list)
@@ -149,6 +151,10 @@ def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
         "http_5xx": counts["http_5xx"],
         "replays": replays,
         "replay_hit_rate": _share(sum(t.hits for t in tallies), replays),
+        "replay_cache_rate": _share(
+            sum(t.hits + len(t.repaired_server_ms) for t in tallies), replays
+        ),
+        "repaired_server_ms_median": percentile(_all(tallies, "repaired_server_ms")),
         "hit_server_ms_median": percentile(_all(tallies, "hit_server_ms")),
         "hit_validate_ms_median": percentile(_all(tallies, "hit_validate_ms")),
         "replays_skipped": counts["replays_skipped"],  # no free noisy start or goal
@@ -176,8 +182,10 @@ def cross_summary(tallies: list[Tally], counts: Counter[str]) -> dict[str, Any]:
         "cross_asked": total(t.cross_asked for t in tallies),
         "cross_ends_invalid": counts["cross_ends_invalid"],
         "cross_cache_rate": _share(
-            total(t.cross_hits for t in tallies), total(t.cross_asked for t in tallies)
+            total(t.cross_hits + t.cross_repaired for t in tallies),
+            total(t.cross_asked for t in tallies),
         ),
+        "cross_repaired": total(t.cross_repaired for t in tallies),
         "cross_server_ms_median": percentile(_all(tallies, "cross_server_ms")),
     }
 

@@ -12,6 +12,7 @@ import pytest
 from dense_mesh import _quaternion_placement, obj_triangles, scene_geometry
 from mbm import parse_args, planner_ms
 from mbm_check import SceneChecker, panda_description
+from mbm_cross import MOVE_M, moved_scene
 from mbm_problems import (
     DEFAULT_DATA,
     FAMILIES,
@@ -175,3 +176,17 @@ def test_obj_meshes_are_checked_as_written_not_as_assimp_reads_them(
             coal.DistanceRequest(), coal.DistanceResult(),
         ))  # fmt: skip
     assert 0.0017 < least < 0.0019
+
+
+def test_a_moved_scene_moves_one_object_by_at_most_a_centimetre(problems_dir: Path) -> None:
+    problem = load_problems(problems_dir, ["box"], 1)[0]
+    before = scene_objects(problem.scene)
+    moved, name = moved_scene(problem.scene, np.random.default_rng(3))
+    after = scene_objects(moved)
+    assert scene_objects(problem.scene) == before  # the problem's own scene is untouched
+    shifts = {
+        a["id"]: np.linalg.norm(np.subtract(a["pose"]["position"], b["pose"]["position"]))
+        for a, b in zip(before, after, strict=True)
+    }
+    assert 0.0 < shifts.pop(name) <= MOVE_M + 1e-12
+    assert all(shift == 0.0 for shift in shifts.values())
