@@ -36,6 +36,7 @@ from trajcache_client._exceptions import (
 from trajcache_client._models import (
     ContactPair,
     Health,
+    IkResult,
     JointTrajectory,
     JointTrajectoryPoint,
     ModelFile,
@@ -96,6 +97,7 @@ __all__ = [
     "Failure",
     "Frames",
     "Health",
+    "IkResult",
     "ImportResult",
     "JointTrajectory",
     "JointTrajectoryPoint",

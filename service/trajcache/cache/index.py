@@ -169,6 +169,18 @@ class TrajectoryIndex:
         snap = self._snap
         return np.sort(np.concatenate([snap.main.ids[snap.alive], snap.delta_ids]))
 
+    def endpoints(self) -> FloatArray:
+        """Every indexed trajectory's start and goal states, (2n, D), oldest trajectory first
+        (θ in [−π, π))."""
+        snap = self._snap
+        keys = np.concatenate([snap.main.keys[snap.alive], snap.delta_keys])
+        ids = np.concatenate([snap.main.ids[snap.alive], snap.delta_ids])
+        keys = keys[np.argsort(ids, kind="stable")]
+        states = np.stack([keys[:, : self.dim], keys[:, self.dim :]], axis=1).reshape(-1, self.dim)
+        if len(self._theta_cols):
+            states[:, THETA] -= np.pi
+        return states
+
     @property
     def delta_size(self) -> int:
         """Entries waiting in the unsorted delta buffer."""
