@@ -59,7 +59,7 @@ from trajcache_client._models import (
     TrajectoryQuality,
     TrajectorySummary,
 )
-from trajcache_client._moveit_models import MotionPlanResponse
+from trajcache_client._moveit_models import GetPositionIKResponse, MotionPlanResponse
 from trajcache_client._operations import Operation
 from trajcache_client._retry import NO_RETRY, Retry
 from trajcache_client._stats_models import (
@@ -96,6 +96,7 @@ __all__ = [
     "ContactPair",
     "Failure",
     "Frames",
+    "GetPositionIKResponse",
     "Health",
     "IkResult",
     "ImportResult",

@@ -7,6 +7,7 @@ from typing import Any, TypeVar
 
 from trajcache_client import _ik_operations as ops
 from trajcache_client._models import IkResult
+from trajcache_client._moveit_models import GetPositionIKResponse
 from trajcache_client._operations import Operation
 
 T = TypeVar("T")
@@ -24,7 +25,9 @@ class IkMethods:
         seed that puts the link at the pose (in the robot's current scene)."""
         return self.call(ops.ik(robot_id, request))
 
-    def get_position_ik(self, robot_id: str, request: Mapping[str, Any] | str) -> dict[str, Any]:
+    def get_position_ik(
+        self, robot_id: str, request: Mapping[str, Any] | str
+    ) -> GetPositionIKResponse:
         """Inverse kinematics with MoveIt's GetPositionIK request (a mapping as JSON, text as
         YAML) → its response, whose `error_code` says whether it succeeded (-31: no solution)."""
         return self.call(ops.get_position_ik(robot_id, request))
@@ -44,7 +47,7 @@ class AsyncIkMethods:
 
     async def get_position_ik(
         self, robot_id: str, request: Mapping[str, Any] | str
-    ) -> dict[str, Any]:
+    ) -> GetPositionIKResponse:
         """Inverse kinematics with MoveIt's GetPositionIK request (a mapping as JSON, text as
         YAML) → its response, whose `error_code` says whether it succeeded (-31: no solution)."""
         return await self.call(ops.get_position_ik(robot_id, request))

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 import httpx
 
 from trajcache_client._models import IkResult
+from trajcache_client._moveit_models import GetPositionIKResponse
 from trajcache_client._operations import Operation, _json_object, _reader, _segment
 
 
@@ -25,7 +26,9 @@ def ik(robot_id: str, request: Mapping[str, Any]) -> Operation[IkResult]:
     )
 
 
-def get_position_ik(robot_id: str, request: Mapping[str, Any] | str) -> Operation[dict[str, Any]]:
+def get_position_ik(
+    robot_id: str, request: Mapping[str, Any] | str
+) -> Operation[GetPositionIKResponse]:
     """POST /v1/robots/{robot_id}/ik with MoveIt's GetPositionIK request (`{ik_request: ...}`,
     a mapping as JSON, text as YAML) → its response `{solution, error_code, trajcache}`."""
     if isinstance(request, Mapping):
@@ -43,5 +46,5 @@ def get_position_ik(robot_id: str, request: Mapping[str, Any] | str) -> Operatio
     )
 
 
-def _moveit_answer(response: httpx.Response) -> dict[str, Any]:
-    return _json_object(response)
+def _moveit_answer(response: httpx.Response) -> GetPositionIKResponse:
+    return cast(GetPositionIKResponse, _json_object(response))

@@ -230,3 +230,13 @@ def test_moveit_form_as_yaml_and_its_422s(
     constrained = _moveit(position, quat, constraints={"joint_constraints": [{"joint_name": "a"}]})
     response = app_client.post(f"/v1/robots/{robot}/ik", json=constrained)
     assert response.status_code == 422 and "constraints" in response.text
+
+
+def test_an_srdf_end_effector_names_its_parent_link(app_client: TestClient, reference: Any) -> None:
+    srdf = '<robot name="xarm7-mobile"><end_effector name="nozzle" parent_link="tool_tip"/></robot>'
+    model_id = register(app_client, reference_urdf(), base="planar", srdf=srdf)["model_id"]
+    assert app_client.put("/v1/robots/mobile-2", json={"model_id": model_id}).status_code == 201
+    position, quat = _goal(reference)
+    body = _ik(app_client, "mobile-2", link="nozzle", position=position, orientation=quat).json()
+    assert body["status"] == "success" and body["link"] == "tool_tip"
+    assert _within(reference, body["state"], position, quat)

@@ -89,6 +89,8 @@ MODELS: dict[Any, str] = {
     _moveit_models.MoveItErrorCode: "ErrorCodeOut",
     _moveit_models.TrajcacheExtras: "TrajcacheExtrasOut",
     _moveit_models.CandidateRejection: "CandidateRejectionOut",
+    _moveit_models.GetPositionIKResponse: "GetPositionIKOut",
+    _moveit_models.TrajcacheIkExtras: "TrajcacheIkOut",
     tc.ModelView: "ModelViewOut",
     tc.ModelElement: "ModelElementOut",
     tc.StoredScene: "StoredSceneOut",

@@ -23,7 +23,13 @@ from trajcache.api.moveit._codes import (
     answer_code,
     state_error_code,
 )
-from trajcache.api.moveit._ik import GetPositionIKIn, IkQuery, ik_query, ik_response
+from trajcache.api.moveit._ik import (
+    GetPositionIKIn,
+    GetPositionIKOut,
+    IkQuery,
+    ik_query,
+    ik_response,
+)
 from trajcache.api.moveit._ik import answer_code as ik_answer_code
 from trajcache.api.moveit._messages import (
     MotionPlanRequestIn,
@@ -37,6 +43,7 @@ from trajcache.api.moveit._schemas import MotionPlanResponseOut
 
 __all__ = [
     "GetPositionIKIn",
+    "GetPositionIKOut",
     "IkQuery",
     "MotionPlanError",
     "MotionPlanQuery",

@@ -18,9 +18,9 @@ import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 from scipy.spatial.transform import Rotation
 
 from trajcache.api.moveit._codes import MotionPlanError, MoveItErrorCode
@@ -35,6 +35,7 @@ from trajcache.api.moveit._messages import (
 )
 from trajcache.api.moveit._request import read_start_state
 from trajcache.api.moveit._response import robot_state_body
+from trajcache.api.moveit._schemas import ErrorCodeOut, RobotStateOut
 from trajcache.api.moveit._state import held_targets
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import pose_matrix
@@ -110,6 +111,29 @@ class GetPositionIKIn(_Message):
     """`moveit_msgs/GetPositionIK` request: `{"ik_request": {...}}`."""
 
     ik_request: PositionIKRequest
+
+
+class TrajcacheIkOut(BaseModel):
+    """How the native IK answered, for operators (not part of MoveIt's message)."""
+
+    status: Literal["success", "not_found", "in_collision", "invalid"] = Field(
+        description="The native IK status; 'invalid': refused before solving, the error code "
+        "says why."
+    )
+    message: str
+    warnings: list[str] = Field(description="What of the request was ignored or clamped.")
+    link: str | None = Field(description="The link posed.")
+    position_error: float | None = Field(description="Of the solution (m).")
+    orientation_error: float | None = Field(description="Of the solution (rad).")
+    timings_ms: dict[str, float]
+
+
+class GetPositionIKOut(BaseModel):
+    """A `moveit_msgs/GetPositionIK` response, plus `trajcache`: how it was answered."""
+
+    solution: RobotStateOut = Field(description="Empty unless error_code.val is 1.")
+    error_code: ErrorCodeOut
+    trajcache: TrajcacheIkOut
 
 
 @dataclass(frozen=True)
@@ -204,17 +228,16 @@ def ik_response(
     if answer is not None and answer.state is not None and query is not None:
         state = list(map(float, answer.state))
         solution = robot_state_body(answer.model, state, query.base_joint)
+    total = {"total": round((time.perf_counter() - began) * 1e3, 3)}
     extras: dict[str, Any] = {
         "status": answer.status.value if answer is not None else "invalid",
         "message": text,
         "warnings": list(query.warnings) if query is not None else [],
-        "timings_ms": {"total": round((time.perf_counter() - began) * 1e3, 3)},
+        "link": answer.link if answer is not None else None,
+        "position_error": answer.result.position_error if answer is not None else None,
+        "orientation_error": answer.result.orientation_error if answer is not None else None,
+        "timings_ms": {**answer.timings_ms, **total} if answer is not None else total,
     }
-    if answer is not None:
-        extras["timings_ms"] = {**answer.timings_ms, **extras["timings_ms"]}
-        extras["link"] = answer.link
-        extras["position_error"] = answer.result.position_error
-        extras["orientation_error"] = answer.result.orientation_error
     return {
         "solution": solution,
         "error_code": {"val": int(code), "message": text, "source": "trajcache"},

@@ -13,6 +13,7 @@ from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, RobotIdPath
 from trajcache.api.moveit import (
     GetPositionIKIn,
+    GetPositionIKOut,
     MotionPlanError,
     RawBodyDep,
     ik_answer_code,
@@ -23,7 +24,7 @@ from trajcache.api.moveit import (
     validated,
 )
 from trajcache.api.responses import COMMON, errors
-from trajcache.api.schemas.ik import IkBody, IkResponse
+from trajcache.api.schemas.ik import IK_EXAMPLES, IkBody, IkResponse
 from trajcache.services.catalog.robot_model import robot_model_and_held
 from trajcache.services.ik.solve import IkAnswer, IkRequest, answer_ik
 
@@ -52,6 +53,29 @@ _EXAMPLES = {
     "native": {"summary": "The native form", "value": _NATIVE},
     "moveit": {"summary": "MoveIt's GetPositionIK request", "value": _MOVEIT},
 }
+_MOVEIT_ANSWER = {
+    "solution": {
+        "joint_state": {
+            "name": [f"panda_joint{k}" for k in range(1, 8)],
+            "position": [0.02, -0.61, 0.01, -2.21, 0.0, 1.6, 0.8],
+        },
+        "multi_dof_joint_state": {"joint_names": [], "transforms": []},
+    },
+    "error_code": {"val": 1, "message": "", "source": "trajcache"},
+    "trajcache": {
+        "status": "success",
+        "message": "",
+        "warnings": ["group_name 'panda_arm' is ignored: the planning joints move"],
+        "link": "panda_hand",
+        "position_error": 0.0002,
+        "orientation_error": 0.001,
+        "timings_ms": {"db": 0.4, "solve": 1.2, "total": 1.8},
+    },
+}
+_ANSWERS = {
+    "native": {"summary": "The native answer", "value": IK_EXAMPLES[0]},
+    "moveit": {"summary": "MoveIt's GetPositionIK response", "value": _MOVEIT_ANSWER},
+}
 _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSON one
     "requestBody": {
         "required": True,
@@ -65,7 +89,7 @@ _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSO
 
 @router.post(
     "/robots/{robot_id}/ik",
-    response_model=IkResponse,
+    response_model=IkResponse | GetPositionIKOut,
     summary="Inverse kinematics: a state that puts a link at a pose",
     description="Natively (`IkBody`): a link, a pose in the model's base frame (the world frame "
     "for a planar base), tolerances and an optional seed; the answer is the valid state nearest "
@@ -78,15 +102,18 @@ _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSO
     "frame), `avoid_collisions` defaults to false as in MoveIt; see docs/moveit.md for the "
     "fields read and ignored. A 422 is for malformed input only.",
     openapi_extra=_BODY,
-    responses=errors(
-        {
-            404: ("Unknown robot", "robot 'robot-7' not found"),
-            422: (
-                "Malformed body, unknown link or a seed out of limits",
-                "link: 'hand' is neither a link nor an SRDF end effector of the model",
-            ),
-        }
-    ),
+    responses={
+        200: {"content": {"application/json": {"examples": _ANSWERS}}},
+        **errors(
+            {
+                404: ("Unknown robot", "robot 'robot-7' not found"),
+                422: (
+                    "Malformed body, unknown link or a seed out of limits",
+                    "link: 'hand' is neither a link nor an SRDF end effector of the model",
+                ),
+            }
+        ),
+    },
 )
 def ik_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> Response:
     """Solve inverse kinematics for a robot in its current scene."""

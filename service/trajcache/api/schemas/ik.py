@@ -75,7 +75,7 @@ class IkBody(BaseModel):
     )
 
 
-_EXAMPLES: list[Any] = [
+IK_EXAMPLES: list[Any] = [
     {
         "status": "success",
         "state": [0.02, -0.61, 0.01, -2.21, 0.0, 1.6, 0.8],
@@ -109,7 +109,7 @@ _EXAMPLES: list[Any] = [
 class IkResponse(BaseModel):
     """The state that puts the link at the pose, or a status saying why there is none."""
 
-    model_config = ConfigDict(json_schema_extra={"examples": _EXAMPLES})
+    model_config = ConfigDict(json_schema_extra={"examples": IK_EXAMPLES})
 
     status: Literal["success", "not_found", "in_collision"] = Field(
         description="'not_found': nothing reached the pose within the budget; 'in_collision': "

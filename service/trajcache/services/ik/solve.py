@@ -5,8 +5,9 @@ The robot's model and scene are read as a plan reads them (`services.catalog.rob
 .robot_scene`, the model registry, `geometry.scene.variant.model_in_scene`), and a solution is
 collision-free by the same checker that validates plans (`validator_for(...).checker`), free of
 the scene and of self-collision. Starts, after the seed: the endpoints of the model's cached
-trajectories whose link lies nearest the target (at most CACHED_STARTS of the most recent
-CACHED_POOL), then random restarts. No solution is an answer with a status, not an error.
+trajectories whose link lies nearest the target (at most CACHED_STARTS, among the endpoints of
+the CACHED_POOL most recent trajectories), then random restarts. No solution is an answer with
+a status, not an error.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from trajcache.trajectory_metrics import end_effector_link
 IK_BUDGET_S = 0.05  # default time budget of one IK request
 IK_BUDGET_MAX_S = 2.0  # the most a request may ask for
 CACHED_STARTS = 3  # cached endpoint states tried after the seed
-CACHED_POOL = 4096  # the most recent cached endpoints searched for them
+CACHED_POOL = 256  # the most recent cached trajectories whose endpoints are searched
 
 __all__ = ["IkAnswer", "IkRequest", "IkStatus", "answer_ik"]
 
@@ -86,7 +87,7 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         robot = robot_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
         model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
         source = model_source(session=session, model_id=model.model_id, registry=ctx.models)
-        endpoints = ctx.indexes.index(session, model).endpoints()[-CACHED_POOL:]
+        endpoints = ctx.indexes.index(session, model).endpoints(CACHED_POOL)
     checked = model_in_scene(model, robot.scene, robot.joint_values, cache=ctx.variants)
     read = time.perf_counter()
     kinematics = _kinematics(checked, source.urdf)
