@@ -163,6 +163,17 @@ def pink_solver() -> SolveFn:
     return solve
 
 
+def yourdfpy_robot(case: Case) -> Any:
+    """yourdfpy's model of the case's URDF (kinematics only), for the independent check."""
+    text = re.sub(r"^\s*<\?xml[^>]*\?>", "", case.urdf.strip()).encode()
+    return URDF.load(
+        io.BytesIO(text),
+        build_scene_graph=True,
+        load_meshes=False,
+        filename_handler=filename_handler_null,
+    )
+
+
 def independent_error(reference: Any, case: Case, state: np.ndarray, pose: np.ndarray) -> bool:
     """Whether yourdfpy puts the link farther from `pose` than the tolerances."""
     cfg = dict(zip(case.model.joint_names, state[case.model.arm_offset :], strict=True))
@@ -183,9 +194,7 @@ def independent_error(reference: Any, case: Case, state: np.ndarray, pose: np.nd
 
 def run(case: Case, solve: SolveFn, poses: list[np.ndarray]) -> dict[str, Any]:
     """Figures of one solver on one robot."""
-    text = re.sub(r"^\s*<\?xml[^>]*\?>", "", case.urdf.strip()).encode()
-    reference = URDF.load(io.BytesIO(text), build_scene_graph=True, load_meshes=False,
-                          filename_handler=filename_handler_null)  # fmt: skip
+    reference = yourdfpy_robot(case)
     times, solved, errors = [], 0, 0
     for pose in poses:
         began = time.perf_counter()
