@@ -32,7 +32,8 @@ import statistics
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from contextlib import ExitStack
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +66,9 @@ class Case:
     link: str
     seed: np.ndarray
     kinematics: PinKinematics
+    srdf: str | None = None  # what registers it with the service (--service)
+    group: str | None = None
+    files: dict[str, bytes] = field(default_factory=dict)
 
 
 def cases() -> list[Case]:
@@ -75,16 +79,26 @@ def cases() -> list[Case]:
             f"meshes/collision/{path.name}": path.read_bytes()
             for path in (MBM_ROBOT / "meshes" / "collision").iterdir()
         }
-        panda = load_robot_model(urdf, files=files, srdf=srdf, group="panda_arm", name="panda")
+        group = "panda_arm"
     else:
         robot = ROBOTS["panda"]
-        urdf, srdf = robot.urdf, robot.srdf
-        panda = load_robot_model(urdf, files=robot.files(), srdf=srdf, group=robot.group)
+        urdf, srdf, files, group = robot.urdf, robot.srdf, robot.files(), str(robot.group)
+    panda = load_robot_model(urdf, files=files, srdf=srdf, group=group, name="panda")
     ready = np.array(panda.named_states.get("ready", np.zeros(panda.dof)))
     reference = reference_model()
     seed = np.array([0.0, 0.0, 0.0, *STOWED_ARM])
     return [
-        Case("panda", panda, urdf, "panda_hand", ready, PinKinematics.build(panda, urdf)),
+        Case(
+            "panda",
+            panda,
+            urdf,
+            "panda_hand",
+            ready,
+            PinKinematics.build(panda, urdf),
+            srdf=srdf,
+            group=group,
+            files=files,
+        ),
         Case(
             "reference",
             reference,
@@ -217,28 +231,16 @@ def main() -> int:
     parser.add_argument("--smoke", action="store_true", help="20 poses per robot")
     parser.add_argument("--poses", type=int, default=200)
     parser.add_argument("--solvers", default="dls,dls-3,pink")
+    parser.add_argument(
+        "--service", action="store_true", help="also through a live service's POST /ik"
+    )
     args = parser.parse_args()
     logging.disable(logging.WARNING)  # yourdfpy warns of each held mimic joint on every update
     count = 20 if args.smoke else args.poses
-    solvers: dict[str, SolveFn] = {"dls": dls(1), "dls-3": dls(3)}
-    try:
-        solvers["pink"] = pink_solver()
-    except ImportError:
-        print("pin-pink is not installed: its row is skipped", file=sys.stderr)
-    chosen = [s for s in args.solvers.split(",") if s in solvers]
-    figures: dict[str, Any] = {}
-    print(
-        f"{'robot':<10} {'solver':<7} {'solved':>7} {'median ms':>10} {'p95 ms':>8} {'errors':>7}"
-    )
-    for case in cases():
-        poses = targets(case, count, np.random.default_rng(7))
-        for name in chosen:
-            row = run(case, solvers[name], poses)
-            figures[f"{case.name}/{name}"] = row
-            print(
-                f"{case.name:<10} {name:<7} {row['success_rate']:>7.1%} {row['ms_median']:>10.3f}"
-                f" {row['ms_p95']:>8.3f} {row['pose_errors']:>7}"
-            )
+    robots = cases()
+    with ExitStack() as stack:
+        solvers = _solvers(args.solvers.split(","), robots, stack if args.service else None)
+        figures = _table(robots, solvers, count)
     headline = [figures[k] for k in figures if k.endswith("/dls")]
     summary = {
         "success_rate": min(r["success_rate"] for r in headline),
@@ -250,6 +252,47 @@ def main() -> int:
     }
     print(json.dumps(summary))
     return 0 if summary["pose_errors"] == 0 else 1
+
+
+def _solvers(names: list[str], robots: list[Case], stack: ExitStack | None) -> dict[str, SolveFn]:
+    """The solvers asked for (pin-pink when installed; the live service with a stack)."""
+    solvers: dict[str, SolveFn] = {"dls": dls(1), "dls-3": dls(3)}
+    if "pink" in names:
+        try:
+            solvers["pink"] = pink_solver()
+        except ImportError:
+            print("pin-pink is not installed: its row is skipped", file=sys.stderr)
+    chosen = {name: solvers[name] for name in names if name in solvers}
+    if "dls" not in chosen:
+        chosen = {"dls": solvers["dls"], **chosen}  # the headline's
+    if stack is not None:
+        from ik_service import ServiceSolver
+
+        chosen["service"] = ServiceSolver(robots, stack)
+    return chosen
+
+
+def _table(robots: list[Case], solvers: dict[str, SolveFn], count: int) -> dict[str, Any]:
+    """Each solver's row per robot, printed as they come."""
+    figures: dict[str, Any] = {}
+    print(
+        f"{'robot':<10} {'solver':<7} {'solved':>7} {'median ms':>10} {'p95 ms':>8} {'errors':>7}"
+    )
+    for case in robots:
+        poses = targets(case, count, np.random.default_rng(7))
+        for name, solve in solvers.items():
+            server_ms = getattr(solve, "server_ms", None)
+            if server_ms is not None:
+                server_ms.clear()
+            row = run(case, solve, poses)
+            if server_ms:
+                row["server_ms_median"] = round(statistics.median(server_ms), 3)
+            figures[f"{case.name}/{name}"] = row
+            print(
+                f"{case.name:<10} {name:<7} {row['success_rate']:>7.1%} {row['ms_median']:>10.3f}"
+                f" {row['ms_p95']:>8.3f} {row['pose_errors']:>7}"
+            )
+    return figures
 
 
 if __name__ == "__main__":

@@ -70,8 +70,8 @@ class IkBody(BaseModel):
         default=3,
         ge=1,
         le=MAX_SOLUTIONS,
-        description="Solutions to find (seed, cached states, random restarts) before answering "
-        "the one nearest the seed.",
+        description="States reaching the pose to find (from the seed, cached states, random "
+        "restarts) before answering the valid one nearest the seed.",
     )
 
 
@@ -120,8 +120,11 @@ class IkResponse(BaseModel):
     link: str = Field(description="The link that was posed.")
     position_error: float | None = Field(description="Of the answer (m), by the solver's FK.")
     orientation_error: float | None = Field(description="Of the answer (rad).")
-    solutions: int = Field(description="Valid solutions found, the answer among them.")
-    rejected: int = Field(description="Solutions in collision, left out.")
+    solutions: int = Field(
+        description="States found that reach the pose; the answer is the valid one nearest the "
+        "seed among them."
+    )
+    rejected: int = Field(description="Of them, those checked and found in collision.")
     attempts: int
     message: str = ""
     timings_ms: dict[str, float] = Field(description="db, solve and total (ms).")

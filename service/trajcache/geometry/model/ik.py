@@ -15,10 +15,12 @@ that a solution is inside the tolerances by more than rounding; or until MAX_ITE
 STALL_ITERATIONS without progress. Attempts start from the seed, then from the given starts
 (cached states), then from random states (seeded rng) within a window about the seed that
 widens by RESTART_SPREAD of each joint's range per restart, until
-`solutions` valid solutions are found or the time budget is spent. The answer is the valid
-solution nearest the seed (Euclidean over the moving values, angles of full-turn joints
-wrapped toward the seed). A converged state that fails `valid_fn` (a collision) is counted,
-not returned: no valid solution with some invalid ones is IN_COLLISION, none at all NOT_FOUND.
+`solutions` distinct states reach the pose or the time budget is spent. The answer is the valid
+one nearest the seed (Euclidean over the moving values, angles of full-turn joints wrapped
+toward the seed): they are checked by `valid_fn` (a collision check, the costly part) nearest
+first, and the first valid one is the answer; when none is, the search goes on for as many
+more. A state that fails `valid_fn` is counted, not returned: no valid solution with some
+invalid ones is IN_COLLISION, none at all NOT_FOUND.
 
 Why this solver (`bench/ik.py`: 200 random reachable poses each of the MotionBenchMaker Panda's
 hand and the reference robot's tool tip, 1 mm and 0.01 rad, from the ready or stowed state, a
@@ -78,7 +80,7 @@ class IkProblem:
     move_base: bool = False  # a planar base's x, y, θ move too
     starts: Sequence[FloatArray] = ()  # further start states tried before random ones
     valid_fn: Callable[[FloatArray], bool] | None = None  # None: every state is valid
-    solutions: int = 3  # valid solutions to compare before answering
+    solutions: int = 3  # distinct states reaching the pose to compare before answering
     budget_s: float = 0.05
     rng_seed: int = 0
     clock: Callable[[], float] = field(default=time.perf_counter, repr=False)
@@ -98,8 +100,8 @@ class IkResult:
 
     status: IkStatus
     state: FloatArray | None
-    solutions: int  # valid solutions found
-    rejected: int  # converged states that failed valid_fn
+    solutions: int  # distinct states found that reach the pose (valid or not)
+    rejected: int  # of them, those checked and failing valid_fn
     attempts: int
     iterations: int
     position_error: float | None = None  # of the answer (m)
@@ -125,7 +127,9 @@ def solve_ik(problem: IkProblem) -> IkResult:
     ends = problem.clock() + max(0.0, problem.budget_s)
     setup = _setup(problem)
     rng = np.random.default_rng(problem.rng_seed)
-    found: list[FloatArray] = []
+    seen: list[FloatArray] = []  # every distinct state that reached the pose
+    pending: list[FloatArray] = []  # those not yet checked by valid_fn
+    best: FloatArray | None = None
     rejected = attempts = iterations = 0
     for start in _starts(problem, rng):
         if attempts and problem.clock() >= ends:
@@ -133,22 +137,38 @@ def solve_ik(problem: IkProblem) -> IkResult:
         attempts += 1
         state, used = _descend(problem.kinematics, setup, start, ends, problem.clock)
         iterations += used
-        if state is None or any(_same(state, other, setup) for other in found):
+        if state is None or any(_same(state, other, setup) for other in seen):
             continue
-        if problem.valid_fn is not None and not problem.valid_fn(state):
-            rejected += 1
-            continue
-        found.append(state)
-        if len(found) >= problem.solutions:
-            break
-    if not found:
+        seen.append(state)
+        pending.append(state)
+        if len(pending) >= problem.solutions:
+            best, failed = _nearest_valid(problem, setup, pending)
+            rejected, pending = rejected + failed, []
+            if best is not None:
+                break
+    if best is None and pending:  # the budget ran out with solutions still to check
+        best, failed = _nearest_valid(problem, setup, pending)
+        rejected += failed
+    if best is None:
         status = IkStatus.IN_COLLISION if rejected else IkStatus.NOT_FOUND
-        return IkResult(status, None, 0, rejected, attempts, iterations)
-    best = min(found, key=lambda s: _distance(s, problem.seed, setup))
+        return IkResult(status, None, len(seen), rejected, attempts, iterations)
     position, orientation = pose_errors(problem.kinematics, setup.frame, best, setup.target)
     return IkResult(
-        IkStatus.SUCCESS, best, len(found), rejected, attempts, iterations, position, orientation
+        IkStatus.SUCCESS, best, len(seen), rejected, attempts, iterations, position, orientation
     )
+
+
+def _nearest_valid(
+    problem: IkProblem, setup: _Setup, states: list[FloatArray]
+) -> tuple[FloatArray | None, int]:
+    """The valid state of `states` nearest the seed, and how many nearer ones were invalid:
+    checked nearest first, so valid_fn (a collision check) runs as few times as it can."""
+    invalid = 0
+    for state in sorted(states, key=lambda s: _distance(s, problem.seed, setup)):
+        if problem.valid_fn is None or problem.valid_fn(state):
+            return state, invalid
+        invalid += 1
+    return None, invalid
 
 
 def _setup(problem: IkProblem) -> _Setup:
