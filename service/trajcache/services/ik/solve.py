@@ -12,14 +12,13 @@ a status, not an error.
 
 from __future__ import annotations
 
-import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from trajcache.geometry.collision.checker import FREE
+from trajcache.geometry.collision.checker import FREE, CollisionChecker
 from trajcache.geometry.model.ik import IkProblem, IkResult, IkStatus, PoseTarget, solve_ik
 from trajcache.geometry.model.kinematics import (
     StateInput,
@@ -90,13 +89,15 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         endpoints = ctx.indexes.index(session, model).endpoints(CACHED_POOL)
     checked = model_in_scene(model, robot.scene, robot.joint_values, cache=ctx.variants)
     read = time.perf_counter()
-    kinematics = _kinematics(checked, source.urdf)
+    kinematics = ctx.kinematics.get_or_build(
+        checked, lambda: PinKinematics.build(checked, source.urdf)
+    )
     seed = _seed(checked, request)
     target = _target(kinematics, _link(checked, source.srdf, request), request)
     valid_fn = None
     if request.avoid_collisions:
         checker = validator_for(checked, robot.scene, ctx.settings, cache=ctx.validators).checker
-        valid_fn = _free_fn(checker.check)
+        valid_fn = _free_fn(checker)
     budget = request.budget_s if request.budget_s is not None else IK_BUDGET_S
     problem = IkProblem(
         kinematics,
@@ -108,10 +109,9 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         solutions=request.solutions,
         budget_s=min(budget, IK_BUDGET_MAX_S),
     )
-    solved = time.perf_counter()
     result = solve_ik(problem)
     done = time.perf_counter()
-    timings = {"db": read - began, "solve": done - solved, "total": done - began}
+    timings = {"db": read - began, "solve": done - read, "total": done - began}
     return IkAnswer(
         status=result.status,
         state=result.state,
@@ -122,12 +122,6 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         result=result,
         timings_ms={k: round(v * 1e3, 3) for k, v in timings.items()},
     )
-
-
-@functools.lru_cache(maxsize=64)
-def _kinematics(model: RobotModel, urdf: str) -> PinKinematics:
-    """Pinocchio's map of a model (as a robot holds it), built once per model object."""
-    return PinKinematics.build(model, urdf)
 
 
 def _seed(model: RobotModel, request: IkRequest) -> FloatArray:
@@ -165,12 +159,11 @@ def _target(kinematics: PinKinematics, link: str, request: IkRequest) -> PoseTar
     return PoseTarget(link, pose, request.position_tolerance, request.orientation_tolerance)
 
 
-def _free_fn(check: Callable[..., object]) -> Callable[[FloatArray], bool]:
+def _free_fn(checker: CollisionChecker) -> Callable[[FloatArray], bool]:
     """A validity predicate: the state is free of the scene and of self-collision."""
 
     def free(state: FloatArray) -> bool:
-        verdict = check(state[None, :], stop_at_first=True)
-        return bool(int(verdict.status[0]) == FREE)  # type: ignore[attr-defined]
+        return bool(int(checker.check(state[None, :]).status[0]) == FREE)
 
     return free
 
