@@ -282,11 +282,14 @@ def _table(robots: list[Case], solvers: dict[str, SolveFn], count: int) -> dict[
         poses = targets(case, count, np.random.default_rng(7))
         for name, solve in solvers.items():
             server_ms = getattr(solve, "server_ms", None)
-            if server_ms is not None:
+            statuses = getattr(solve, "statuses", None)
+            if server_ms is not None and statuses is not None:
                 server_ms.clear()
+                statuses.clear()
             row = run(case, solve, poses)
             if server_ms:
                 row["server_ms_median"] = round(statistics.median(server_ms), 3)
+                row["statuses"] = dict(statuses or {})
             figures[f"{case.name}/{name}"] = row
             print(
                 f"{case.name:<10} {name:<7} {row['success_rate']:>7.1%} {row['ms_median']:>10.3f}"

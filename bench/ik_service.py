@@ -3,13 +3,16 @@
 Starts `trajcache serve` (loopback, a temporary SQLite database), registers each robot as its
 team would (URDF, SRDF, meshes), and asks for each pose with the robot's seed and the default
 `avoid_collisions` (an empty scene: the self-collision check runs). The row's times are the
-client's round trips; `server_ms_median` is the server's own `timings_ms.total`.
+client's round trips; `server_ms_median` is the server's own `timings_ms.total`, `statuses`
+counts the answers by status (`in_collision`: the pose is reached only in collision, as a
+random target state in self-collision is).
 """
 
 from __future__ import annotations
 
 import io
 import zipfile
+from collections import Counter
 from contextlib import ExitStack
 from typing import Any
 
@@ -27,6 +30,7 @@ class ServiceSolver:
         base = stack.enter_context(running_service())
         self.client = stack.enter_context(Client(base, timeout=60, retry=NO_RETRY))
         self.server_ms: list[float] = []
+        self.statuses: Counter[str] = Counter()  # why the unsolved were not solved
         for case in robots:
             model = self.client.register_model(
                 case.urdf,
@@ -47,6 +51,7 @@ class ServiceSolver:
         }
         answer = self.client.ik(f"ik-{case.name}", request)
         self.server_ms.append(answer.timings_ms["total"])
+        self.statuses[answer.status] += 1
         return np.array(answer.state) if answer.ok and answer.state is not None else None
 
 
