@@ -151,6 +151,10 @@ def test_malformed_input_is_a_422_naming_the_field(app_client: TestClient, robot
     assert response.status_code == 422 and "position" in response.text
     response = _ik(app_client, robot, position=[0.5, 0.0, 0.8], position_tolerance=0)
     assert response.status_code == 422 and "position_tolerance" in response.text
+    zero = _ik(app_client, robot, position=[0.5, 0.0, 0.8], orientation=[0, 0, 0, 0])
+    assert_detail(zero, 422, "orientation", "zero quaternion")
+    beyond = [*BASE, 9.0, *STOWED_ARM[1:]]
+    assert_detail(_ik(app_client, robot, position=[0.5, 0.0, 0.8], seed=beyond), 422, "seed")
 
 
 def _moveit(position: list[float], quat: list[float], **fields: Any) -> dict[str, Any]:
