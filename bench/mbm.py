@@ -21,12 +21,15 @@ team would over HTTP:
   finer than the paper's, no padding, the SRDF's and the scene's allowed pairs skipped): samples
   in contact with the scene or in self-collision, out of the joint limits, and wrong endpoints.
 
---in-process times the planner alone on the same problems, without HTTP (mbm_inprocess). The
+--cross-scene also asks each solved problem again in its own scene with one object moved by up
+to 1 cm, and in its family's next scene (mbm_cross). --in-process times the planner alone on
+the same problems, without HTTP (mbm_inprocess). The
 figures and what each timing measures are in mbm_tally. Prints a table per family; the last
 line is one JSON object. Exits 1 when a returned path collides or the service answered 5xx.
 
     python bench/mbm.py [--smoke] [--per-family N] [--families box,cage] [--budget S]
-                        [--planner NAME] [--seed N] [--in-process] [--data DIR]
+                        [--planner NAME] [--seed N] [--in-process] [--cross-scene]
+                        [--data DIR]
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ import mbm_check
 from dense_mesh import FloatArray
 from harness.service import running_service
 from mbm_check import SceneChecker, check_path, panda_description, path_length
+from mbm_cross import CrossScenes
 from mbm_problems import (
     DEFAULT_DATA,
     FAMILIES,
@@ -157,6 +161,7 @@ class ServiceRun:
         if answer.source == "cache":
             tally.hits += 1
             tally.hit_server_ms.append(float(answer.timings_ms["total"]))
+            tally.hit_validate_ms.append(float(answer.timings_ms["validate"]))
         else:
             tally.counts["replays_planned"] += 1
             for rejected in answer.rejected:  # why the cached path did not serve
@@ -199,6 +204,7 @@ class ServiceRun:
     def run(self, problems: list[Problem]) -> list[Tally]:
         """Plan, check and replay every problem, a tally per family."""
         tallies: dict[str, Tally] = {}
+        cross = CrossScenes(self.client, self.checker, self.options)
         for problem in problems:
             tally = tallies.setdefault(problem.family, Tally(problem.family))
             self.checker.set_scene(scene_objects(problem.scene), allowed_pairs(problem.scene))
@@ -207,6 +213,12 @@ class ServiceRun:
                 self.replay(tally, problem, ends)
             if self.args.moveit:
                 self.moveit(tally, problem)
+            if ends is not None and self.args.cross_scene:
+                cross.moved(tally, problem, ends, self.args.seed)
+                family = [p for p in problems if p.family == problem.family]
+                other = family[(family.index(problem) + 1) % len(family)]
+                if other is not problem:
+                    cross.cross(tally, problem, ends, other)
         return list(tallies.values())
 
 
@@ -224,6 +236,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--smoke", action="store_true", help=f"{SMOKE_PER_FAMILY} per family")
     parser.add_argument(
         "--moveit", action="store_true", help="also send each request file as is to /motion-plan"
+    )
+    parser.add_argument(
+        "--cross-scene", action="store_true", help="also ask in moved and in other scenes"
     )
     parser.add_argument("--dump-contacts", type=Path, help="append colliding paths here (JSONL)")
     args = parser.parse_args(argv)

@@ -57,6 +57,15 @@ class Tally:
     replays: int = 0
     hits: int = 0
     hit_server_ms: list[float] = field(default_factory=list)
+    hit_validate_ms: list[float] = field(default_factory=list)  # the hits' timings_ms.validate
+    moved_asked: int = 0  # --cross-scene: one object moved by up to 1 cm
+    moved_hits: int = 0
+    moved_validate_ms: list[float] = field(default_factory=list)
+    moved_pairs: int = 0  # (path, object) pairs checked on hits that used a certificate
+    moved_reproved: int = 0  # of which proved again
+    cross_asked: int = 0  # --cross-scene: the family's next scene, ends free there
+    cross_hits: int = 0
+    cross_server_ms: list[float] = field(default_factory=list)
     counts: Counter[str] = field(default_factory=Counter)  # paths, collisions, 4xx, …
     notes: Counter[str] = field(default_factory=Counter)  # messages, contact pairs
     phases: dict[str, list[float]] = field(default_factory=dict)  # planned answers' timings_ms
@@ -141,12 +150,36 @@ def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
         "replays": replays,
         "replay_hit_rate": _share(sum(t.hits for t in tallies), replays),
         "hit_server_ms_median": percentile(_all(tallies, "hit_server_ms")),
+        "hit_validate_ms_median": percentile(_all(tallies, "hit_validate_ms")),
         "replays_skipped": counts["replays_skipped"],  # no free noisy start or goal
         "replays_planned": counts["replays_planned"],  # a success, but not from the cache
         "planners": dict(planners),
         "families": {t.family: _share(t.solved, t.problems) for t in tallies},
     }
+    if any(t.moved_asked or t.cross_asked for t in tallies):
+        out |= cross_summary(tallies, counts)
     return out
+
+
+def cross_summary(tallies: list[Tally], counts: Counter[str]) -> dict[str, Any]:
+    """The figures of `--cross-scene` (`mbm_cross.py`)."""
+    total = sum  # of a field over the families
+    return {
+        "moved_asked": total(t.moved_asked for t in tallies),
+        "moved_cache_rate": _share(
+            total(t.moved_hits for t in tallies), total(t.moved_asked for t in tallies)
+        ),
+        "moved_validate_ms_median": percentile(_all(tallies, "moved_validate_ms")),
+        "pairs_reproved_share": _share(
+            total(t.moved_reproved for t in tallies), total(t.moved_pairs for t in tallies)
+        ),
+        "cross_asked": total(t.cross_asked for t in tallies),
+        "cross_ends_invalid": counts["cross_ends_invalid"],
+        "cross_cache_rate": _share(
+            total(t.cross_hits for t in tallies), total(t.cross_asked for t in tallies)
+        ),
+        "cross_server_ms_median": percentile(_all(tallies, "cross_server_ms")),
+    }
 
 
 def print_table(tallies: list[Tally], in_process: bool, console: Console) -> None:

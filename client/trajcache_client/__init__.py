@@ -58,6 +58,7 @@ from trajcache_client._models import (
     TrajectoryCreated,
     TrajectoryQuality,
     TrajectorySummary,
+    ValidationReuse,
 )
 from trajcache_client._moveit_models import GetPositionIKResponse, MotionPlanResponse
 from trajcache_client._operations import Operation
@@ -151,5 +152,6 @@ __all__ = [
     "UnexpectedResponseError",
     "UnsupportedMediaTypeError",
     "ValidationError",
+    "ValidationReuse",
     "__version__",
 ]

@@ -35,6 +35,7 @@ class SeedJob(_Answer):
     done: int
     hits: int
     planned: int
+    stored: int | None = None  # of the planned, newly stored (the rest were already stored)
     failed: int
     hit_rate: float | None
     eta_s: float | None

@@ -196,6 +196,15 @@ class Rejection(_Answer):
     reason: str
 
 
+class ValidationReuse(_Answer):
+    """What a cache answer's validation could skip: `reused` is "none", "ends", "whole" or
+    "certificate" (then `objects_reproved` of the scene's `objects` were proved again)."""
+
+    reused: Literal["none", "ends", "whole", "certificate"]
+    objects: int | None = None
+    objects_reproved: int | None = None
+
+
 class ContactPair(_Answer):
     """A link and what it touches: a scene object (`scene`) or another link (`self`)."""
 
@@ -245,9 +254,11 @@ class PlanResult(_Answer):
     timings_ms: dict[str, float]
     planner: str | None = None  # the planner that found a planned answer's path
     message: str = ""
+    warnings: list[str] = Field(default_factory=list)  # e.g. no scene uploaded
     rejected: list[Rejection] = Field(default_factory=list)
     quality: TrajectoryQuality | None = None
     joint_trajectory: JointTrajectory | None = None
+    validation: ValidationReuse | None = None  # a cache answer's: what its validation skipped
 
     @property
     def ok(self) -> bool:

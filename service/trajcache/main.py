@@ -65,6 +65,7 @@ def create_app(settings: Settings | None = None, *, migrate: bool | None = None)
         lifespan=lifespan,
         docs_url=None,  # install_docs serves them from the package's files
         redoc_url=None,
+        redirect_slashes=False,  # a 307 with a body naming the path instead (`api.errors`)
     )
     install_docs(app)
     install_error_handlers(app)

@@ -51,7 +51,8 @@ def test_no_key_wrong_key_and_revoked_key_are_401(
 ) -> None:
     client, keys = secured
     reply = client.get("/v1/robots/r1/scene")
-    assert_detail(reply, 401, "API key is required")
+    detail = assert_detail(reply, 401, "API key is required", "'API keys' section")
+    assert "AUTH_MODE" not in detail and "off" not in detail  # not told to an unknown caller
     assert reply.headers["www-authenticate"] == "Bearer"
     assert_detail(client.get("/v1/robots/r1/scene", headers=_h("nonsense")), 401, "unknown")
     forged = keys["admin"][:-4] + "AAAA"
@@ -62,7 +63,8 @@ def test_no_key_wrong_key_and_revoked_key_are_401(
     ctx = ctx_of(client)
     with ctx.session() as session:
         revoke_key(session=session, key=keys["robot"].split("_")[1])
-    assert_detail(client.get("/v1/robots/r1/scene", headers=_h(keys["robot"])), 401, "revoked")
+    revoked = client.get("/v1/robots/r1/scene", headers=_h(keys["robot"]))
+    assert "AUTH_MODE" not in assert_detail(revoked, 401, "revoked", "README.md#api-keys")
 
 
 def test_health_stays_open(secured: tuple[TestClient, dict[str, str]]) -> None:

@@ -290,7 +290,10 @@ def test_planar_base_moves_in_the_multi_dof_trajectory(app_client: TestClient) -
             {**_request(), "start_state": {"joint_state": {"name": ["a", "b"], "position": [0]}}},
             ["2 names but 1 positions"],
         ),
-        ({**_request(), "goal_constraint": []}, ["body.goal_constraint", "Extra inputs"]),
+        (
+            {**_request(), "goal_constraint": []},
+            ["unknown field 'goal_constraint' (did you mean 'goal_constraints'?)"],
+        ),
         (
             {**_request(), "path_constraints": {"joint_constraints": _joints(["elbow"], [0])}},
             ["body.path_constraints", "not supported"],

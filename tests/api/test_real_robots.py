@@ -104,7 +104,7 @@ def test_states_by_name_and_named_states(app_client: TestClient) -> None:
     assert answer.json()["status"] == "miss"  # nothing cached, no fallback: but accepted
     opened = {**start, "panda_finger_joint1": 0.04}
     assert_detail(_plan(app_client, robot_id, opened, "default"), 422, "panda_finger_joint1")
-    assert_detail(_plan(app_client, robot_id, start, "home"), 422, "no named state 'home'")
+    assert_detail(_plan(app_client, robot_id, start, "home"), 422, "unknown named state 'home'")
     del start["panda_joint3"]
     assert_detail(_plan(app_client, robot_id, start, "default"), 422, "lacks panda_joint3")
 

@@ -264,3 +264,32 @@ def test_the_memo_is_safe_to_share_between_threads() -> None:
     for t in threads:
         t.join()
     assert not errors and len(memo) == 50
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_segments_in_one_pass_give_the_verdict_of_each_segment_alone(
+    swing: RobotModel, seed: int
+) -> None:
+    """`validate_segments` lays the pieces end to end; its junctions are never motions: a plate
+    that only the jump from one piece to the next would cross is not found, and a plate in any
+    listed segment is."""
+    rng = np.random.default_rng(seed)
+    validator = TrajectoryValidator(swing, plates(*rng.uniform(-3.0, 3.0, 2)))
+    for _ in range(20):
+        path = np.sort(rng.uniform(-3.0, 3.0, (6, 1)), axis=0) * rng.choice([-1.0, 1.0])
+        listed = sorted(rng.choice(5, size=int(rng.integers(1, 4)), replace=False).tolist())
+        alone = [validator.validate(path[i : i + 2]) for i in listed]
+        together = validator.validate_segments(path, listed)
+        first = next((r for r in alone if not r.valid), None)
+        assert together.status is (first.status if first else ValidationStatus.VALID)
+        if first is not None:
+            assert together.state is not None and first.state is not None
+            assert np.allclose(together.state, first.state)
+
+
+def test_a_plate_between_two_pieces_is_not_a_finding(swing: RobotModel) -> None:
+    validator = TrajectoryValidator(swing, plates(0.65))
+    path = np.array([[0.0], [0.3], [1.0], [1.3]])  # the plate lies in segment 1 only
+    assert not validator.validate(path).valid
+    assert validator.validate_segments(path, [0, 2]).valid
+    assert validator.validate_segments(path, [0, 1]).status is ValidationStatus.COLLISION

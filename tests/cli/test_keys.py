@@ -64,3 +64,22 @@ def test_list_prints_times_whole_on_a_narrow_terminal(runner: CliRunner) -> None
     assert listed.exit_code == 0, listed.output
     assert len(TIME.findall(listed.stdout)) == 3, listed.stdout  # two created, one revoked
     assert "warehouse-robot-11" in listed.stdout and "…" not in listed.stdout
+
+
+def test_create_and_revoke_say_whether_keys_are_required_and_how_to_turn_it_off(
+    runner: CliRunner, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    made = runner.invoke(app, ["keys", "create", "--name", "ops", "--role", "admin"])
+    note = " ".join(made.stderr.split())
+    assert "the service now requires an API key on every /v1 request" in note
+    assert "TRAJCACHE_AUTH_MODE=off" in note
+    first = made.stdout.strip().splitlines()[-1].split("_")[1]
+    second = _create(runner, "--name", "seed", "--role", "seeder").split("_")[1]
+    revoked = " ".join(runner.invoke(app, ["keys", "revoke", first]).stderr.split())
+    assert "1 active key(s) left; the service still requires keys" in revoked
+    last = " ".join(runner.invoke(app, ["keys", "revoke", second]).stderr.split())
+    assert "no active key is left, and the service still requires one" in last
+    assert "`trajcache keys create`" in last and "TRAJCACHE_AUTH_MODE=off" in last
+    monkeypatch.setenv("TRAJCACHE_AUTH_MODE", "off")
+    made = runner.invoke(app, ["keys", "create", "--name", "later", "--role", "admin"])
+    assert "key checks are off here (TRAJCACHE_AUTH_MODE=off)" in " ".join(made.stderr.split())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import socket
 import threading
 from collections.abc import Iterator
@@ -175,3 +176,41 @@ def test_the_shipped_example_runs_as_it_is(tmp_path: Path) -> None:
     assert job["model_id"] == reference["model_id"] and not reference["created"]
     # what the planner found is stored as sim; two identical paths are one trajectory
     assert 0 < stored["total"] <= job["planned"]
+
+
+def test_a_locked_service_names_the_key_options(tmp_path: Path) -> None:
+    settings = Settings(database_url=f"sqlite:///{tmp_path / 'locked.db'}", auth_mode="on")
+    with LiveService(settings) as live:
+        named = job_file(tmp_path, [[0.5, 0.5]], model="reference")
+        result = CliRunner().invoke(app, ["seed", str(named), "--url", live.url])
+        output = " ".join(result.output.split())
+        assert result.exit_code == 2 and "model 'reference': 401" in output
+        assert "--api-key or TRAJCACHE_API_KEY" in output
+        given = job_file(tmp_path, [[0.5, 0.5]], model_id="m")
+        result = CliRunner().invoke(app, ["seed", str(given), "--url", live.url, "--api-key", "x"])
+        output = " ".join(result.output.split())
+        assert result.exit_code == 1 and "POST /v1/seed-jobs: 401" in output
+        assert "--api-key or TRAJCACHE_API_KEY" in output
+
+
+def _rows(job: dict[str, Any]) -> str:
+    from rich.console import Console
+
+    from trajcache.cli.seed import summary
+    from trajcache_client import SeedJob
+
+    console = Console(width=200, record=True)
+    console.print(summary(SeedJob.model_validate(job)))
+    return console.export_text()
+
+
+def test_the_summary_counts_stored_and_already_stored_paths_apart() -> None:
+    from trajcache.api.schemas.seed_jobs import JOB_OUT
+
+    finished = {**JOB_OUT, "state": "completed", "done": 3, "total": 3, "hits": 0, "failed": 0}
+    text = _rows({**finished, "planned": 3, "stored": 2, "errors": []})
+    assert re.search(r"planned and stored \(as sim\)\s+│\s+2", text), text
+    assert re.search(r"planned, already stored\s+│\s+1", text), text
+    assert "planned (stored as sim)" not in text
+    older = _rows({**finished, "planned": 3, "stored": None, "errors": []})
+    assert re.search(r"planned\s+│\s+3", older) and "already stored" not in older

@@ -46,6 +46,7 @@ MODELS: dict[Any, str] = {
     tc.PlanResult: "PlanResponse",
     tc.IkResult: "IkResponse",
     tc.Rejection: "Rejection",
+    tc.ValidationReuse: "ValidationReuse",
     tc.RejectedCandidate: "RejectedCandidateOut",
     tc.ContactPair: "ContactPairOut",
     tc.TrajectoryQuality: "TrajectoryQuality",
@@ -107,6 +108,7 @@ ADDED_LATER = {
     ("TrajectoryQuality", "duration_s"),
     ("TrajectoryDetailOut", "usage_history"),
     ("PlanEventOut", "requester"),
+    ("SeedJobOut", "stored"),
 }
 # Read from `detail` and `errors` by the exception classes, not as a model.
 ERROR_BODIES = {"ErrorOut", "FieldErrorOut"}

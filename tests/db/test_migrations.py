@@ -28,6 +28,7 @@ TABLES = {
     "seed_job_scenes",
     "seed_jobs",
     "trajectories",
+    "trajectory_certificates",
     "trajectory_tombstones",
 }
 

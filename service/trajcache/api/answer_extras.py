@@ -7,17 +7,17 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from trajcache.core.request_model import RequestModel
 from trajcache.services.plan.quality import AnswerDetails, AnswerExtras, QualityLevel, TimingRequest
 from trajcache.timing import PathShape, TimingMethod
 
 Scaling = Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)]
 
 
-class TimingOptions(BaseModel):
+class TimingOptions(RequestModel):
     """How to time the answered trajectory (the answer then carries `joint_trajectory`)."""
 
     model_config = ConfigDict(
-        extra="forbid",
         json_schema_extra={"examples": [{"method": "toppra", "velocity_scaling": 0.5}]},
     )
 

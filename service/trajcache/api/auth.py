@@ -28,6 +28,9 @@ from trajcache.services.context import ServiceContext
 from trajcache.services.errors import AuthenticationError, PermissionDeniedError
 
 R, S = Role.ROBOT, Role.SEEDER
+# Where a caller without a valid key reads about keys (never how to switch checks off: that is
+# the operator's, in the same section).
+KEYS_DOCS = "keys are described in the README's 'API keys' section (README.md#api-keys)"
 
 
 @dataclass(frozen=True)
@@ -113,11 +116,12 @@ def _authorize(request: Request, ctx: ServiceContext) -> Principal | None:
     secret = presented_key(request)
     if secret is None:
         raise AuthenticationError(
-            "an API key is required: send 'Authorization: Bearer <key>' or 'X-API-Key'"
+            "an API key is required: send 'Authorization: Bearer <key>' or 'X-API-Key: <key>'; "
+            f"{KEYS_DOCS}"
         )
     principal = ctx.keys.authenticate(ctx.sessions, secret)
     if principal is None:
-        raise AuthenticationError("the API key is unknown or revoked")
+        raise AuthenticationError(f"the API key is unknown or revoked; {KEYS_DOCS}")
     if principal.role is Role.ADMIN:
         return principal
     route = request.scope.get("route")

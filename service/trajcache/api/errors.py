@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import logging
 import uuid
-from collections.abc import Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -23,6 +22,7 @@ from starlette.exceptions import HTTPException
 from starlette.routing import Match, Mount
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from trajcache.core.field_errors import readable_errors, validation_message
 from trajcache.geometry.errors import GeometryError
 from trajcache.services.errors import (
     DATABASE_UNAVAILABLE,
@@ -47,7 +47,7 @@ _STATUS: tuple[tuple[type[Exception], int], ...] = (
     (InvalidInputError, 422),
     (UnavailableError, 503),
 )
-_MAX_LISTED_ERRORS = 10
+_MAX_LISTED_ERRORS = 10  # as many as validation_message lists
 _METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 
 
@@ -77,9 +77,30 @@ def allowed_methods(request: Request) -> list[str]:
     ]
 
 
+def _routed(request: Request, path: str) -> bool:
+    """Whether some route or mount of the app takes `path` (with any method)."""
+    probe = {k: request.scope[k] for k in ("type", "root_path") if k in request.scope}
+    probe.update(path=path, method=request.method)
+    return any(r.matches(probe)[0] is not Match.NONE for r in request.app.router.routes)
+
+
+def _not_found(request: Request) -> JSONResponse:
+    """A path no route takes: a 307 to the path without (or with) its trailing slash when a
+    route takes that one, with a body naming it; else a 404 that names the path."""
+    path = request.url.path
+    other = path[:-1] if path.endswith("/") else f"{path}/"
+    if other and path != "/" and _routed(request, other):
+        location = f"{other}?{request.url.query}" if request.url.query else other
+        message = f"{path} is served at {other}: send the request there"
+        return JSONResponse({"detail": message}, status_code=307, headers={"Location": location})
+    return _detail(404, f"no such path: {path}; the API's paths are listed at /docs")
+
+
 async def _http_error(request: Request, exc: Exception) -> Response:
     # A 405 lists every method of the path: the router names only those of one of its routes.
     assert isinstance(exc, HTTPException)
+    if exc.status_code == 404 and not _routed(request, request.url.path):
+        return _not_found(request)
     if exc.status_code != 405 or not (allowed := allowed_methods(request)):
         return await http_exception_handler(request, exc)
     response = _detail(
@@ -128,34 +149,9 @@ async def _pool_timeout(_request: Request, exc: Exception) -> JSONResponse:
     return _detail(503, f"{DATABASE_UNAVAILABLE}: no free connection in the pool")
 
 
-def _location(loc: Sequence[Any]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += f".{part}" if out else str(part)
-    return out
-
-
-def validation_message(errors: Sequence[Any]) -> str:
-    """One readable line naming each invalid field, e.g. `body.states[0][1]: ...`."""
-    parts = []
-    for error in errors[:_MAX_LISTED_ERRORS]:
-        where = _location(error.get("loc", ()))
-        message = str(error.get("msg", "invalid value"))
-        reason = (error.get("ctx") or {}).get("error")
-        if error.get("type") == "json_invalid" and reason:
-            message = f"{message} ({reason})"
-        parts.append(f"{where}: {message}" if where else message)
-    if len(errors) > _MAX_LISTED_ERRORS:
-        parts.append(f"and {len(errors) - _MAX_LISTED_ERRORS} more error(s)")
-    return "; ".join(parts) or "invalid request"
-
-
 async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
-    errors = list(exc.errors())
+    errors = readable_errors(exc.errors())
     listed = [
         {"loc": list(e.get("loc", ())), "msg": str(e.get("msg", "")), "type": str(e.get("type"))}
         for e in errors[:_MAX_LISTED_ERRORS]

@@ -43,6 +43,7 @@ from trajcache.geometry.validation.validator import (
 __all__ = ["MemoScope", "MemoUse", "ValidationMemo", "remember_path", "validate_with_memo"]
 
 ValidateFn = Callable[[FloatArray], ValidationResult]
+SegmentsFn = Callable[[FloatArray, list[int]], ValidationResult]
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,7 @@ class MemoUse(str, Enum):
     NONE = "none"  # the whole path was validated
     ENDS = "ends"  # only the first and last segments were validated
     WHOLE = "whole"  # the exact path was certified before
+    CERTIFICATE = "certificate"  # the ends, and the interior against objects its certificate lacks
 
 
 class ValidationMemo:
@@ -112,12 +114,18 @@ def _digest(states: FloatArray) -> bytes:
 
 
 def validate_with_memo(
-    states: FloatArray, *, validate_fn: ValidateFn, memo: ValidationMemo, scope: MemoScope | None
+    states: FloatArray,
+    *,
+    validate_fn: ValidateFn,
+    memo: ValidationMemo,
+    scope: MemoScope | None,
+    segments_fn: SegmentsFn | None = None,
 ) -> tuple[ValidationResult, MemoUse]:
     """Validate an (n, D) path with `validate_fn`, skipping what `memo` already certified.
 
-    `scope` None (e.g. a scene without a content hash) validates the whole path and remembers
-    nothing.
+    `segments_fn` (the validator's `validate_segments`) checks the first and last segments in
+    one pass; without it, each is validated on its own. `scope` None (e.g. a scene without a
+    content hash) validates the whole path and remembers nothing.
     """
     if scope is None:
         return validate_fn(states), MemoUse.NONE
@@ -125,7 +133,10 @@ def validate_with_memo(
         return ValidationResult(ValidationStatus.VALID, 0, 0), MemoUse.WHOLE
     interior = states[1:-1]
     if len(states) >= 4 and memo.known_valid(scope, interior):
-        result = _validate_ends(states, validate_fn)
+        if segments_fn is not None:
+            result = segments_fn(states, [0, len(states) - 2])
+        else:
+            result = _validate_ends(states, validate_fn)
         if result.valid:
             memo.remember(scope, states)
         return result, MemoUse.ENDS

@@ -33,16 +33,19 @@ def create(
     """Create a key and print it once; only its hash is stored."""
     from trajcache.services.catalog.keys import create_key
 
-    with open_session(load_settings(database_url), migrate=True) as session:
+    settings = load_settings(database_url)
+    with open_session(settings, migrate=True) as session:
         try:
             info, secret = create_key(session=session, name=name, role=role.value, robot_ids=robot)
         except ServiceError as exc:
             raise fail(exc) from None
-    err_console().print(
+    console = err_console()
+    console.print(
         f"created {info.role} key #{info.id} ({info.prefix}) for {info.name!r}; "
         "store it now, it cannot be shown again:"
     )
     typer.echo(secret)
+    console.print(auth_note(settings.auth_mode, active_keys=None), soft_wrap=True)
 
 
 @app.command("list", cls=TidyCommand)
@@ -86,11 +89,42 @@ def revoke(
     database_url: DatabaseUrlOption = None,
 ) -> None:
     """Revoke a key; services stop accepting it within auth_cache_ttl_s."""
-    from trajcache.services.catalog.keys import revoke_key
+    from trajcache.services.catalog.keys import list_keys, revoke_key
 
-    with open_session(load_settings(database_url)) as session:
+    settings = load_settings(database_url)
+    with open_session(settings) as session:
         try:
             info = revoke_key(session=session, key=key)
         except ServiceError as exc:
             raise fail(exc) from None
-    err_console().print(f"revoked key #{info.id} ({info.prefix}, {info.name!r})")
+        active = len(list_keys(session=session))
+    console = err_console()
+    console.print(f"revoked key #{info.id} ({info.prefix}, {info.name!r})")
+    console.print(auth_note(settings.auth_mode, active_keys=active), soft_wrap=True)
+
+
+def auth_note(mode: str, *, active_keys: int | None) -> str:
+    """Whether the service requires keys now (`active_keys`: those left after a revocation,
+    None after a creation), and how an operator turns checks off."""
+    off = "an operator turns key checks off with TRAJCACHE_AUTH_MODE=off"
+    if mode == "off":
+        return (
+            "key checks are off here (TRAJCACHE_AUTH_MODE=off): a service run with this setting "
+            "asks for no key; with auto or on it requires one"
+        )
+    why = (
+        "TRAJCACHE_AUTH_MODE=on"
+        if mode == "on"
+        else (
+            "TRAJCACHE_AUTH_MODE=auto: keys stay required once one was created, even after all "
+            "are revoked"
+        )
+    )
+    if active_keys is None:
+        return f"the service now requires an API key on every /v1 request ({why}); {off}"
+    if active_keys == 0:
+        return (
+            f"no active key is left, and the service still requires one ({why}): create one "
+            f"with `trajcache keys create`, or {off}"
+        )
+    return f"{active_keys} active key(s) left; the service still requires keys ({why}); {off}"

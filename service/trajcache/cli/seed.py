@@ -99,9 +99,17 @@ def _call(client: Client, call: Callable[[], SeedJob]) -> SeedJob:
     except APIError as exc:
         request, status = exc.response.request, exc.status_code
         code = 2 if status in (404, 409, 413, 422) else 1
-        raise ServiceError(
-            f"{request.method} {request.url.path}: {status} {exc.detail}", code
-        ) from None
+        raise ServiceError(f"{request.method} {request.url.path}: {refusal(exc)}", code) from None
+
+
+def refusal(exc: APIError) -> str:
+    """The service's status and reason; a 401 or 403 says how to give the command a key."""
+    text = f"{exc.status_code} {exc.detail}"
+    if exc.status_code == 401:
+        text += "; give the command a seeder or admin key with --api-key or TRAJCACHE_API_KEY"
+    elif exc.status_code == 403:
+        text += "; --api-key / TRAJCACHE_API_KEY must be a seeder or admin key"
+    return text
 
 
 def _named_model(client: Client, name: str) -> str:
@@ -139,7 +147,7 @@ def resolve_model(client: Client, body: dict[str, Any]) -> dict[str, Any]:
     try:
         return {"model_id": _named_model(client, name.strip()), **body}
     except APIError as exc:
-        raise ServiceError(f"model {name!r}: {exc.status_code} {exc.detail}", 2) from None
+        raise ServiceError(f"model {name!r}: {refusal(exc)}", 2) from None
 
 
 def _progress(console: Console) -> Progress:
@@ -187,7 +195,11 @@ def summary(job: SeedJob) -> Table:
     rate = job.hit_rate
     table.add_row("requests", f"{job.done} of {job.total}")
     table.add_row("cache hits", f"{job.hits}" + ("" if rate is None else f" ({rate:.1%})"))
-    table.add_row("planned (stored as sim)", str(job.planned))
+    if job.stored is None:  # a job begun before stored paths were counted apart
+        table.add_row("planned", str(job.planned))
+    else:
+        table.add_row("planned and stored (as sim)", str(job.stored))
+        table.add_row("planned, already stored", str(job.planned - job.stored))
     table.add_row("failed", str(job.failed))
     if job.message:
         table.add_row("message", str(job.message))

@@ -83,12 +83,19 @@ class Settings(BaseSettings):
         description="Pad link geometry by its largest motion between samples so no collision "
         "can hide between them.",
     )
+    certificates: bool = Field(default=True, description="Keep what each valid verdict proved "
+        "with its trajectory: later validations prove only new ends and objects.")  # fmt: skip
+    certificate_audit: bool = Field(default=False, description="Debugging: prove every verdict "
+        "a certificate shortened again in full; fail on any disagreement.")  # fmt: skip
     index_sync_interval_s: float = Field(
         default=0.0,
         ge=0,
         description="Seconds between checks of the database for other replicas' writes "
         "(0 = check before every plan).",
     )
+    require_scene: bool = Field(default=False, description="Refuse to plan for a robot that "
+        "never uploaded a scene (409; MoveIt: -22) instead of checking its plans for "
+        "self-collision only, with a warning.")  # fmt: skip
 
     # Planning and workers
     worker_backend: Literal["local", "celery", "none"] = Field(
@@ -374,13 +381,9 @@ class Settings(BaseSettings):
         return value.strip().lower() if isinstance(value, str) else value
 
     @model_validator(mode="after")
-    def _check_seed_timing(self) -> Self:
+    def _check_limits(self) -> Self:
         if self.seed_heartbeat_s >= self.seed_lease_s:
             raise ValueError("seed_heartbeat_s must be shorter than seed_lease_s")
-        return self
-
-    @model_validator(mode="after")
-    def _check_limits(self) -> Self:
         if self.lookup_threshold > self.lookup_threshold_max:
             raise ValueError("lookup_threshold must not exceed lookup_threshold_max")
         if self.max_candidates > self.max_candidates_limit:

@@ -226,6 +226,29 @@ class Trajectory(Base):
         self.content_hash = trajectory_content_hash(array)
 
 
+class TrajectoryCertificate(Base):
+    """What validation proved about a trajectory's interior, for later validations to build on
+    (`geometry/validation/certificates.py`): the object digests it was certified against, under
+    a model variant and a stamp. Written by the service's validator only; never exported or
+    imported, and deleted with its trajectory."""
+
+    __tablename__ = "trajectory_certificates"
+    __table_args__ = (
+        UniqueConstraint("trajectory_id", "variant", "stamp", "path"),
+        {"sqlite_autoincrement": True},
+    )
+
+    id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
+    trajectory_id: Mapped[int] = mapped_column(
+        BigInteger, ForeignKey("trajectories.id", ondelete="CASCADE")
+    )
+    variant: Mapped[str] = mapped_column(String(64))  # the checked model's id
+    stamp: Mapped[str] = mapped_column(String(64))  # certifier and validator settings
+    path: Mapped[str] = mapped_column(String(64))  # digest of the interior states
+    objects: Mapped[list[str]] = mapped_column(JSON)  # object digests certified against
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+
 class TrajectoryTombstone(Base):
     """A record that a trajectory was deleted, for replicas to drop it from their index."""
 
@@ -350,6 +373,9 @@ class SeedJob(Base):
     done: Mapped[int] = mapped_column(Integer, default=0)
     hits: Mapped[int] = mapped_column(Integer, default=0)
     planned: Mapped[int] = mapped_column(Integer, default=0)
+    # Of the planned paths, those newly stored (the others were identical to a stored one);
+    # None for jobs created before this counter existed.
+    stored: Mapped[int | None] = mapped_column(Integer, default=0)
     failed: Mapped[int] = mapped_column(Integer, default=0)
     errors: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list)
     message: Mapped[str | None] = mapped_column(String(500))

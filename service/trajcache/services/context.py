@@ -23,6 +23,7 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.variant import VariantCache, variant_cache
 from trajcache.geometry.validation.validator import ValidatorCache
 from trajcache.jobs.pool import PlannerPool, make_pool
+from trajcache.services.catalog.certificates import CertificateStore
 from trajcache.services.catalog.index_store import IndexStore
 from trajcache.services.catalog.keys import KeyCache
 from trajcache.services.catalog.models import ModelRegistry
@@ -59,6 +60,7 @@ class ServiceContext:
     kinematics: LRU[RobotModel, PinKinematics] = field(  # Pinocchio's, for IK, by model object
         default_factory=lambda: LRU(capacity=KINEMATICS_CACHE_SIZE)
     )
+    certificates: CertificateStore = field(default_factory=CertificateStore)  # what was proved
     planner: PlannerPool | None = None  # started by planner_pool(), closed by close()
     _planner_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
@@ -96,6 +98,7 @@ class ServiceContext:
         self.variants.clear()
         self.validators.clear()
         self.kinematics.clear()
+        self.certificates.clear()
 
     def ping(self) -> None:
         """Run `SELECT 1`; raise UnavailableError when the database cannot be reached."""

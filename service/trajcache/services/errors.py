@@ -5,6 +5,7 @@ ServiceError
 ├── PermissionDeniedError  403  the key's role or robot binding does not allow the request
 ├── NotFoundError          404  an unknown model, robot or trajectory
 ├── ConflictError          409  the request contradicts what is stored
+│   └── SceneRequiredError   409  a plan for a robot with no scene, under require_scene
 ├── PayloadTooLargeError   413  a request exceeds a configured size limit
 ├── InvalidInputError      422  a value the service cannot use (geometry has its own errors)
 └── UnavailableError       503  the database cannot be reached
@@ -24,6 +25,7 @@ __all__ = [
     "NotFoundError",
     "PayloadTooLargeError",
     "PermissionDeniedError",
+    "SceneRequiredError",
     "ServiceError",
     "UnavailableError",
 ]
@@ -47,6 +49,10 @@ class NotFoundError(ServiceError):
 
 class ConflictError(ServiceError):
     """The request contradicts stored state."""
+
+
+class SceneRequiredError(ConflictError):
+    """A plan for a robot that never uploaded a scene, refused under `require_scene`."""
 
 
 class PayloadTooLargeError(ServiceError):

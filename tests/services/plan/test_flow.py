@@ -277,7 +277,7 @@ def test_the_clock_gives_each_phase_its_time(
 ) -> None:
     """State checks and validation count as validation, the planner as planning, never as db."""
     setup_robot(ctx, [blocker()], DETOUR)
-    check_states, validate_with_memo = flow.check_states, flow.validate_with_memo
+    check_states, validate_candidate = flow.check_states, flow.validate_candidate
 
     def slow_check(*args: Any, **kwargs: Any) -> Any:
         time.sleep(0.02)
@@ -285,10 +285,10 @@ def test_the_clock_gives_each_phase_its_time(
 
     def slow_validate(*args: Any, **kwargs: Any) -> Any:
         time.sleep(0.05)
-        return validate_with_memo(*args, **kwargs)
+        return validate_candidate(*args, **kwargs)
 
     monkeypatch.setattr(flow, "check_states", slow_check)  # start and goal: 40 ms
-    monkeypatch.setattr(flow, "validate_with_memo", slow_validate)  # one candidate: 50 ms
+    monkeypatch.setattr(flow, "validate_candidate", slow_validate)  # one candidate: 50 ms
     result = PlanResult(PlannerStatus.TIMEOUT, message="no path", seed=1)
     use_planner(ctx, monkeypatch, FakePlanner(result, delay_s=0.06))
     timings = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True).timings_ms
@@ -367,3 +367,16 @@ def test_a_certificate_that_does_not_name_the_path_here_is_validated_again(
     assert answer.status is PlanStatus.FAILURE
     assert answer.message.startswith("planned path failed validation")
     assert "blocker" in answer.message
+
+
+def test_a_planned_path_identical_to_a_stored_one_is_not_stored_again(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    setup_robot(ctx)
+    path = np.array([[0.02, 0.0], [0.5, 0.1], [0.98, 0.0]])
+    use_planner(ctx, monkeypatch, FakePlanner(PlanResult(PlannerStatus.SOLVED, path, seed=7)))
+    first = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, lookup=False)
+    again = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, lookup=False)
+    assert (first.source, first.stored) == (PlanSource.PLANNER, True)
+    assert (again.source, again.stored) == (PlanSource.PLANNER, False)
+    assert again.trajectory_id == first.trajectory_id

@@ -143,6 +143,14 @@ def test_generator_variants_override_the_base() -> None:
         ({"scenes": [{"generator": "kitchen"}]}, ["scenes[0].generator", "kitchen"]),
         ({"scenes": [{"generator": "restroom", "doors_deg": [1, 2]}]}, ["doors_deg", "3"]),
         ({"scenes": [{"generator": "restroom", "lamp": 1}]}, ["scenes[0]", "lamp"]),
+        (
+            {"scenes": [{"generator": "restroom", "doors_dge": 10}]},
+            ["scenes[0]: doors_dge: unknown field 'doors_dge' (did you mean 'doors_deg'?)"],
+        ),
+        (
+            {"scenes": [{"generator": "restroom", "env": {"stall_1_dor": 0.1}}]},
+            ["unknown value 'stall_1_dor' (did you mean 'stall_1_door'?)"],
+        ),
         ({"scenes": [{}, {"objects": [{"id": "a", "type": "box"}]}]}, ["scenes[1]", "size"]),
         (
             {
@@ -284,15 +292,21 @@ def test_progress_counts_only_a_finished_prefix() -> None:
     finished = {3: Outcome("hit"), 4: Outcome("failed", "boom")}
     progress.absorb(finished, str)
     assert (progress.done, progress.hits) == (2, 1)  # item 2 is still running
-    finished[2] = Outcome("planned")
+    finished[2] = Outcome("planned", stored=True)
     progress.absorb(finished, lambda i: f"item {i}")
     assert (progress.done, progress.hits, progress.planned, progress.failed) == (5, 2, 2, 1)
+    assert progress.stored == 1
+    progress.absorb({5: Outcome("planned", stored=False)}, str)  # identical to a stored path
+    assert (progress.planned, progress.stored, progress.values()["stored"]) == (3, 1, 1)
+    old = Progress(done=0, hits=0, planned=0, failed=0, stored=None)  # begun before the counter
+    old.absorb({0: Outcome("planned", stored=True)}, str)
+    assert (old.planned, old.stored) == (1, None)
     assert progress.errors == [{"index": 4, "label": "item 4", "reason": "boom"}]
     assert finished == {}
-    many = {i: Outcome("failed", f"r{i}") for i in range(5, 5 + MAX_ERRORS + 3)}
+    many = {i: Outcome("failed", f"r{i}") for i in range(6, 6 + MAX_ERRORS + 3)}
     progress.absorb(many, str)
     assert len(progress.errors) == MAX_ERRORS
-    assert progress.errors[-1]["index"] == 4 + MAX_ERRORS + 3
+    assert progress.errors[-1]["index"] == 5 + MAX_ERRORS + 3
 
 
 # --- jobs in the database -------------------------------------------------------------------
@@ -531,7 +545,7 @@ def test_planned_results_are_stored_as_sim_with_scene_and_env(
             job = wait_for(context, job_id, timeout_s=180)
         finally:
             scheduler.stop()
-        assert (job.state, job.planned, job.failed) == ("completed", 1, 0), job.errors
+        assert (job.state, job.planned, job.stored, job.failed) == ("completed", 1, 1, 0), job
         with context.session() as session:
             stored = session.scalars(sa.select(Trajectory)).all()
         assert [(t.source, t.env) for t in stored] == [("sim", {"door": 0.25})]

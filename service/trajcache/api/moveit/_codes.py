@@ -13,6 +13,8 @@ Native outcome → code:
 - a StateError the flow raised (the native endpoint's 422s): a collision of the start or goal →
   START_STATE_IN_COLLISION / GOAL_IN_COLLISION, any other bad goal → INVALID_GOAL_CONSTRAINTS,
   any other bad start → INVALID_ROBOT_STATE (the flow names the state first in its messages).
+- a robot that never uploaded a scene, under `require_scene` (the native endpoint's 409) →
+  COLLISION_CHECKING_UNAVAILABLE: there is no world to check the path against.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from enum import IntEnum
 
 from trajcache.geometry.errors import CollisionStateError, StateError
 from trajcache.planning.problem import PlannerStatus
+from trajcache.services.errors import SceneRequiredError
 from trajcache.services.plan.flow import PlanAnswer, PlanStatus
 
 VALIDATION_FAILED = "planned path failed validation"  # services.plan.flow's message
@@ -39,6 +42,7 @@ class MoveItErrorCode(IntEnum):
     INVALID_GOAL_CONSTRAINTS = -16
     INVALID_ROBOT_STATE = -17
     FRAME_TRANSFORM_FAILURE = -21
+    COLLISION_CHECKING_UNAVAILABLE = -22
     NO_IK_SOLUTION = -31
 
 
@@ -75,8 +79,10 @@ def answer_code(answer: PlanAnswer) -> MoveItErrorCode:
     return MoveItErrorCode.FAILURE
 
 
-def state_error_code(error: StateError) -> MoveItErrorCode:
-    """The code of a start or goal the plan flow refused."""
+def state_error_code(error: StateError | SceneRequiredError) -> MoveItErrorCode:
+    """The code of a start or goal the plan flow refused, or of a robot it refused (no scene)."""
+    if isinstance(error, SceneRequiredError):
+        return MoveItErrorCode.COLLISION_CHECKING_UNAVAILABLE
     goal = str(error).startswith("goal")
     if isinstance(error, CollisionStateError):
         return (

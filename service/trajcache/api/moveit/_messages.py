@@ -12,8 +12,9 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
+from trajcache.core.request_model import RequestModel
 from trajcache.planning.problem import PLANNER_NAMES
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -32,8 +33,8 @@ def _not_supported(what: str) -> str:
     return f"{what} are not supported: trajcache cannot honour them, so it refuses them"
 
 
-class _Message(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
+class _Message(RequestModel):
+    model_config = ConfigDict(strict=True)
 
 
 class _Components(_Message):

@@ -42,7 +42,7 @@ def answered_body(
         trajectory=_robot_trajectory(model, extras["joint_trajectory"], query.base_joint),
         code=code,
         text="" if code is MoveItErrorCode.SUCCESS else answer.message,
-        warnings=list(query.warnings),
+        warnings=[*query.warnings, *answer.warnings],
         trajcache={
             "status": answer.status.value,
             "source": answer.source.value if answer.source else None,

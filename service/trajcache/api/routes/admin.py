@@ -15,6 +15,7 @@ from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, SessionDep, SettingsDep
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.trajectories import SourceName
+from trajcache.core.request_model import RequestModel
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.maintenance.eviction import prune
 from trajcache.services.maintenance.importer import import_lines as run_import
@@ -45,11 +46,10 @@ _NDJSON_EXAMPLE = (
 MAX_AGE_S = 1e10  # about 300 years: ages beyond cannot be subtracted from today's date
 
 
-class PruneIn(BaseModel):
+class PruneIn(RequestModel):
     """What to prune; unset fields come from the settings."""
 
     model_config = ConfigDict(
-        extra="forbid",
         json_schema_extra={"examples": [{"dry_run": True, "cap": 5000, "policy": "lru"}]},
     )
 

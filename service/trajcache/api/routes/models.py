@@ -32,6 +32,7 @@ from trajcache.api.schemas.models import (
     RobotModelPage,
     RobotModelSummary,
     SkippedPairOut,
+    check_form_field,
 )
 from trajcache.core.config import Settings
 from trajcache.geometry.collision.shared import GeometryCache
@@ -172,8 +173,9 @@ async def _from_form(request: Request, settings: Settings) -> Registration:
         data: dict[str, Any] = {}
         archive = None
         for key, value in form.multi_items():
-            if key in data or (key == "archive" and archive is not None):
-                raise InvalidInputError(f"form field {key!r} is given twice")
+            check_form_field(
+                key, repeated=key in data or (key == "archive" and archive is not None)
+            )
             if key == "archive":
                 if not isinstance(value, UploadFile):
                     raise InvalidInputError("form field 'archive' must be an uploaded file")

@@ -33,6 +33,7 @@ from trajcache.api.moveit import (
 from trajcache.api.responses import COMMON, errors
 from trajcache.geometry.errors import StateError
 from trajcache.services.catalog.robot_model import robot_model_and_held
+from trajcache.services.errors import SceneRequiredError
 from trajcache.services.plan.flow import answer_request
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
@@ -85,7 +86,8 @@ _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSO
     "timed under the velocity and acceleration scaling factors, plus `trajcache` (cache or "
     "planner, timings). A well-formed request is answered 200 with MoveIt's error code: 1 "
     "success, -1 no path, -6 planner timeout, -10/-12 start/goal in collision, -16 unusable "
-    "goal constraints (position/orientation goals included), -17 unusable start state. Path "
+    "goal constraints (position/orientation goals included), -17 unusable start state, -22 no "
+    "scene uploaded while require_scene is on (without it: a warning). Path "
     "and trajectory constraints, reference trajectories, Cartesian speed limits and attached "
     "objects are refused (422), never ignored.",
     openapi_extra=_BODY,
@@ -124,7 +126,7 @@ def motion_plan_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> R
             request=query.request,
             extras=answer_extras(query.timing, "basic"),
         )
-    except StateError as exc:  # a start or goal in collision (the native endpoint's 422)
+    except (StateError, SceneRequiredError) as exc:  # the native endpoint's 422s and 409
         code = state_error_code(exc)
         refused = refused_body(
             message=message, code=code, text=str(exc), began=began, warnings=query.warnings

@@ -37,10 +37,16 @@ def _state(value: list[float] | dict[str, float] | str) -> StateInput:
     "against the robot's current scene; when none is valid (and `options.fallback`), a planner "
     "runs in the worker pool within the time budget and what it finds is stored. States are "
     "ordered as the model's `state_names`. No path is an answer with status `miss`, `failure` "
-    "or `error`, never an error status.",
+    "or `error`, never an error status. A robot that never uploaded a scene is checked for "
+    "self-collision only, which `warnings` says (an uploaded empty scene is no warning).",
     responses=errors(
         {
             404: ("Unknown robot", "robot 'robot-7' not found"),
+            409: (
+                "The robot never uploaded a scene and require_scene is on",
+                "robot 'robot-7' has no scene: upload one (PUT /v1/robots/robot-7/scene, an "
+                "empty one if its world is empty) before planning; require_scene is on",
+            ),
             422: (
                 "Bad state (length, NaN, limits) or start/goal in collision",
                 "start state is in collision: link 'link5' hits object 'stall_2_door'",
@@ -94,8 +100,22 @@ def _response_body(answer: PlanAnswer) -> dict[str, object]:
         "planner": answer.planner,
         "timings_ms": answer.timings_ms,
         "message": answer.message,
+        "warnings": answer.warnings,
         "rejected": [
             {"trajectory_id": r["trajectory_id"], "status": r["status"], "reason": r["reason"]}
             for r in answer.rejected
         ],
+        "validation": _validation(answer),
+    }
+
+
+def _validation(answer: PlanAnswer) -> dict[str, object] | None:
+    """What a cache answer's validation skipped (`ValidationReuse`)."""
+    if answer.memo is None:
+        return None
+    use = answer.certificate
+    return {
+        "reused": answer.memo.value,
+        "objects": use.objects if use is not None else None,
+        "objects_reproved": use.reproved if use is not None else None,
     }

@@ -198,7 +198,9 @@ def load_scene_body(body: SceneBody) -> Mapping[str, Any]:
     "`world.collision_objects` of a MoveIt PlanningScene, as JSON or YAML. A PlanningScene's "
     "objects may also be given in the root link's frame of a fixed-base robot, or of a link "
     "fixed to it (as MoveIt resolves it); a planar base's root frame is refused (it moves). "
-    "Answers the new version and content hash; unchanged content keeps the current version.",
+    "Answers the new version and content hash; unchanged content keeps the current version. "
+    "A robot's first upload is stored even when empty: it says the robot's world is empty, and "
+    "its plans no longer warn that they were checked for self-collision only.",
     openapi_extra=_SCENE_BODY,
     responses=errors(
         {

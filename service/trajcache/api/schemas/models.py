@@ -8,6 +8,9 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from trajcache.api.schemas.common import MODEL_ID, SCENE_HASH, WHEN, FiniteFloat, examples
+from trajcache.core.request_model import RequestModel
+from trajcache.core.suggest import unknown_message
+from trajcache.services.errors import InvalidInputError
 
 BaseName = Literal["fixed", "planar"]
 
@@ -30,11 +33,10 @@ PositiveLimit = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 JointLimitsIn = PositiveLimit | dict[Annotated[str, Field(max_length=200)], PositiveLimit]
 
 
-class RobotModelIn(BaseModel):
+class RobotModelIn(RequestModel):
     """A model to register (JSON form; multipart/form-data takes the same fields)."""
 
     model_config = ConfigDict(
-        extra="forbid",
         json_schema_extra={"examples": [{"urdf": URDF_EXAMPLE, "base": "planar", "name": "arm2"}]},
     )
 
@@ -206,3 +208,16 @@ class RobotModelPage(BaseModel):
     total: int
     limit: int
     offset: int
+
+
+# A form's fields: the JSON body's, and the archive as a file.
+FORM_FIELDS = (*RobotModelIn.model_fields, "archive")
+
+
+def check_form_field(key: str, *, repeated: bool) -> None:
+    """InvalidInputError naming a field a registration form does not take, or gives twice."""
+    if key not in FORM_FIELDS:
+        unknown = unknown_message("form field", [key], FORM_FIELDS)
+        raise InvalidInputError(f"{unknown} (files: urdf, srdf, archive)")
+    if repeated:
+        raise InvalidInputError(f"form field {key!r} is given twice")

@@ -8,13 +8,12 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from trajcache.api.answer_extras import JointTrajectory, TimingOptions, TrajectoryQuality
 from trajcache.api.schemas.common import FiniteFloat
+from trajcache.core.request_model import RequestModel
 from trajcache.planning.problem import PLANNER_NAMES
 
 
-class PlanOptions(BaseModel):
+class PlanOptions(RequestModel):
     """Per-request options; each is bounded by the service settings."""
-
-    model_config = ConfigDict(extra="forbid")
 
     threshold: FiniteFloat | None = Field(
         default=None, gt=0, description="Lookup distance threshold (default from settings)."
@@ -72,6 +71,7 @@ _ANSWER_EXAMPLES: list[Any] = [
         "candidates_tried": 1,
         "timings_ms": {"lookup": 0.4, "validate": 6.1, "plan": 0.0, "db": 2.3, "total": 9.2},
         "message": "",
+        "warnings": [],
         "rejected": [],
     },
     {
@@ -100,13 +100,12 @@ StateIn = (
 )
 
 
-class PlanBody(BaseModel):
+class PlanBody(RequestModel):
     """A plan request: each state as values in the model's `state_names` order, as a map
     {joint name: value} (held joints may be given at their held values), or as the name of one
     of the model's named states (SRDF group states)."""
 
     model_config = ConfigDict(
-        extra="forbid",
         json_schema_extra={
             "examples": [
                 {
@@ -131,6 +130,18 @@ class Rejection(BaseModel):
     reason: str
 
 
+class ValidationReuse(BaseModel):
+    """What a cache answer's validation could skip: `reused` is "none" (the whole path was
+    proved), "ends" (only its new first and last segments: the rest was proved in this scene),
+    "whole" (the exact path was proved in this scene) or "certificate" (the ends, and the rest
+    only against the scene's objects its stored certificate lacks: `objects_reproved` of
+    `objects`)."""
+
+    reused: Literal["none", "ends", "whole", "certificate"]
+    objects: int | None = None
+    objects_reproved: int | None = None
+
+
 class PlanResponse(BaseModel):
     """The answer: a trajectory and where it came from, or a status saying why there is none."""
 
@@ -151,6 +162,15 @@ class PlanResponse(BaseModel):
         "whole run) and pool (the round trip around it)."
     )
     message: str = ""
+    warnings: list[str] = Field(
+        default=[],
+        description="What the caller should know of the answer: 'no scene uploaded: checked "
+        "for self-collision only' when the robot never uploaded a scene.",
+    )
     rejected: list[Rejection] = []
     joint_trajectory: JointTrajectory | None = None
     quality: TrajectoryQuality | None = None
+    validation: ValidationReuse | None = Field(
+        default=None,
+        description="A cache answer's validation: what it could skip (null for other answers).",
+    )

@@ -15,6 +15,7 @@ from trajcache.api.schemas.common import (
     ModelId,
     examples,
 )
+from trajcache.core.request_model import RequestModel
 
 _BOX: dict[str, Any] = {
     "id": "table",
@@ -24,10 +25,10 @@ _BOX: dict[str, Any] = {
 }
 
 
-class RobotIn(BaseModel):
+class RobotIn(RequestModel):
     """The model a robot is an instance of."""
 
-    model_config = ConfigDict(extra="forbid", json_schema_extra=examples({"model_id": MODEL_ID}))
+    model_config = ConfigDict(json_schema_extra=examples({"model_id": MODEL_ID}))
 
     model_id: ModelId
     kind: Literal["real", "sim"] | None = Field(
@@ -83,11 +84,10 @@ class SceneIn(BaseModel):
     env: dict[str, float] = Field(default_factory=dict)
 
 
-class ScenePatchIn(BaseModel):
+class ScenePatchIn(RequestModel):
     """Objects to add or replace (by id), ids to remove, env values to set (null removes)."""
 
     model_config = ConfigDict(
-        extra="forbid",
         json_schema_extra={
             "examples": [
                 {

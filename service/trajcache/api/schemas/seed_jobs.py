@@ -44,6 +44,7 @@ JOB_OUT: dict[str, Any] = {
     "done": 1200,
     "hits": 1104,
     "planned": 94,
+    "stored": 91,
     "failed": 2,
     "hit_rate": 0.92,
     "eta_s": 31.5,
@@ -85,7 +86,11 @@ class SeedJobOut(BaseModel):
     total: int
     done: int
     hits: int
-    planned: int
+    planned: int = Field(description="Items the planner answered (the cache could not).")
+    stored: int | None = Field(
+        description="Of the planned items, those whose path was newly stored; the others were "
+        "identical to a trajectory already stored (null: a job created before this counter)."
+    )
     failed: int
     hit_rate: float | None
     eta_s: float | None

@@ -16,6 +16,7 @@ from trajcache.api.schemas.common import (
     RobotId,
     examples,
 )
+from trajcache.core.request_model import RequestModel
 
 SourceName = Literal["real", "sim", "import", "planner"]
 
@@ -39,11 +40,10 @@ _TRAJECTORY_SUMMARY: dict[str, Any] = {
 }
 
 
-class TrajectoryIn(BaseModel):
+class TrajectoryIn(RequestModel):
     """A trajectory to store: key states ordered as the model's `state_names`."""
 
     model_config = ConfigDict(
-        extra="forbid",
         json_schema_extra={
             "examples": [
                 {

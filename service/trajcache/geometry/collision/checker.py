@@ -90,9 +90,13 @@ class CollisionChecker:
         *,
         compiled: bool = True,
         geometry: GeometryCache | None = None,
+        self_collision: bool = True,
     ) -> None:
         self.model = model
         self.compiled = compiled  # the bounds of `compiled/`; else the numpy levels
+        # False: only the scene is checked, for states whose self-collision is proven elsewhere
+        # (a certificate, `validation/certificates.py`)
+        self.self_collision = self_collision
         self.robot = robot_geometry(model, geometry)  # None: this process's shared geometry
         self.scene = scene_geometry(scene, geometry)
         self.clearance = Clearance(self.robot, self.scene)
@@ -100,6 +104,14 @@ class CollisionChecker:
         self._allowed = np.zeros((0, 0), dtype=bool) if allowed is None else allowed
         self.narrow = Narrow(self.robot, self.scene)
         self._contacts: dict[tuple[int, int], Contact] = {}  # (element, object) or (pair, -1)
+
+    @property
+    def kernel_pairs(self) -> tuple[np.ndarray, ...]:
+        """The self-collision pairs the compiled levels check: none without `self_collision`."""
+        pairs = self.robot.kernel_pairs
+        if self.self_collision:
+            return pairs
+        return tuple(p[..., :0] if k >= 3 else p[:0] for k, p in enumerate(pairs))
 
     @property
     def narrow_checks(self) -> int:
@@ -136,6 +148,8 @@ class CollisionChecker:
         ppad = np.zeros((n, len(self.robot.pair_i))) if pair_pad is None else pair_pad
         status = np.full(n, FREE, dtype=np.int8)
         scene_rows, self_rows, scene_pad, self_pad = self._candidates(posed, epad, ppad)
+        if not self.self_collision:
+            self_rows, self_pad = self_rows[:0], self_pad[:0]
         if len(scene_rows) == 0 and len(self_rows) == 0:
             return BatchVerdict(status, -1, [], self.narrow.calls - before)
         hit_scene, hit_self, near_scene, near_self = self.narrow.first_collision(
@@ -180,7 +194,7 @@ class CollisionChecker:
                 self.scene.kernel_scene,
                 self.scene.support.kernel_args,
                 self._allowed,
-                rg.kernel_pairs,
+                self.kernel_pairs,
                 np.ascontiguousarray(epad, dtype=float),
                 np.ascontiguousarray(ppad, dtype=float),
             )

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from trajcache.core.suggest import unknown_message
 from trajcache.geometry.errors import StateError
 from trajcache.geometry.model.kernels import forward_kinematics_kernel
 from trajcache.geometry.model.robot import BaseType, KinematicJoint, RobotModel
@@ -129,7 +130,7 @@ def resolve_state(model: RobotModel, value: StateInput, *, name: str = "state") 
     if isinstance(value, str):
         if value not in model.named_states:
             known = sorted(model.named_states)
-            raise StateError(f"{name}: no named state {value!r}; the model has {known}")
+            raise StateError(f"{name}: {unknown_message('named state', [value], known)}")
         if model.arm_offset:
             raise StateError(
                 f"{name}: a named state gives the planning joints only; a planar base needs "
@@ -139,16 +140,18 @@ def resolve_state(model: RobotModel, value: StateInput, *, name: str = "state") 
     if not isinstance(value, Mapping):
         return value
     names = model.state_names
+    if unknown := [j for j in value if j not in names and j not in model.held_values]:
+        valid = [*names, *model.held_values]
+        raise StateError(
+            f"{name}: {unknown_message('joint', unknown, valid, list_valid=False)}"
+            f" (expected {', '.join(names)})"
+        )
     if missing := [n for n in names if n not in value]:
         raise StateError(f"{name} lacks {', '.join(missing)} (expected {', '.join(names)})")
     for joint, given in value.items():
         if joint in names:
             continue
-        held = model.held_values.get(joint)
-        if held is None:
-            raise StateError(
-                f"{name}: {joint!r} is neither a state name ({', '.join(names)}) nor a held joint"
-            )
+        held = model.held_values[joint]
         if not abs(float(given) - held) <= HELD_TOLERANCE:
             raise StateError(
                 f"{name}: {joint} = {float(given):.6g}, but the model holds it at {held:.6g} "

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from trajcache.core.suggest import unknown_message
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import FloatArray, ShapeKind
 from trajcache.geometry.scene.fields import make_shape, number_list, parse_pose
@@ -75,7 +76,7 @@ def _enum(value: Any, names: Mapping[str, int], where: str) -> int:
     if isinstance(value, str):
         code = names.get(value.strip().lower())
         if code is None:
-            raise SceneError(f"{where}: unknown value {value!r}")
+            raise SceneError(f"{where}: {unknown_message('value', [value], list(names))}")
         return code
     if isinstance(value, bool) or not isinstance(value, int):
         raise SceneError(f"{where} must be an integer or a name, got {value!r:.40}")

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from trajcache.core.suggest import unknown_message
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import ShapeKind
 from trajcache.geometry.scene.fields import (
@@ -28,7 +29,11 @@ from trajcache.geometry.scene.scene import (
     matrix_to_quaternion,
 )
 
-_OBJECT_KEYS = frozenset({"id", "type", "size", "pose", "vertices", "faces"})
+_OBJECT_ORDER = ("id", "type", "size", "pose", "vertices", "faces")
+_OBJECT_KEYS = frozenset(_OBJECT_ORDER)
+# What a misplaced or misnamed key was meant to be: a pose's parts belong in `pose`.
+_OBJECT_SYNONYMS = {"position": "pose", "orientation": "pose", "dimensions": "size"}
+_TYPE_SYNONYMS = {"cube": "box", "cuboid": "box", "ball": "sphere", "tube": "cylinder"}
 _SCENE_KEYS = frozenset({"objects", "env", "allowed_collisions", "attached_objects"})
 _ATTACHED_KEYS = frozenset({"link", "object", "touch_links"})
 _IGNORED_TOP_KEYS = frozenset({"name", "version", "hash"})
@@ -41,12 +46,15 @@ def parse_object(raw: Any, where: str) -> SceneObject:
     oid = object_id(raw.get("id"), where)
     unknown = sorted(str(k) for k in raw if k not in _OBJECT_KEYS)
     if unknown:
-        raise SceneError(f"object {oid!r}: unknown field(s) {', '.join(unknown)}")
+        message = unknown_message("field", unknown, _OBJECT_ORDER, synonyms=_OBJECT_SYNONYMS)
+        raise SceneError(f"object {oid!r}: {message}")
     kind_name = raw.get("type")
     try:
         kind = ShapeKind(str(kind_name).lower())
     except ValueError:
-        raise SceneError(f"object {oid!r}: unknown type {kind_name!r}") from None
+        kinds = [k.value for k in ShapeKind]
+        message = unknown_message("type", [str(kind_name)], kinds, synonyms=_TYPE_SYNONYMS)
+        raise SceneError(f"object {oid!r}: {message}") from None
     if kind is ShapeKind.MESH and raw.get("size"):
         raise SceneError(f"object {oid!r}: a mesh takes no size (scale its vertices)")
     shape = make_shape(oid, kind, raw.get("size", ()), raw.get("vertices"), raw.get("faces"))
@@ -58,7 +66,7 @@ def parse_native_scene(payload: Mapping[str, Any], env: dict[str, float]) -> Sce
     format)."""
     unknown = sorted(str(k) for k in payload if k not in _SCENE_KEYS | _IGNORED_TOP_KEYS)
     if unknown:
-        raise SceneError(f"unknown scene field(s) {', '.join(unknown)}")
+        raise SceneError(unknown_message("scene field", unknown, sorted(_SCENE_KEYS)))
     raw_objects = payload.get("objects", [])
     if not isinstance(raw_objects, Sequence) or isinstance(raw_objects, str):
         raise SceneError("objects must be a list")
@@ -111,7 +119,9 @@ def parse_attached(value: Any) -> list[AttachedObject]:
             raise SceneError(f"{where} must be a mapping")
         unknown = sorted(str(k) for k in raw if k not in _ATTACHED_KEYS)
         if unknown:
-            raise SceneError(f"{where}: unknown field(s) {', '.join(unknown)}")
+            raise SceneError(
+                f"{where}: {unknown_message('field', unknown, sorted(_ATTACHED_KEYS))}"
+            )
         link = raw.get("link")
         if not isinstance(link, str) or not link:
             raise SceneError(f"{where}: link must name a robot link")
@@ -163,7 +173,7 @@ def apply_patch(scene: Scene, patch: Mapping[str, Any]) -> Scene:
         raise SceneError("a scene patch must be a mapping")
     unknown = sorted(str(k) for k in patch if k not in {"upsert", "remove", "env"})
     if unknown:
-        raise SceneError(f"unknown patch field(s) {', '.join(unknown)}")
+        raise SceneError(unknown_message("patch field", unknown, ["upsert", "remove", "env"]))
     upserts = patch.get("upsert") or []
     removes = patch.get("remove") or []
     env_patch = patch.get("env") or {}

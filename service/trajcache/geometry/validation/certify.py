@@ -90,6 +90,8 @@ class SegmentCertifier:
             groups = self._compiled_levels(posed, step)
         else:
             groups = [self._covers(posed, step, g) for g in self._dense(posed, step)]
+            if not self.checker.self_collision:
+                groups[1] = groups[1].take(np.zeros(len(groups[1].rows), dtype=bool))
         if not any(len(group.rows) for group in groups):
             return Finding(SegmentStatus.FREE)  # the usual case: every pair certified
         found = self._sample_collision(posed, groups)
@@ -145,7 +147,7 @@ class SegmentCertifier:
             rg.element_half,
             rg.support.kernel_args,
             rg.kernel_motion,
-            rg.kernel_pairs,
+            self.checker.kernel_pairs,
             first_only,
         )
         return [scene, OpenPairs(False, rows, lows[:, 0], lows[:, 1], lows[:, 2])]

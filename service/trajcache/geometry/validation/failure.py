@@ -24,12 +24,12 @@ from trajcache.geometry.collision.checker import Contact
 from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import state_steps
+from trajcache.geometry.validation.sampling import sample_counts
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
     ValidationResult,
     ValidationStatus,
     interpolate,
-    sample_counts,
 )
 
 __all__ = ["Failure", "locate_failure"]

@@ -37,16 +37,18 @@ from trajcache.geometry.collision.shared import GeometryCache
 from trajcache.geometry.model.kinematics import check_states
 from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.model.space import segment_deltas, state_steps
+from trajcache.geometry.model.space import state_steps
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certify import SegmentCertifier
+from trajcache.geometry.validation.sampling import Resolution, interpolate
 from trajcache.geometry.validation.segments import Finding, SegmentStatus
 from trajcache.geometry.validation.stamp import certificate_digest
 
 IntArray = NDArray[np.int64]
 
 _CHUNK = 256
-_SPREAD = 9  # samples checked first, spread along the trajectory
+_SPREAD = 9  # samples checked first, spread along the trajectory, when it has
+_SPREAD_ABOVE = 32  # more samples than this (below, certifying them all costs no more)
 
 
 class ValidationStatus(str, Enum):
@@ -56,15 +58,6 @@ class ValidationStatus(str, Enum):
     COLLISION = "collision"
     OUT_OF_LIMITS = "out_of_limits"
     TOO_CLOSE = "too_close"
-
-
-@dataclass(frozen=True)
-class Resolution:
-    """Largest interpolation step per kind of state value."""
-
-    position_m: float = 0.04
-    orientation_rad: float = 0.04
-    joint_rad: float = 0.035
 
 
 @dataclass
@@ -84,40 +77,6 @@ class ValidationResult:
     def valid(self) -> bool:
         """True when the whole trajectory is safe."""
         return self.status is ValidationStatus.VALID
-
-
-def sample_counts(key_states: FloatArray, model: RobotModel, resolution: Resolution) -> IntArray:
-    """Steps each segment between consecutive key states is cut into (at least 1 each)."""
-    key = np.asarray(key_states, dtype=float)
-    planar = model.base is BaseType.PLANAR
-    delta = segment_deltas(key, planar=planar)
-    off = model.arm_offset
-    steps = np.zeros(len(delta))
-    if planar:
-        steps = np.hypot(delta[:, 0], delta[:, 1]) / resolution.position_m
-        steps = np.maximum(steps, np.abs(delta[:, 2]) / resolution.orientation_rad)
-    if delta.shape[1] > off:
-        steps = np.maximum(steps, np.abs(delta[:, off:]).max(axis=1) / resolution.joint_rad)
-    return np.maximum(np.ceil(steps - 1e-9).astype(np.int64), 1)
-
-
-def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolution) -> FloatArray:
-    """Dense samples along the straight segments between key states, key states included."""
-    key = np.asarray(key_states, dtype=float)
-    if len(key) < 2:
-        return key.copy()
-    delta = segment_deltas(key, planar=model.base is BaseType.PLANAR)
-    counts = sample_counts(key, model, resolution)
-    if len(counts) == 1:  # one segment, the usual cached motion
-        frac = np.arange(counts[0] + 1) / counts[0]
-        out = key[0] + frac[:, None] * delta[0]
-        out[-1] = key[-1]
-        return np.asarray(out)
-    seg = np.repeat(np.arange(len(delta)), counts)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    frac = (np.arange(counts.sum()) - np.repeat(starts, counts)) / np.repeat(counts, counts)
-    dense = key[seg] + frac[:, None] * delta[seg]
-    return np.vstack([dense, key[-1:]])
 
 
 MIN_PAD, MAX_DEPTH = 1e-4, 24  # the certifier's defaults
@@ -144,14 +103,19 @@ class TrajectoryValidator:
         max_depth: int = MAX_DEPTH,
         compiled: bool = True,
         geometry: GeometryCache | None = None,
+        self_collision: bool = True,
     ) -> None:
         self.model = model
         self.scene_hash = scene.hash  # "" for a scene without a content hash
-        self.checker = CollisionChecker(model, scene, geometry=geometry)
+        self.checker = CollisionChecker(
+            model, scene, geometry=geometry, self_collision=self_collision
+        )
         self.resolution = resolution or Resolution()
         self.certified = certified
         # Every setting a verdict depends on besides the model, the scene and the states.
         self.settings_key = settings_key(self.resolution, certified, min_pad, max_depth)
+        if not self_collision:  # a verdict on the scene alone
+            self.settings_key = (*self.settings_key, "scene only")
         self.certifier = SegmentCertifier(
             self.checker,
             planar=model.base is BaseType.PLANAR,
@@ -168,6 +132,28 @@ class TrajectoryValidator:
         result = self._validate_samples(samples)
         result.elapsed_ms = (time.perf_counter() - began) * 1e3
         return result
+
+    def validate_segments(self, key_states: FloatArray, segments: list[int]) -> ValidationResult:
+        """Check only the straight motions from key state i to i + 1, for i in `segments`, each
+        as `validate` checks it; the first finding, in the order of `segments`, is the verdict
+        (its counters cover every piece checked)."""
+        began = time.perf_counter()
+        key = check_states(self.model, key_states, name="trajectory state")
+        total = ValidationResult(ValidationStatus.VALID, 0, 0)
+        for i in segments:
+            result = self._validate_samples(
+                interpolate(key[i : i + 2], self.model, self.resolution)
+            )
+            total.samples += result.samples
+            total.narrow_checks += result.narrow_checks
+            total.subdivisions += result.subdivisions
+            if not result.valid:
+                result.samples, result.narrow_checks = total.samples, total.narrow_checks
+                result.subdivisions = total.subdivisions
+                total = result
+                break
+        total.elapsed_ms = (time.perf_counter() - began) * 1e3
+        return total
 
     def certificate(self, key_states: FloatArray) -> str:
         """The digest that names this validator's valid verdict on exactly these key states
@@ -203,16 +189,18 @@ class TrajectoryValidator:
                     )
             return _result(ValidationStatus.VALID, samples, self.checker.narrow_checks - before)
         probes = 0
-        # A few spread samples first: when one collides, only the samples up to it need
-        # certifying (the earliest colliding sample is the finding either way).
-        spread = np.unique(np.linspace(0, len(samples) - 1, _SPREAD).round().astype(np.int64))
-        verdict = self.checker.check(samples[spread], stop_at_first=True)
-        hit = verdict.first_collision
-        if hit == 0:  # the first sample
-            checks = self.checker.narrow_checks - before
-            return _result(ValidationStatus.COLLISION, samples, checks, state=samples[0],
-                           contacts=verdict.contacts)  # fmt: skip
-        upto = samples[: spread[hit] + 1] if hit > 0 else samples
+        upto = samples
+        if len(samples) > _SPREAD_ABOVE:
+            # A few spread samples first: when one collides, only the samples up to it need
+            # certifying (the earliest colliding sample is the finding either way).
+            spread = np.unique(np.linspace(0, len(samples) - 1, _SPREAD).round().astype(np.int64))
+            verdict = self.checker.check(samples[spread], stop_at_first=True)
+            hit = verdict.first_collision
+            if hit == 0:  # the first sample
+                checks = self.checker.narrow_checks - before
+                return _result(ValidationStatus.COLLISION, samples, checks, state=samples[0],
+                               contacts=verdict.contacts)  # fmt: skip
+            upto = samples[: spread[hit] + 1] if hit > 0 else samples
         for lo in range(0, len(upto) - 1, _CHUNK):
             chunk = upto[lo : lo + _CHUNK + 1]  # consecutive chunks share their end sample
             found = self.certifier.certify(chunk)
@@ -334,13 +322,29 @@ class ValidatorCache:
 
 
 def validator_for(
-    model: RobotModel, scene: Scene, settings: ValidationSettings, *, cache: ValidatorCache
+    model: RobotModel,
+    scene: Scene,
+    settings: ValidationSettings,
+    *,
+    cache: ValidatorCache,
+    self_collision: bool = True,
 ) -> TrajectoryValidator:
-    """A shared validator for this model, scene version and resolution (built once)."""
+    """A shared validator for this model, scene version and resolution (built once); without
+    `self_collision`, of the scene alone."""
     scene_key = scene.hash or f"id:{id(scene)}"
-    key = (model.model_id, scene_key, _resolution(settings), settings.certified_validation)
+    key: tuple[object, ...] = (
+        model.model_id,
+        scene_key,
+        _resolution(settings),
+        settings.certified_validation,
+    )
+    if not self_collision:
+        key = (*key, "scene only")
     return cache.validators.get_or_build(
-        key, lambda: build_validator(model, scene, settings, geometry=cache.geometry)
+        key,
+        lambda: build_validator(
+            model, scene, settings, geometry=cache.geometry, self_collision=self_collision
+        ),
     )
 
 
@@ -350,6 +354,7 @@ def build_validator(
     settings: ValidationSettings,
     *,
     geometry: GeometryCache | None = None,
+    self_collision: bool = True,
 ) -> TrajectoryValidator:
     """A new validator with these settings (geometry from `geometry`, else this process's)."""
     return TrajectoryValidator(
@@ -358,6 +363,7 @@ def build_validator(
         resolution=_resolution(settings),
         certified=settings.certified_validation,
         geometry=geometry,
+        self_collision=self_collision,
     )
 
 

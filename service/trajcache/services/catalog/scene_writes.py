@@ -1,5 +1,9 @@
 """Writing a robot's scene: a new version per change, none for content that is already current.
 
+A robot's first upload is always stored, even when it is the empty scene: version 1 says the
+robot gave its world (empty or not), version 0 that it never did (plans then warn, or are
+refused under `require_scene`).
+
 Writers of one robot's scene go one after the other under the robot's row lock, so a patch never
 loses another's change and identical racing PUTs make one version.
 """
@@ -102,7 +106,7 @@ def _write_scene(
             _lock_robot(session, robot_id)
             _, current, version = current_scene(session=session, scenes=scenes, robot_id=robot_id)
             scene = make(current)
-            if scene.hash == current.hash:
+            if scene.hash == current.hash and version > 0:  # a first upload is stored, even empty
                 session.rollback()
                 return version, scene.hash
             new_version = _append_version(session, robot_id, scene, expected=version)

@@ -49,6 +49,7 @@ def answer_hit(
         rejected=attempt.rejected,
         record=record,
         memo=memo,
+        certificate=attempt.certificate_use if memo is MemoUse.CERTIFICATE else None,
     )
 
 
@@ -61,9 +62,11 @@ def answer_planned(
     quality: QualityJob | None,
     planner: str | None = None,
     phases: Mapping[str, float] | None = None,
+    stored: bool = True,
 ) -> PlanAnswer:
     """Answer with the trajectory the planner found (stored); its quality is written later.
-    `phases` are the planner's own times, added to the answer's timings (not to its record)."""
+    `phases` are the planner's own times, added to the answer's timings (not to its record);
+    `stored` is false when the path was identical to a trajectory already stored."""
     timings = attempt.clock.timings()
     record = _record(
         attempt,
@@ -84,6 +87,7 @@ def answer_planned(
         rejected=attempt.rejected,
         record=record,
         planner=planner,
+        stored=stored,
     )
 
 
@@ -140,7 +144,16 @@ def _record(
             lambda: {"rejections": rejection_entries(validator, start, goal, rejected, held)}
         )
     record = records.submit(
-        PlanRecord(at, served, failed, event, real=real, quality=quality, details=details)
+        PlanRecord(
+            at,
+            served,
+            failed,
+            event,
+            real=real,
+            quality=quality,
+            details=details,
+            certificates=tuple(attempt.certificates),
+        )
     )
     if served is not None:
         attempt.ctx.facts.record(served=served, failed=attempt.failed, real=real, at=at)

@@ -22,7 +22,9 @@ from trajcache.cache.memo import MemoScope, MemoUse
 from trajcache.geometry.model.kinematics import StateInput
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.certificates import CertificateUse
 from trajcache.geometry.validation.validator import TrajectoryValidator, validator_for
+from trajcache.services.catalog.certificates import CertificateWrite
 from trajcache.services.context import ServiceContext
 from trajcache.services.plan.quality import AnswerDetails
 from trajcache.services.plan.rejections import RejectedCandidate
@@ -108,6 +110,9 @@ class PlanAnswer:
     memo: MemoUse | None = None  # how the served cached trajectory was validated
     details: AnswerDetails | None = None  # quality and timing, when the caller asked for extras
     planner: str | None = None  # the planner that found a planned answer's path
+    certificate: CertificateUse | None = None  # how the served candidate's certificate served
+    warnings: list[str] = field(default_factory=list)  # what the caller should know (no scene)
+    stored: bool | None = None  # a planned path: newly stored (False: identical to a stored one)
 
 
 class PhaseClock:
@@ -161,6 +166,8 @@ class PlanAttempt:
     rejections: list[RejectedCandidate] = field(default_factory=list)  # as validated
     candidates: dict[int, np.ndarray] = field(default_factory=dict)  # key states, by id
     tried: int = 0  # candidates counted in the answer and its plan event
+    certificates: list[CertificateWrite] = field(default_factory=list)  # to write with the record
+    certificate_use: CertificateUse | None = None  # the last certificate a validation used
 
     @functools.cached_property
     def validator(self) -> TrajectoryValidator:

@@ -29,6 +29,7 @@ from trajcache.services.catalog.trajectories import quality_columns, store_traje
 from trajcache.services.errors import UnavailableError
 from trajcache.services.plan.answers import answer_planned, answer_without_path
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanStatus
+from trajcache.services.plan.certified import certify_planned
 from trajcache.services.plan.records import QualityJob
 
 logger = logging.getLogger(__name__)
@@ -67,6 +68,7 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
             max_states=settings.max_trajectory_states,
             compute_quality=False,  # computed after the answer, with the plan record
         )
+    certify_planned(attempt, trajectory_id, np.asarray(outcome.path, dtype=float))
     job = None
     if created:
         path = outcome.path
@@ -83,6 +85,7 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
         quality=job,
         planner=attempt.request.planner,
         phases=planner_phases(outcome.stats, attempt.clock.seconds("plan") * 1e3),
+        stored=created,
     )
 
 

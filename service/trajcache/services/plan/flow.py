@@ -3,7 +3,9 @@
 `_answer` is the spine and reads top to bottom: look up candidates, validate them, answer the
 first valid one; otherwise check the endpoints and answer a miss, or fall back to the planner
 (`services.plan.fallback`). Each step takes the request's :class:`PlanAttempt`
-(`services.plan.attempt`), which holds what the steps share and times each phase.
+(`services.plan.attempt`), which holds what the steps share and times each phase. A robot that
+never uploaded a scene is planned in the empty world and its answer says so in `warnings`
+(under `require_scene` it is refused).
 
 A cache hit, the hot path, reads the database once: the robot with its current scene version
 (parsed scenes are cached by hash), and in the same query the replica sync (what other replicas
@@ -51,7 +53,7 @@ from sqlalchemy.orm import Session
 
 from trajcache.cache.adapt import adapt_trajectory, base_is_still
 from trajcache.cache.index import Match
-from trajcache.cache.memo import MemoUse, validate_with_memo
+from trajcache.cache.memo import MemoUse
 from trajcache.cache.ranking import RANKING_COLUMNS, facts_from_row, rank_matches
 from trajcache.db.models import Trajectory, utcnow
 from trajcache.geometry.errors import CollisionStateError
@@ -68,7 +70,7 @@ from trajcache.geometry.validation.validator import ValidationResult
 from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
-from trajcache.services.errors import InvalidInputError
+from trajcache.services.errors import InvalidInputError, SceneRequiredError
 from trajcache.services.plan.answers import answer_hit, answer_without_path
 from trajcache.services.plan.attempt import (
     Origin,
@@ -80,6 +82,7 @@ from trajcache.services.plan.attempt import (
     PlanStatus,
     Requester,
 )
+from trajcache.services.plan.certified import validate_candidate
 from trajcache.services.plan.fallback import plan_fallback
 from trajcache.services.plan.options import PlanOptions, resolve_request
 from trajcache.services.plan.quality import AnswerExtras, answer_details
@@ -87,6 +90,7 @@ from trajcache.services.plan.rejections import RejectedCandidate
 from trajcache.timing import TimingError
 
 __all__ = [
+    "NO_SCENE_WARNING",
     "AnswerExtras",
     "PlanAnswer",
     "PlanOptions",
@@ -98,6 +102,9 @@ __all__ = [
     "plan",
     "plan_in_scene",
 ]
+
+
+NO_SCENE_WARNING = "no scene uploaded: checked for self-collision only"
 
 
 @dataclass(frozen=True)
@@ -178,6 +185,11 @@ def _plan_robot(
                 ),
             )
             model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
+        if robot.version == 0 and ctx.settings.require_scene:
+            raise SceneRequiredError(
+                f"robot {robot_id!r} has no scene: upload one (PUT /v1/robots/{robot_id}/scene, "
+                "an empty one if its world is empty) before planning; require_scene is on"
+            )
         origin = Origin(
             "planner",
             robot_id,
@@ -186,7 +198,10 @@ def _plan_robot(
             scene_stored=robot.version > 0,
         )
         attempt = _open(ctx, session, robot_id, origin, model, robot.scene, request, clock)
-        return _answer(attempt), attempt
+        answer = _answer(attempt)
+        if robot.version == 0:
+            answer.warnings.append(NO_SCENE_WARNING)
+        return answer, attempt
 
 
 def _open(
@@ -279,12 +294,7 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
             )
             result = next((r for path, r in seen if np.array_equal(path, adapted)), None)
             if result is None:
-                result, memo_use = validate_with_memo(
-                    adapted,
-                    validate_fn=attempt.validator.validate,
-                    memo=attempt.ctx.memo,
-                    scope=attempt.memo_scope,
-                )
+                result, memo_use = validate_candidate(attempt, match, adapted)
                 if result.valid:
                     return _Hit(match, adapted, memo_use)
                 seen.append((adapted, result))

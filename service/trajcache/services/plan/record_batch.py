@@ -1,4 +1,5 @@
-"""One transaction of plan records: the counter updates, events and quality columns they write.
+"""One transaction of plan records: the counter updates, events, quality columns and
+certificates they write.
 
 The only statements that write trajectories' usage counters (hits, failures, failure streaks,
 real-robot validations) and plan events; `services.plan.records` runs them in submission order.
@@ -17,6 +18,7 @@ import sqlalchemy as sa
 from sqlalchemy import Engine
 
 from trajcache.db.models import PlanEvent, Trajectory
+from trajcache.services.catalog.certificates import CertificateWrite, write_certificates
 
 __all__ = ["EventDetails", "PlanRecord", "QualityJob", "committed", "write_records"]
 
@@ -75,6 +77,7 @@ class PlanRecord:
     key: str = field(default_factory=lambda: uuid.uuid4().hex)  # its event's record_key
     quality: QualityJob | None = None  # a newly planned trajectory's quality, written with it
     details: EventDetails | None = None  # event columns the writer computes
+    certificates: tuple[CertificateWrite, ...] = ()  # what its validations proved
 
 
 _T = Trajectory
@@ -128,7 +131,9 @@ class _Usage:
 
 
 def write_records(engine: Engine, records: Iterable[PlanRecord]) -> None:
-    """Commit the records' counter updates, events and quality columns in one transaction."""
+    """Commit the records' counter updates, events, quality columns and certificates in one
+    transaction."""
+    records = list(records)
     usage: dict[int, _Usage] = {}
     events: list[dict[str, Any]] = []
     qualities: list[dict[str, Any]] = []
@@ -166,6 +171,8 @@ def write_records(engine: Engine, records: Iterable[PlanRecord]) -> None:
             conn.execute(_EVENTS, _one_or_many(events))
         for values in qualities:  # few: one per planned trajectory
             conn.execute(_QUALITY, values)
+        for record in records:
+            write_certificates(conn, record.certificates, record.at)
 
 
 def committed(engine: Engine, record: PlanRecord) -> bool:

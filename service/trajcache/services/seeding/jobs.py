@@ -94,6 +94,7 @@ def create_job(*, session: Session, ctx: ServiceContext, spec: SeedJobSpec) -> S
         done=0,
         hits=0,
         planned=0,
+        stored=0,
         failed=0,
         errors=[],
     )
@@ -119,6 +120,7 @@ class SeedJobInfo:
     done: int
     hits: int
     planned: int
+    stored: int | None  # of the planned, newly stored (the rest were already stored)
     failed: int
     hit_rate: float | None
     eta_s: float | None  # seconds left, while running with an estimate
@@ -150,6 +152,7 @@ class SeedJobInfo:
             row.done,
             row.hits,
             row.planned,
+            row.stored,
             row.failed,
             hit_rate,
             eta,

@@ -47,21 +47,25 @@ _REASON_CHARS = 300
 @dataclass(frozen=True)
 class Outcome:
     """How one work item ended: `hit`, `planned`, `failed` (with the reason), or `skipped`
-    (not run to the end because the job stopped; a resumed job runs it again)."""
+    (not run to the end because the job stopped; a resumed job runs it again). A planned path
+    identical to a trajectory already stored is not `stored` again."""
 
     kind: str
     reason: str = ""
+    stored: bool = False
 
 
 @dataclass
 class Progress:
-    """Counters over the finished prefix of the work items."""
+    """Counters over the finished prefix of the work items; `stored` counts the planned paths
+    newly stored (None: a job begun before that counter existed)."""
 
     done: int
     hits: int
     planned: int
     failed: int
     errors: list[dict[str, Any]] = field(default_factory=list)
+    stored: int | None = 0
 
     def absorb(self, finished: dict[int, Outcome], labels: Callable[[int], str]) -> None:
         """Count the finished items that extend the prefix."""
@@ -71,6 +75,8 @@ class Progress:
                 self.hits += 1
             elif outcome.kind == "planned":
                 self.planned += 1
+                if outcome.stored and self.stored is not None:
+                    self.stored += 1
             else:
                 self.failed += 1
                 entry = {"index": self.done, "label": labels(self.done), "reason": outcome.reason}
@@ -83,6 +89,7 @@ class Progress:
             "done": self.done,
             "hits": self.hits,
             "planned": self.planned,
+            "stored": self.stored,
             "failed": self.failed,
             "errors": list(self.errors),
         }
@@ -153,7 +160,9 @@ class JobRun:
             row = session.get(SeedJob, self.job_id)
             if row is None or row.lease_owner != self.owner:
                 return None
-            progress = Progress(row.done, row.hits, row.planned, row.failed, list(row.errors))
+            progress = Progress(
+                row.done, row.hits, row.planned, row.failed, list(row.errors), row.stored
+            )
             spec_json, total = row.spec, row.total
         try:
             spec = SeedJobSpec.model_validate(spec_json)
@@ -272,7 +281,9 @@ class JobRun:
             _log.exception("seed job %s: item %s failed", self.job_id, index)
             return Outcome("failed", f"{type(exc).__name__}: {exc}"[:_REASON_CHARS])
         if answer.status is PlanStatus.SUCCESS:
-            return Outcome("hit" if answer.source is PlanSource.CACHE else "planned")
+            if answer.source is PlanSource.CACHE:
+                return Outcome("hit")
+            return Outcome("planned", stored=answer.stored is not False)
         reason = f"{answer.status.value}: {answer.message}".rstrip(": ")[:_REASON_CHARS]
         return Outcome("error" if answer.status is PlanStatus.ERROR else "failed", reason)
 

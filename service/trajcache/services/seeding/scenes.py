@@ -9,9 +9,12 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import Field, ValidationError
 
 from trajcache.core.config import Settings
+from trajcache.core.field_errors import readable_errors, validation_message
+from trajcache.core.request_model import RequestModel
+from trajcache.core.suggest import unknown_message
 from trajcache.geometry.errors import GeometryError
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.payload import apply_patch
@@ -24,10 +27,8 @@ from trajcache.services.seeding.spec import FiniteFloat, Sweep
 GENERATOR_PARAMS = ("doors_deg", "seats_deg")
 
 
-class _Restroom(BaseModel):
+class _Restroom(RequestModel):
     """Parameters of the restroom generator."""
-
-    model_config = ConfigDict(extra="forbid")
 
     generator: Literal["restroom"] = "restroom"
     doors_deg: FiniteFloat | list[FiniteFloat] = 0.0
@@ -58,8 +59,8 @@ def _build_restroom(params: Mapping[str, Any], where: str) -> Scene:
     for key, value in spec.env.items():
         parts = key.split("_")
         if key not in _restroom_env_keys():
-            known = ", ".join(_restroom_env_keys())
-            raise InvalidInputError(f"{where}.env: unknown value {key!r}; the restroom has {known}")
+            unknown = unknown_message("value", [key], _restroom_env_keys())
+            raise InvalidInputError(f"{where}.env: {unknown} (the restroom's)")
         target = doors if parts[2] == "door" else seats
         target[int(parts[1]) - 1] = math.degrees(value)
     try:
@@ -71,11 +72,7 @@ def _build_restroom(params: Mapping[str, Any], where: str) -> Scene:
 
 
 def _pydantic_message(exc: ValidationError) -> str:
-    parts = []
-    for error in exc.errors()[:5]:
-        loc = ".".join(str(p) for p in error["loc"])
-        parts.append(f"{loc}: {error['msg']}" if loc else error["msg"])
-    return "; ".join(parts)
+    return validation_message(readable_errors(exc.errors()))
 
 
 def _explicit_scene(payload: Mapping[str, Any], where: str, limits: SceneLimits) -> Scene:

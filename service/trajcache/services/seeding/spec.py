@@ -40,18 +40,17 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal, Self
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
+from trajcache.core.request_model import RequestModel
 from trajcache.planning.problem import PLANNER_NAMES
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 MAX_LIST = 100_000  # structural bound; the settings bound scenes and work items further
 
 
-class SeedOptions(BaseModel):
+class SeedOptions(RequestModel):
     """Plan options of every request of the job (defaults and bounds from the settings)."""
-
-    model_config = ConfigDict(extra="forbid")
 
     threshold: FiniteFloat | None = Field(default=None, gt=0)
     max_candidates: int | None = Field(default=None, ge=1)
@@ -67,20 +66,16 @@ class SeedOptions(BaseModel):
         return None if name is None else name.strip().lower()
 
 
-class SeedQuery(BaseModel):
+class SeedQuery(RequestModel):
     """One start/goal pair; `scene` restricts it to one scene (index), else every scene."""
-
-    model_config = ConfigDict(extra="forbid")
 
     start: list[FiniteFloat] = Field(min_length=1, max_length=64)
     goal: list[FiniteFloat] = Field(min_length=1, max_length=64)
     scene: int | None = Field(default=None, ge=0)
 
 
-class ValueRange(BaseModel):
+class ValueRange(RequestModel):
     """`start`, `start + step`, … up to `stop` (included)."""
-
-    model_config = ConfigDict(extra="forbid")
 
     start: FiniteFloat
     stop: FiniteFloat
@@ -106,10 +101,8 @@ class Sweep(ValueRange):
     param: str = Field(min_length=1, max_length=120)
 
 
-class Workload(BaseModel):
+class Workload(RequestModel):
     """The reference cleaning workload (see the module docstring)."""
-
-    model_config = ConfigDict(extra="forbid")
 
     name: Literal["cleaning", "door_sweep"]
     seed: int = Field(default=0, ge=0, le=2**31 - 1)
@@ -134,10 +127,8 @@ class Workload(BaseModel):
         return [float(a) for a in self.doors_deg]
 
 
-class SeedJobSpec(BaseModel):
+class SeedJobSpec(RequestModel):
     """A seed job request (see the module docstring for the forms it takes)."""
-
-    model_config = ConfigDict(extra="forbid")
 
     model_id: str = Field(min_length=1, max_length=64)
     name: str | None = Field(default=None, max_length=200)

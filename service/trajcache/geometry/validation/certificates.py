@@ -1,0 +1,173 @@
+"""Certificates kept with a trajectory: what a valid verdict proved, so that a later validation
+proves only what is new.
+
+The argument. A path is valid in a scene when (i) every sample is within the joint limits,
+(ii) every segment is certified against every scene object and (iii) every segment is certified
+free of self-collision. The certifier settles each (element, object) pair and each pair of
+elements on its own (`certify.py`), so its verdict is the conjunction of one statement per
+object and one about the robot itself. Each statement depends only on:
+- the states, to the bit (`path_digest`);
+- the checked model: its id names the robot with its held joints, attached objects and allowed
+  link pairs (`scene/variant.py`); (i) and (iii) depend on nothing else;
+- the validator's settings and the certifier's code: the stamp (`stamp_of`, with
+  `stamp.certifier_digest`); a change of either is another stamp;
+- for (ii), the object itself: its shape, its exact pose (float64 bytes) and the names the scene
+  allows it to touch (`object_digest`). Its id and the other objects do not enter.
+
+A certificate names a path, a variant, a stamp and the object digests the path was certified
+against. It is written only after a valid verdict, so (i) and (iii) hold for it as well. In
+another scene, the statements of the objects whose digests it holds are the very statements
+that were proved: the path is valid there if it is valid against the other objects alone, which
+a scene-only validation of those objects decides (`CollisionChecker`'s `self_collision=False`).
+An object that left the scene drops a statement, which cannot make a valid path invalid.
+
+A cached path is served adapted: new first and last states, its interior kept. A certificate
+names the interior (every state but the first and last), so the first and last segments are
+validated in full, and the interior only against the objects its certificate lacks
+(`validate_with_certificate`). With `audit`, every verdict a certificate shortened is proved
+again in full, and a disagreement raises `CertificateDisagreement`: the property tests run so.
+
+Not used: slack (an object moved by less than its proved clearance needs no new proof) and
+swept envelopes. A moved object is another digest, and is proved again, against the interior
+only.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from trajcache.geometry.model.shapes import FloatArray, ShapeKind
+from trajcache.geometry.scene.scene import Scene, SceneObject
+from trajcache.geometry.validation.stamp import certifier_digest
+from trajcache.geometry.validation.validator import (
+    TrajectoryValidator,
+    ValidationResult,
+    ValidationStatus,
+)
+
+__all__ = [
+    "CertificateDisagreement",
+    "CertificateKey",
+    "CertificateUse",
+    "object_digest",
+    "object_digests",
+    "path_digest",
+    "stamp_of",
+    "validate_with_certificate",
+]
+
+MAX_OBJECTS = 4096  # object digests kept per certificate (the current scene's first)
+
+
+class CertificateDisagreement(AssertionError):
+    """An audited verdict that a certificate shortened differs from the full one."""
+
+
+@dataclass(frozen=True)
+class CertificateKey:
+    """What a certificate is about: a path (the digest of an interior), under a model variant
+    and a stamp."""
+
+    variant: str  # the checked model's id
+    stamp: str  # `stamp_of` the validator's settings
+    path: str  # `path_digest` of the interior states
+
+
+@dataclass(frozen=True)
+class CertificateUse:
+    """How a validation used a certificate: the scene's objects, and those proved again."""
+
+    objects: int
+    reproved: int
+
+
+def stamp_of(settings_key: tuple[object, ...]) -> str:
+    """The certifier's digest and the validator's settings, hashed together."""
+    digest = hashlib.sha256(certifier_digest().encode())
+    digest.update(b"\0" + repr(settings_key).encode())
+    return digest.hexdigest()
+
+
+def path_digest(states: FloatArray) -> str:
+    """SHA-256 of the exact float64 values of (n, D) states, with their shape."""
+    array = np.ascontiguousarray(states, dtype=np.float64)
+    digest = hashlib.sha256(repr(array.shape).encode())
+    digest.update(array.tobytes())
+    return digest.hexdigest()
+
+
+def object_digest(obj: SceneObject, touches: Iterable[str] = ()) -> str:
+    """SHA-256 of what an object's statement depends on: its shape (kind, exact sizes, mesh
+    vertices and faces), its exact pose, and the names it may touch; not its id."""
+    shape = obj.shape
+    digest = hashlib.sha256(shape.kind.value.encode())
+    digest.update(np.asarray(shape.size, dtype=np.float64).tobytes())
+    if shape.kind is ShapeKind.MESH:
+        assert shape.vertices is not None and shape.faces is not None
+        digest.update(np.ascontiguousarray(shape.vertices, dtype=np.float64).tobytes())
+        digest.update(np.ascontiguousarray(shape.faces, dtype=np.int64).tobytes())
+    digest.update(np.ascontiguousarray(obj.pose, dtype=np.float64).tobytes())
+    digest.update(repr(sorted(touches)).encode())
+    return digest.hexdigest()[:32]
+
+
+def object_digests(scene: Scene) -> dict[str, str]:
+    """Each world object's digest, by id (an object id in an allowed pair covers its parts)."""
+    touches: dict[str, list[str]] = {}
+    for a, b in scene.allowed:
+        touches.setdefault(a, []).append(b)
+        touches.setdefault(b, []).append(a)
+    return {
+        obj.id: object_digest(obj, touches.get(obj.id.partition("#")[0], ()))
+        for obj in scene.objects
+    }
+
+
+def merged(known: frozenset[str], scene: Mapping[str, str]) -> frozenset[str]:
+    """A certificate's digests after a valid verdict in a scene: the scene's, then as many of
+    those it already held as `MAX_OBJECTS` leaves room for."""
+    current = set(scene.values())
+    room = max(MAX_OBJECTS - len(current), 0)
+    return frozenset(current | set(sorted(known - current)[:room]))
+
+
+def validate_with_certificate(
+    states: FloatArray,
+    *,
+    full: TrajectoryValidator,
+    scene_only: Callable[[list[SceneObject]], TrajectoryValidator],
+    scene: Scene,
+    certified: frozenset[str],
+    audit: bool = False,
+) -> tuple[ValidationResult, CertificateUse]:
+    """Validate an adapted path (n ≥ 4) whose interior holds a certificate for `certified`
+    object digests: its first and last segments with `full`, its interior against the objects
+    the certificate lacks with `scene_only(objects)` (module docstring)."""
+    digests = object_digests(scene)
+    new = [obj for obj in scene.objects if digests[obj.id] not in certified]
+    use = CertificateUse(len(scene.objects), len(new))
+    result = full.validate_segments(states, [0, len(states) - 2])
+    if result.valid and new:
+        inner = scene_only(new).validate(states[1:-1])
+        inner.samples += result.samples
+        inner.narrow_checks += result.narrow_checks
+        inner.subdivisions += result.subdivisions
+        inner.elapsed_ms += result.elapsed_ms
+        result = inner
+    if audit and result.valid:
+        truth = full.validate(states)
+        if not truth.valid:
+            raise CertificateDisagreement(
+                f"a certificate passed a path that full validation finds {truth.status.value}: "
+                f"{truth.message}"
+            )
+    return result, use
+
+
+def is_valid(result: ValidationResult) -> bool:
+    """Whether a verdict may be certified (only valid ones are)."""
+    return result.status is ValidationStatus.VALID

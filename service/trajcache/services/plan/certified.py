@@ -1,0 +1,116 @@
+"""A cached candidate's validation: the memo first, then its stored certificate, else in full.
+
+- The validation memo (`cache.memo`) knows exact paths and interiors this process certified in
+  this very scene: nothing, or only the new first and last segments, is checked.
+- Otherwise the candidate's certificate (`geometry/validation/certificates.py`), from this or
+  another replica (`services.catalog.certificates`): the first and last segments are checked in
+  full, the interior only against the scene's objects the certificate lacks.
+- Otherwise the whole path is validated.
+
+Every valid verdict on a path of four states or more gives its interior a certificate, holding
+the scene's object digests (and those it held before): `attempt.certificates` collects them,
+and the plan record writes them after the answer (`services.plan.answers`).
+"""
+
+from __future__ import annotations
+
+from trajcache.cache.index import Match
+from trajcache.cache.memo import MemoUse, remember_path, validate_with_memo
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import SceneObject, make_scene
+from trajcache.geometry.validation.certificates import (
+    CertificateKey,
+    merged,
+    object_digests,
+    path_digest,
+    stamp_of,
+    validate_with_certificate,
+)
+from trajcache.geometry.validation.validator import (
+    TrajectoryValidator,
+    ValidationResult,
+    settings_key_of,
+    validator_for,
+)
+from trajcache.services.catalog.certificates import CertificateWrite
+from trajcache.services.plan.attempt import PlanAttempt
+
+__all__ = ["certify_planned", "validate_candidate"]
+
+
+def validate_candidate(
+    attempt: PlanAttempt, match: Match, adapted: FloatArray
+) -> tuple[ValidationResult, MemoUse]:
+    """The verdict on an adapted candidate, and what spared work (module docstring)."""
+    ctx, scope, validator = attempt.ctx, attempt.memo_scope, attempt.validator
+    key = _key(attempt, adapted)
+    if key is not None and scope is not None and not _memo_knows(attempt, adapted):
+        with ctx.session() as session:
+            certified = ctx.certificates.get(session, match.trajectory_id, key)
+        if certified:
+            result, use = validate_with_certificate(
+                adapted,
+                full=validator,
+                scene_only=lambda objects: _scene_only(attempt, objects),
+                scene=attempt.scene,
+                certified=certified,
+                audit=ctx.settings.certificate_audit,
+            )
+            attempt.certificate_use = use
+            if result.valid:
+                remember_path(ctx.memo, scope, adapted)
+                _keep(attempt, match.trajectory_id, key, certified)
+            return result, MemoUse.CERTIFICATE
+    result, memo_use = validate_with_memo(
+        adapted,
+        validate_fn=validator.validate,
+        segments_fn=validator.validate_segments,
+        memo=ctx.memo,
+        scope=scope,
+    )
+    if result.valid and memo_use is MemoUse.NONE and key is not None:
+        _keep(attempt, match.trajectory_id, key, frozenset())
+    return result, memo_use
+
+
+def certify_planned(attempt: PlanAttempt, trajectory_id: int, states: FloatArray) -> None:
+    """Give a planned path that was certified in this scene, and stored, its certificate."""
+    key = _key(attempt, states)
+    if key is not None:
+        _keep(attempt, trajectory_id, key, frozenset())
+
+
+def _key(attempt: PlanAttempt, states: FloatArray) -> CertificateKey | None:
+    """The key of the path's interior; None where no certificate applies (off, a path of fewer
+    than four states, or a scene without a content hash)."""
+    if not attempt.ctx.settings.certificates or len(states) < 4 or not attempt.scene.hash:
+        return None
+    stamp = stamp_of(settings_key_of(attempt.ctx.settings))  # as `attempt.validator`'s
+    return CertificateKey(attempt.checked.model_id, stamp, path_digest(states[1:-1]))
+
+
+def _memo_knows(attempt: PlanAttempt, states: FloatArray) -> bool:
+    memo, scope = attempt.ctx.memo, attempt.memo_scope
+    assert scope is not None
+    return memo.known_valid(scope, states) or memo.known_valid(scope, states[1:-1])
+
+
+def _keep(
+    attempt: PlanAttempt, trajectory_id: int, key: CertificateKey, known: frozenset[str]
+) -> None:
+    """Note the certificate of a valid verdict in this scene, for the plan record to write."""
+    write = CertificateWrite(trajectory_id, key, merged(known, object_digests(attempt.scene)))
+    attempt.ctx.certificates.put(write)
+    attempt.certificates.append(write)
+
+
+def _scene_only(attempt: PlanAttempt, objects: list[SceneObject]) -> TrajectoryValidator:
+    """A validator of the checked model against `objects` alone, without self-collision, with
+    the scene's allowed pairs that name them; shared, as every validator is."""
+    ids = {obj.id.partition("#")[0] for obj in objects}
+    allowed = [pair for pair in attempt.scene.allowed if pair[0] in ids or pair[1] in ids]
+    part = make_scene(objects, allowed=allowed)
+    ctx = attempt.ctx
+    return validator_for(
+        attempt.checked, part, ctx.settings, cache=ctx.validators, self_collision=False
+    )
