@@ -24,19 +24,19 @@ invalid ones is IN_COLLISION, none at all NOT_FOUND.
 
 Why this solver (`bench/ik.py`: 200 random reachable poses each of the MotionBenchMaker Panda's
 hand and the reference robot's tool tip, 1 mm and 0.01 rad, from the ready or stowed state, a
-50 ms budget; every answer checked with yourdfpy; two runs on this shared 2-core machine, the
-quieter first, the second under load):
+50 ms budget; every answer checked with yourdfpy; this shared 2-core machine):
 
-    solver (median / p95 ms)     Panda                     reference               solved
-    damped least squares, 1st    0.45 / 3.9 (0.53 / 6.7)  0.42 / 1.5 (0.60 / 2.8) 100 %
-    the same, nearest of 3       1.9 / 8.3 (2.8 / 13.1)    1.2 / 3.7 (1.7 / 6.9)   100 %
-    pin-pink (QP per step, daqp) 0.74 / 18.6 (1.08 / 36.9) 0.75 / 4.5 (1.20 / 9.6) 98-100 %
+    solver (median / p95 ms)      Panda        reference    solved
+    damped least squares, 1st     0.47 / 3.9   0.53 / 1.8   100 %, 100 %
+    the same, nearest of 3        1.9 / 10.5   1.2 / 5.0    100 %, 100 %
+    pin-pink (QP per step, daqp)  1.19 / 37.0  1.28 / 11.3  97.5 %, 99 %
 
 Damped least squares is faster at the median, has the much shorter tail (pin-pink builds and
 solves a QP at every step) and solves every pose, with nothing beyond Pinocchio: it is the
-service's solver. Through the service (`--service`, the route's defaults: 3 solutions, collision
-checked) the server answers in 4.0 ms (Panda) and 2.8 ms (reference) at the median; 1.8-2.0 ms
-with `solutions: 1`.
+service's solver. Earlier runs ranked them the same (first solution 0.45-0.53 ms on the Panda,
+pin-pink 0.74-1.08 ms). Through the live service (`--service`, the route's defaults: 3
+solutions, collision-checked) the server answers in 2.7 ms (Panda) and 2.3 ms (reference) at
+the median; the poses it leaves unsolved are reached only in self-collision.
 """
 
 from __future__ import annotations
