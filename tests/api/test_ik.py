@@ -231,6 +231,8 @@ def test_moveit_form_as_yaml_and_its_422s(
         f"/v1/robots/{robot}/ik", json=_moveit(position, quat, ik_link_name="nozzle")
     )
     assert_detail(bad, 422, "ik_request.ik_link_name", "'nozzle'")
+    zero = app_client.post(f"/v1/robots/{robot}/ik", json=_moveit(position, [0.0, 0.0, 0.0, 0.0]))
+    assert_detail(zero, 422, "ik_request.pose_stamped.pose.orientation", "zero quaternion")
     constrained = _moveit(position, quat, constraints={"joint_constraints": [{"joint_name": "a"}]})
     response = app_client.post(f"/v1/robots/{robot}/ik", json=constrained)
     assert response.status_code == 422 and "constraints" in response.text

@@ -173,7 +173,11 @@ def ik_query(message: GetPositionIKIn, *, model: RobotModel, held: Mapping[str, 
         seed=None if seed is None else list(map(float, seed)),
         avoid_collisions=ik.avoid_collisions,
         budget_s=min(budget, IK_BUDGET_MAX_S) if budget > 0 else None,
-        names={"link": "ik_request.ik_link_name", "seed": "ik_request.robot_state"},
+        names={
+            "link": "ik_request.ik_link_name",
+            "seed": "ik_request.robot_state",
+            "orientation": "ik_request.pose_stamped.pose.orientation",
+        },
     )
     multi_dof = state.multi_dof_joint_state.joint_names
     return IkQuery(request, multi_dof[0] if multi_dof else DEFAULT_BASE_JOINT, tuple(warnings))
