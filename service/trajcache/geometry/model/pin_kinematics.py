@@ -13,12 +13,12 @@ Continuous joints take (cos, sin) in q. So, for a state s:
 
 with V (nv × dof) holding the multipliers, and for the planar base the rotation from world to
 base axes (x, y) and 1 for θ. `tests/geometry/test_pin_kinematics.py` checks that every link's
-pose agrees with `kinematics.link_transforms` on every supported robot.
+pose agrees with `kinematics.link_transforms` on every supported robot. Nothing is cached here:
+the service keeps what it builds (`ServiceContext.kinematics`).
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
@@ -29,12 +29,9 @@ from trajcache.geometry.errors import RobotModelError
 from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 
-_PIN_MODELS_CACHED = 32
 
-
-@functools.lru_cache(maxsize=_PIN_MODELS_CACHED)
 def _pin_model(urdf: str, planar: bool) -> pin.Model:
-    """Pinocchio's model of a URDF text (cached: the same text gives the same model)."""
+    """Pinocchio's model of a URDF text (kinematics only: no meshes are read)."""
     try:
         if planar:
             return pin.buildModelFromXML(urdf, pin.JointModelPlanar())
