@@ -246,3 +246,19 @@ def test_an_srdf_end_effector_names_its_parent_link(app_client: TestClient, refe
     body = _ik(app_client, "mobile-2", link="nozzle", position=position, orientation=quat).json()
     assert body["status"] == "success" and body["link"] == "tool_tip"
     assert _within(reference, body["state"], position, quat)
+
+
+def test_moveit_form_with_avoid_collisions_steers_around_an_obstacle(
+    app_client: TestClient, robot: str, reference: Any
+) -> None:
+    position, quat = _goal(reference)
+    url = f"/v1/robots/{robot}/ik"
+    first = app_client.post(url, json=_moveit(position, quat)).json()["solution"]
+    state = [*BASE, *first["joint_state"]["position"]]
+    _scene(app_client, robot, _ball(_listed(_tool_pose(reference, state, "link4")[:3, 3]), 0.05))
+    ignored = app_client.post(url, json=_moveit(position, quat)).json()  # MoveIt's default: false
+    assert ignored["solution"] == first
+    avoiding = app_client.post(url, json=_moveit(position, quat, avoid_collisions=True)).json()
+    assert avoiding["error_code"]["val"] == 1, avoiding
+    moved = [*BASE, *avoiding["solution"]["joint_state"]["position"]]
+    assert moved != state and _within(reference, moved, position, quat)
