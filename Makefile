@@ -53,6 +53,7 @@ bench-smoke: setup
 	$(BIN)/python bench/real_robots.py --smoke
 	$(BIN)/python bench/rejections.py --smoke
 	$(BIN)/python bench/mbm.py --smoke --moveit --cross-scene
+	$(BIN)/python bench/ik.py --smoke
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

@@ -36,6 +36,7 @@ from trajcache_client._exceptions import (
 from trajcache_client._models import (
     ContactPair,
     Health,
+    IkResult,
     JointTrajectory,
     JointTrajectoryPoint,
     ModelFile,
@@ -59,7 +60,7 @@ from trajcache_client._models import (
     TrajectorySummary,
     ValidationReuse,
 )
-from trajcache_client._moveit_models import MotionPlanResponse
+from trajcache_client._moveit_models import GetPositionIKResponse, MotionPlanResponse
 from trajcache_client._operations import Operation
 from trajcache_client._retry import NO_RETRY, Retry
 from trajcache_client._stats_models import (
@@ -96,7 +97,9 @@ __all__ = [
     "ContactPair",
     "Failure",
     "Frames",
+    "GetPositionIKResponse",
     "Health",
+    "IkResult",
     "ImportResult",
     "JointTrajectory",
     "JointTrajectoryPoint",

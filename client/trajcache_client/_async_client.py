@@ -15,6 +15,7 @@ from trajcache_client import _operations as ops
 from trajcache_client._admin_client import AsyncAdminMethods
 from trajcache_client._base import DEFAULT_BASE_URL, DEFAULT_RETRY, DEFAULT_TIMEOUT, BaseClient
 from trajcache_client._exceptions import error_for
+from trajcache_client._ik_client import AsyncIkMethods
 from trajcache_client._models import (
     Health,
     Page,
@@ -39,7 +40,7 @@ from trajcache_client._view_client import AsyncViewMethods
 T = TypeVar("T")
 
 
-class AsyncClient(AsyncAdminMethods, AsyncViewMethods, BaseClient):
+class AsyncClient(AsyncAdminMethods, AsyncViewMethods, AsyncIkMethods, BaseClient):
     """An asyncio trajcache client; use it with `async with` or call `aclose()`.
 
     `transport` replaces the network (e.g. `httpx.MockTransport`, `httpx.ASGITransport(app)`).

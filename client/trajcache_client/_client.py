@@ -15,6 +15,7 @@ from trajcache_client import _operations as ops
 from trajcache_client._admin_client import AdminMethods
 from trajcache_client._base import DEFAULT_BASE_URL, DEFAULT_RETRY, DEFAULT_TIMEOUT, BaseClient
 from trajcache_client._exceptions import error_for
+from trajcache_client._ik_client import IkMethods
 from trajcache_client._models import (
     Health,
     Page,
@@ -39,7 +40,7 @@ from trajcache_client._view_client import ViewMethods
 T = TypeVar("T")
 
 
-class Client(AdminMethods, ViewMethods, BaseClient):
+class Client(AdminMethods, ViewMethods, IkMethods, BaseClient):
     """A blocking trajcache client; use it as a context manager or call `close()`.
 
     `transport` replaces the network, e.g. `httpx.MockTransport(handler)` in tests.

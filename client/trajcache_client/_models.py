@@ -266,6 +266,28 @@ class PlanResult(_Answer):
         return self.status == "success" and self.states is not None
 
 
+class IkResult(_Answer):
+    """An IK answer: the state that puts the link at the pose, or a status saying why there is
+    none ("not_found" within the budget, or "in_collision": reached only in collision)."""
+
+    status: Literal["success", "not_found", "in_collision"]
+    state: list[float] | None
+    state_names: list[str]
+    link: str
+    position_error: float | None
+    orientation_error: float | None
+    solutions: int
+    rejected: int
+    attempts: int
+    message: str = ""
+    timings_ms: dict[str, float]
+
+    @property
+    def ok(self) -> bool:
+        """True when the answer carries a state."""
+        return self.status == "success" and self.state is not None
+
+
 class TrajectoryCreated(_Answer):
     """A stored trajectory's id; `created` is false when it was already stored."""
 

@@ -146,3 +146,24 @@ class MotionPlanResponse(TypedDict):
     error_code: MoveItErrorCode
     warnings: list[str]
     trajcache: TrajcacheExtras
+
+
+class TrajcacheIkExtras(TypedDict):
+    """How the native IK answered ("invalid": refused before solving), for operators."""
+
+    status: Literal["success", "not_found", "in_collision", "invalid"] | str
+    message: str
+    warnings: list[str]
+    link: str | None
+    position_error: float | None
+    orientation_error: float | None
+    timings_ms: dict[str, float]
+
+
+class GetPositionIKResponse(TypedDict):
+    """`moveit_msgs/GetPositionIK` response (`error_code.val` -31: no solution), plus
+    `trajcache`: how it was answered."""
+
+    solution: RobotState
+    error_code: MoveItErrorCode
+    trajcache: TrajcacheIkExtras

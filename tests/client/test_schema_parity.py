@@ -19,7 +19,13 @@ import pytest
 
 import trajcache_client as tc
 from tests.robots import OPAQUE_URDF
-from trajcache_client import _admin_operations, _moveit_models, _operations, _view_operations
+from trajcache_client import (
+    _admin_operations,
+    _ik_operations,
+    _moveit_models,
+    _operations,
+    _view_operations,
+)
 from trajcache_client._operations import Operation
 
 DOCUMENT = Path(__file__).resolve().parents[2] / "openapi" / "openapi.json"
@@ -38,6 +44,7 @@ MODELS: dict[Any, str] = {
     tc.PlanOptions: "PlanOptions",
     tc.TimingOptions: "TimingOptions",
     tc.PlanResult: "PlanResponse",
+    tc.IkResult: "IkResponse",
     tc.Rejection: "Rejection",
     tc.ValidationReuse: "ValidationReuse",
     tc.RejectedCandidate: "RejectedCandidateOut",
@@ -83,6 +90,8 @@ MODELS: dict[Any, str] = {
     _moveit_models.MoveItErrorCode: "ErrorCodeOut",
     _moveit_models.TrajcacheExtras: "TrajcacheExtrasOut",
     _moveit_models.CandidateRejection: "CandidateRejectionOut",
+    _moveit_models.GetPositionIKResponse: "GetPositionIKOut",
+    _moveit_models.TrajcacheIkExtras: "TrajcacheIkOut",
     tc.ModelView: "ModelViewOut",
     tc.ModelElement: "ModelElementOut",
     tc.StoredScene: "StoredSceneOut",
@@ -261,7 +270,7 @@ SAMPLES: dict[str, Any] = {
     "element": 0,
     "event_id": 7,
 }
-MODULES = (_operations, _admin_operations, _view_operations)
+MODULES = (_operations, _admin_operations, _view_operations, _ik_operations)
 
 
 def _operation_functions() -> dict[str, Callable[..., Operation[Any]]]:

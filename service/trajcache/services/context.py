@@ -16,7 +16,10 @@ from sqlalchemy.orm import Session, sessionmaker
 from trajcache.cache.memo import ValidationMemo
 from trajcache.cache.ranking import RankingRules
 from trajcache.core.config import Settings
+from trajcache.core.lru import LRU
 from trajcache.db.session import make_engine, make_sessionmaker
+from trajcache.geometry.model.pin_kinematics import PinKinematics
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.variant import VariantCache, variant_cache
 from trajcache.geometry.validation.validator import ValidatorCache
 from trajcache.jobs.pool import PlannerPool, make_pool
@@ -30,6 +33,7 @@ from trajcache.services.plan.ranking_facts import RankingFactsCache
 from trajcache.services.plan.records import PlanRecorder
 
 _log = logging.getLogger(__name__)
+KINEMATICS_CACHE_SIZE = 64  # models (as robots hold them) whose Pinocchio kinematics are kept
 
 
 @dataclass
@@ -53,6 +57,9 @@ class ServiceContext:
     facts: RankingFactsCache = field(default_factory=RankingFactsCache)  # what ranking reads
     variants: VariantCache = field(default_factory=variant_cache)  # models as robots hold them
     validators: ValidatorCache = field(default_factory=ValidatorCache)  # and their geometry
+    kinematics: LRU[RobotModel, PinKinematics] = field(  # Pinocchio's, for IK, by model object
+        default_factory=lambda: LRU(capacity=KINEMATICS_CACHE_SIZE)
+    )
     certificates: CertificateStore = field(default_factory=CertificateStore)  # what was proved
     planner: PlannerPool | None = None  # started by planner_pool(), closed by close()
     _planner_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
@@ -90,6 +97,7 @@ class ServiceContext:
         self.facts.clear()
         self.variants.clear()
         self.validators.clear()
+        self.kinematics.clear()
         self.certificates.clear()
 
     def ping(self) -> None:

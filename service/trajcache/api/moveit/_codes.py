@@ -41,7 +41,9 @@ class MoveItErrorCode(IntEnum):
     GOAL_IN_COLLISION = -12
     INVALID_GOAL_CONSTRAINTS = -16
     INVALID_ROBOT_STATE = -17
+    FRAME_TRANSFORM_FAILURE = -21
     COLLISION_CHECKING_UNAVAILABLE = -22
+    NO_IK_SOLUTION = -31
 
 
 class MotionPlanError(Exception):

@@ -74,7 +74,7 @@ def motion_plan_query(
     planar = model.base is BaseType.PLANAR
     targets = held_targets(model, held or {})
     warnings: list[str] = []
-    start = _start(message.start_state, model, targets, warnings)
+    start = read_start_state(message.start_state, model, targets, warnings)
     goal = goal_values(
         message.goal_constraints, model=model, start=start, held=targets, warnings=warnings
     )
@@ -97,10 +97,11 @@ def motion_plan_query(
     return MotionPlanQuery(request, start, timing, base_joint, tuple(warnings))
 
 
-def _start(
+def read_start_state(
     state: RobotState, model: RobotModel, targets: Mapping[str, float], warnings: list[str]
 ) -> FloatArray:
-    """The start state, bounds fixed as MoveIt fixes them; every problem named at once."""
+    """The state of a full MoveIt RobotState, bounds fixed as MoveIt fixes a start's; every
+    problem named at once (a MotionPlanError with INVALID_ROBOT_STATE)."""
     reading = _read_joint_state(state, model, targets)
     if reading.unknown:
         raise MotionPlanError(

@@ -38,7 +38,7 @@ def answered_body(
     code = answer_code(answer)
     return _body(
         message,
-        trajectory_start=_robot_state(model, list(map(float, start)), query.base_joint),
+        trajectory_start=robot_state_body(model, list(map(float, start)), query.base_joint),
         trajectory=_robot_trajectory(model, extras["joint_trajectory"], query.base_joint),
         code=code,
         text="" if code is MoveItErrorCode.SUCCESS else answer.message,
@@ -127,7 +127,9 @@ def _body(
     }
 
 
-def _robot_state(model: RobotModel, state: list[float], base_joint: str) -> dict[str, Any]:
+def robot_state_body(model: RobotModel, state: list[float], base_joint: str) -> dict[str, Any]:
+    """A `moveit_msgs/RobotState` of a state: the planning joints, and the planar base as the
+    multi-DOF joint `base_joint`."""
     offset = model.arm_offset
     return {
         "joint_state": {"name": list(model.joint_names), "position": state[offset:]},

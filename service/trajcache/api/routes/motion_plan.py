@@ -8,23 +8,23 @@ POST /v1/robots/{robot_id}/plan; see `api.moveit` for the translation.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Any
 
 import pydantic_core
 import yaml
-from fastapi import APIRouter, Depends, Request, Response
+from fastapi import APIRouter, Response
 from starlette.background import BackgroundTask
 
 from trajcache.api.answer_extras import answer_extras
-from trajcache.api.bounded import BoundedBodyRoute, media_type, unsupported_media
+from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, RobotIdPath
 from trajcache.api.moveit import (
     MotionPlanError,
     MotionPlanRequestIn,
     MotionPlanResponseOut,
+    RawBodyDep,
     answered_body,
-    is_supported,
+    inlined_schema,
     motion_plan_query,
     parse_motion_plan_request,
     refused_body,
@@ -55,22 +55,7 @@ max_acceleration_scaling_factor: 0.5
 """
 
 
-def _inlined(node: Any, defs: dict[str, Any]) -> Any:
-    """A JSON schema with each `#/$defs/...` reference replaced by its definition: the nested
-    messages are not in the OpenAPI document's components (this body is parsed by hand)."""
-    if isinstance(node, list):
-        return [_inlined(item, defs) for item in node]
-    if not isinstance(node, dict):
-        return node
-    ref = node.get("$ref")
-    if isinstance(ref, str) and ref.startswith("#/$defs/"):
-        rest = {k: v for k, v in node.items() if k != "$ref"}
-        return _inlined({**defs[ref.removeprefix("#/$defs/")], **rest}, defs)
-    return {k: _inlined(v, defs) for k, v in node.items() if k != "$defs"}
-
-
-_SCHEMA = MotionPlanRequestIn.model_json_schema()
-_REQUEST_SCHEMA = _inlined(_SCHEMA, _SCHEMA.get("$defs", {}))
+_REQUEST_SCHEMA = inlined_schema(MotionPlanRequestIn)
 _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSON one
     "requestBody": {
         "required": True,
@@ -83,25 +68,6 @@ _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSO
         },
     }
 }
-
-
-@dataclass(frozen=True)
-class RawBody:
-    """A request body and its media type (lower case, without parameters)."""
-
-    media_type: str
-    data: bytes
-
-
-async def read_raw_body(request: Request) -> RawBody:
-    """The body (bounded by max_body_bytes while read); it is parsed in the worker thread."""
-    media = media_type(request)
-    if not is_supported(media):
-        raise unsupported_media(media, "application/json or application/yaml")
-    return RawBody(media, await request.body())
-
-
-RawBodyDep = Annotated[RawBody, Depends(read_raw_body)]
 
 
 @router.post(

@@ -51,6 +51,7 @@ class Srdf:
     groups: Mapping[str, Group] = field(default_factory=dict)
     states: tuple[GroupState, ...] = ()
     disabled: tuple[tuple[str, str, str], ...] = ()  # (link1, link2, reason)
+    end_effectors: Mapping[str, str] = field(default_factory=dict)  # name → parent link
 
     def state(self, name: str) -> GroupState:
         """The group state `name`; RobotModelError listing the known ones when there is none."""
@@ -86,7 +87,10 @@ def parse_srdf(text: str) -> Srdf:
         if not link1 or not link2:
             raise RobotModelError("an SRDF <disable_collisions> lacks link1 or link2")
         disabled.append((link1, link2, element.get("reason") or ""))
-    return Srdf(root.get("name") or "", groups, states, tuple(disabled))
+    effectors = {
+        _named(e, "end_effector"): e.get("parent_link") or "" for e in root.findall("end_effector")
+    }
+    return Srdf(root.get("name") or "", groups, states, tuple(disabled), effectors)
 
 
 def _named(element: ET.Element, what: str) -> str:

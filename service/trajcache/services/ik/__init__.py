@@ -1,0 +1,1 @@
+"""Inverse kinematics for a robot in its current scene (`solve`)."""
