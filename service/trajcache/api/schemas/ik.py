@@ -9,17 +9,17 @@ from pydantic import BaseModel, ConfigDict, Field
 from trajcache.api.moveit import Quaternion, Vector3
 from trajcache.api.schemas.common import FiniteFloat
 from trajcache.api.schemas.plan import StateIn
+from trajcache.core.request_model import RequestModel
 from trajcache.services.ik.solve import IK_BUDGET_MAX_S, IK_BUDGET_S
 
 MAX_SOLUTIONS = 16
 
 
-class IkBody(BaseModel):
+class IkBody(RequestModel):
     """Where a link must be. The pose is in the model's base frame (its root link), or in the
     world frame for a planar base; vectors and quaternions as lists or mappings."""
 
     model_config = ConfigDict(
-        extra="forbid",
         json_schema_extra={
             "examples": [
                 {
