@@ -110,3 +110,57 @@ def test_a_malformed_pose_goal_is_a_422(
     robot: TestClient, body: dict[str, Any], needle: str
 ) -> None:
     assert_detail(robot.post("/v1/robots/r1/plan", json=body), 422, needle)
+
+
+def moveit_request(goal: dict[str, Any], **position: Any) -> dict[str, Any]:
+    """A MotionPlanRequest whose goal is a position constraint (a sphere) and an orientation
+    constraint on the forearm, as MoveIt's pose goals are sent."""
+    sphere = {"type": 2, "dimensions": [goal["position_tolerance"]]}
+    at = {"position": goal["position"], "orientation": [0, 0, 0, 1]}
+    region = {"primitives": [sphere], "primitive_poses": [at]}
+    return {
+        "start_state": {"joint_state": {"name": ["shoulder", "elbow"], "position": START}},
+        "goal_constraints": [
+            {
+                "position_constraints": [
+                    {
+                        "link_name": "fore",
+                        "header": {"frame_id": "base"},
+                        "constraint_region": region,
+                        **position,
+                    }
+                ],
+                "orientation_constraints": [
+                    {
+                        "link_name": "fore",
+                        "orientation": goal["orientation"],
+                        "absolute_x_axis_tolerance": 0.01,
+                        "absolute_y_axis_tolerance": 0.01,
+                        "absolute_z_axis_tolerance": 0.01,
+                    }
+                ],
+            }
+        ],
+        "allowed_planning_time": 2.0,
+    }
+
+
+def test_moveit_pose_constraints_are_a_pose_goal(robot: TestClient, arm: Any) -> None:
+    goal = target(arm, GOAL)
+    reply = robot.post("/v1/robots/r1/motion-plan", json=moveit_request(goal))
+    assert reply.status_code == 200, reply.text
+    body = reply.json()
+    assert body["error_code"]["val"] == 1, body
+    points = body["trajectory"]["joint_trajectory"]["points"]
+    names = body["trajectory"]["joint_trajectory"]["joint_names"]
+    last = dict(zip(names, points[-1]["positions"], strict=True))
+    assert within(arm, [last["shoulder"], last["elbow"]], goal)
+
+
+def test_moveit_pose_goals_that_cannot_be_read_or_reached(robot: TestClient, arm: Any) -> None:
+    far = {**target(arm, GOAL), "position": [2.0, 0.0, 2.0]}
+    unreached = robot.post("/v1/robots/r1/motion-plan", json=moveit_request(far)).json()
+    assert unreached["error_code"]["val"] == -31  # NO_IK_SOLUTION
+    offset = moveit_request(target(arm, GOAL), target_point_offset=[0.0, 0.0, 0.1])
+    refused = robot.post("/v1/robots/r1/motion-plan", json=offset)
+    assert "target_point_offset" in refused.text

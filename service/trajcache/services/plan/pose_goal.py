@@ -32,9 +32,10 @@ from trajcache.services.catalog.models import model_source
 from trajcache.services.ik.solve import CACHED_POOL, cached_starts, free_fn, link_of
 from trajcache.services.plan.attempt import GoalPose, PlanAttempt
 
-__all__ = ["PoseGoalFound", "resolve_pose_goal"]
+__all__ = ["NO_GOAL_STATE", "PoseGoalFound", "resolve_pose_goal"]
 
 POSE_IK_BUDGET_S = 0.1  # IK's share of a plan request's time
+NO_GOAL_STATE = "no goal state puts"  # how the failure message of an unreached pose begins
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,7 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
     return PoseGoalFound(
         None,
         "ik",
-        f"no goal state puts {link!r} within {goal.position_tolerance:g} m and "
+        f"{NO_GOAL_STATE} {link!r} within {goal.position_tolerance:g} m and "
         f"{goal.orientation_tolerance:g} rad of the pose ({why})",
     )
 
