@@ -226,12 +226,14 @@ class AsyncClient(AsyncAdminMethods, AsyncViewMethods, AsyncIkMethods, BaseClien
         self,
         robot_id: str,
         start: StateLike,
-        goal: StateLike,
+        goal: StateLike | None,
         options: PlanOptions | Mapping[str, Any] | None = None,
+        *,
+        goal_pose: Mapping[str, Any] | None = None,
     ) -> PlanResult:
         """A validated trajectory from start to goal, from the cache or the planner; each state
         is values in `state_names` order, a {joint: value} map, or a named state's name."""
-        return await self.call(ops.plan(robot_id, start, goal, options))
+        return await self.call(ops.plan(robot_id, start, goal, options, goal_pose=goal_pose))
 
     async def motion_plan(
         self, robot_id: str, request: Mapping[str, Any] | str

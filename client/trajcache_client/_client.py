@@ -221,12 +221,14 @@ class Client(AdminMethods, ViewMethods, IkMethods, BaseClient):
         self,
         robot_id: str,
         start: StateLike,
-        goal: StateLike,
+        goal: StateLike | None,
         options: PlanOptions | Mapping[str, Any] | None = None,
+        *,
+        goal_pose: Mapping[str, Any] | None = None,
     ) -> PlanResult:
         """A validated trajectory from start to goal, from the cache or the planner; each state
         is values in `state_names` order, a {joint: value} map, or a named state's name."""
-        return self.call(ops.plan(robot_id, start, goal, options))
+        return self.call(ops.plan(robot_id, start, goal, options, goal_pose=goal_pose))
 
     def motion_plan(self, robot_id: str, request: Mapping[str, Any] | str) -> MotionPlanResponse:
         """Plan with MoveIt's messages: a MotionPlanRequest (a mapping as JSON, text as YAML) →

@@ -259,6 +259,8 @@ class PlanResult(_Answer):
     quality: TrajectoryQuality | None = None
     joint_trajectory: JointTrajectory | None = None
     validation: ValidationReuse | None = None  # a cache answer's: what its validation skipped
+    goal_state: list[float] | None = None  # a goal_pose's state (the path's last)
+    goal_found_by: Literal["cached", "ik"] | None = None  # how that state was found
 
     @property
     def ok(self) -> bool:

@@ -274,19 +274,26 @@ def get_scene(robot_id: str) -> Operation[Scene]:
 def plan(
     robot_id: str,
     start: StateLike,
-    goal: StateLike,
+    goal: StateLike | None,
     options: PlanOptions | Mapping[str, Any] | None = None,
+    *,
+    goal_pose: Mapping[str, Any] | None = None,
 ) -> Operation[PlanResult]:
-    """POST /v1/robots/{robot_id}/plan; the read timeout covers the planning budget asked for."""
+    """POST /v1/robots/{robot_id}/plan; the goal is a state, or (goal None) `goal_pose`: a
+    link's pose {link, position, orientation, position_tolerance, orientation_tolerance}. The
+    read timeout covers the planning budget asked for."""
     if options is None:
         options = PlanOptions()
     elif not isinstance(options, PlanOptions):
         options = PlanOptions.model_validate(dict(options))
-    body = {
+    body: dict[str, Any] = {
         "start": _state(start),
-        "goal": _state(goal),
         "options": options.model_dump(exclude_none=True),
     }
+    if goal is not None:
+        body["goal"] = _state(goal)
+    if goal_pose is not None:
+        body["goal_pose"] = dict(goal_pose)
     path = f"/v1/robots/{_segment(robot_id)}/plan"
     budget = options.budget_s
     return Operation(

@@ -132,7 +132,7 @@ def test_start_or_goal_in_collision(app_client: TestClient, robot_id: str) -> No
 @pytest.mark.parametrize(
     ("goals", "needle"),
     [
-        ([{"position_constraints": [{"link_name": "fore"}]}], "position or orientation"),
+        ([{"position_constraints": [{"link_name": "fore"}]}], "constraint_region"),
         (
             [
                 {

@@ -3,6 +3,7 @@
 Native outcome → code:
 
 - a plan answered with a path → SUCCESS;
+- a pose goal that no free state reaches (`services.plan.pose_goal`) → NO_IK_SOLUTION;
 - no valid cached trajectory and no planning (`miss`) → PLANNING_FAILED;
 - the planner's failure, by the planner status its message begins with: `timeout` (no path at
   all within the budget) → TIMED_OUT, `uncertified` (paths found, none certified) →
@@ -25,6 +26,7 @@ from trajcache.geometry.errors import CollisionStateError, StateError
 from trajcache.planning.problem import PlannerStatus
 from trajcache.services.errors import SceneRequiredError
 from trajcache.services.plan.flow import PlanAnswer, PlanStatus
+from trajcache.services.plan.pose_goal import NO_GOAL_STATE
 
 VALIDATION_FAILED = "planned path failed validation"  # services.plan.flow's message
 
@@ -69,6 +71,8 @@ def answer_code(answer: PlanAnswer) -> MoveItErrorCode:
     if answer.status is PlanStatus.MISS:
         return MoveItErrorCode.PLANNING_FAILED
     if answer.status is PlanStatus.FAILURE:
+        if answer.message.startswith(NO_GOAL_STATE):  # a pose goal no free state reaches
+            return MoveItErrorCode.NO_IK_SOLUTION
         if answer.message.startswith(VALIDATION_FAILED):
             return MoveItErrorCode.INVALID_MOTION_PLAN
         try:

@@ -1,4 +1,5 @@
-"""The goal of a MotionPlanRequest: the first of its `goal_constraints` usable as a joint goal.
+"""The goal of a MotionPlanRequest: the first of its `goal_constraints` usable as a joint goal,
+else the first given as a link's pose (`pose_goal`).
 
 The goal is the first entry whose joint constraints cover every planning joint and that holds
 no other kind of constraint; it is their positions. A position outside its joint's limits is
@@ -12,7 +13,9 @@ with a warning. Every unknown joint, and every held joint the goal moves, is nam
 
 from __future__ import annotations
 
+import math
 from collections.abc import Collection, Mapping, Sequence
+from typing import Any
 
 from trajcache.api.moveit._codes import MotionPlanError, MoveItErrorCode
 from trajcache.api.moveit._messages import Constraints, JointConstraint
@@ -24,6 +27,7 @@ from trajcache.api.moveit._state import (
 )
 from trajcache.geometry.model.robot import BASE_STATE_NAMES, BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.services.plan.attempt import GoalPose
 
 BASE_VARIABLES = {"x": "base_x", "y": "base_y", "theta": "base_theta"}
 
@@ -155,8 +159,8 @@ def _why_no_goal(goals: Sequence[Constraints], model: RobotModel, mixed: list[in
         )
     if any(goal.other_kinds() for goal in goals):
         return (
-            "goals given as position or orientation constraints are not supported: give joint "
-            f"constraints on every planning joint ({joints})"
+            "no goal is joint constraints on every planning joint, nor one position constraint "
+            f"with at most one orientation constraint on its link (planning joints: {joints})"
         )
     if not goals:
         return (
@@ -170,3 +174,94 @@ def _why_no_goal(goals: Sequence[Constraints], model: RobotModel, mixed: list[in
     return (
         f"no goal constrains every planning joint: goal_constraints[0] lacks {', '.join(missing)}"
     )
+
+
+def pose_goal(goals: Sequence[Constraints], model: RobotModel) -> GoalPose | None:
+    """The first goal given as a position constraint (with at most one orientation constraint
+    on the same link, and nothing else) as a pose goal; None when no entry is one.
+
+    Read as MoveIt defines them, conservatively: the constraint region's first primitive, a
+    SPHERE (its radius) or a BOX (half its smallest side: the sphere inside it), at its first
+    primitive pose's position, is the position tolerance; the smallest of the absolute axis
+    tolerances is the largest rotation angle allowed (an angle within it is within each axis'
+    tolerance). Without an orientation constraint any orientation does. Refused (a
+    MotionPlanError): a frame other than the model's root (or `world`), a target point offset,
+    and a region of another shape.
+    """
+    for index, goal in enumerate(goals):
+        if goal.joint_constraints or goal.visibility_constraints:
+            continue
+        if len(goal.position_constraints) != 1 or len(goal.orientation_constraints) > 1:
+            continue
+        where = f"goal_constraints[{index}]"
+        position = goal.position_constraints[0]
+        link = str(position.get("link_name", ""))
+        center, tolerance = _region(position, model, f"{where}.position_constraints[0]")
+        quaternion, angle = (0.0, 0.0, 0.0, 1.0), math.pi
+        if goal.orientation_constraints:
+            quaternion, angle = _orientation(
+                goal.orientation_constraints[0], link, model, f"{where}.orientation_constraints[0]"
+            )
+        return GoalPose(link, center, quaternion, tolerance, angle)
+    return None
+
+
+def _frame(message: Mapping[str, Any], model: RobotModel, where: str) -> None:
+    frame = str((message.get("header") or {}).get("frame_id", "")).lstrip("/")
+    if frame not in ("", "world", model.link_names[0]):
+        raise MotionPlanError(
+            _GOAL, f"{where}.header.frame_id: {frame!r} is not the model's root frame "
+            f"({model.link_names[0]!r})",
+        )  # fmt: skip
+
+
+def _components(value: Any, names: str, where: str) -> tuple[float, ...]:
+    if isinstance(value, Mapping):
+        value = [value.get(n, 1.0 if n == "w" else 0.0) for n in names]
+    try:
+        out = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        out = ()
+    if len(out) != len(names) or not all(math.isfinite(v) for v in out):
+        raise MotionPlanError(_GOAL, f"{where}: {len(names)} finite values expected")
+    return out
+
+
+def _region(
+    message: Mapping[str, Any], model: RobotModel, where: str
+) -> tuple[tuple[float, float, float], float]:
+    """The position constraint's center and the radius of a sphere inside its region."""
+    _frame(message, model, where)
+    offset = _components(message.get("target_point_offset") or [0, 0, 0], "xyz", where)
+    if any(offset):
+        raise MotionPlanError(_GOAL, f"{where}.target_point_offset: only a zero offset is read")
+    region = message.get("constraint_region") or {}
+    shapes, poses = region.get("primitives") or [], region.get("primitive_poses") or []
+    if len(shapes) != 1 or len(poses) != 1:
+        raise MotionPlanError(_GOAL, f"{where}.constraint_region: one primitive and its pose")
+    kind = str(shapes[0].get("type", "")).lower()
+    dims = [float(d) for d in shapes[0].get("dimensions") or []]
+    if kind in ("2", "sphere") and len(dims) >= 1 and dims[0] > 0:
+        radius = dims[0]
+    elif kind in ("1", "box") and len(dims) == 3 and min(dims) > 0:
+        radius = min(dims) / 2.0
+    else:
+        raise MotionPlanError(
+            _GOAL, f"{where}.constraint_region: a SPHERE (2) or a BOX (1) with positive size"
+        )
+    x, y, z = _components(poses[0].get("position", [0, 0, 0]), "xyz", f"{where} position")
+    return (x, y, z), radius
+
+
+def _orientation(
+    message: Mapping[str, Any], link: str, model: RobotModel, where: str
+) -> tuple[tuple[float, float, float, float], float]:
+    """The orientation constraint's quaternion and its smallest axis tolerance."""
+    _frame(message, model, where)
+    if str(message.get("link_name", "")) != link:
+        raise MotionPlanError(_GOAL, f"{where}.link_name must be the position constraint's")
+    qx, qy, qz, qw = _components(message.get("orientation", [0, 0, 0, 1]), "xyzw", where)
+    axes = [float(message.get(f"absolute_{a}_axis_tolerance", 0.0)) for a in "xyz"]
+    if min(axes) <= 0.0:
+        raise MotionPlanError(_GOAL, f"{where}: the absolute axis tolerances must be positive")
+    return (qx, qy, qz, qw), min(min(axes), math.pi)

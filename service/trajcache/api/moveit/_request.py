@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from trajcache.api.answer_extras import TimingOptions
 from trajcache.api.moveit._codes import MotionPlanError, MoveItErrorCode
-from trajcache.api.moveit._goal import BASE_VARIABLES, goal_values, state_variable
+from trajcache.api.moveit._goal import BASE_VARIABLES, goal_values, pose_goal, state_variable
 from trajcache.api.moveit._ignored import ignored_fields, planner_and_budget
 from trajcache.api.moveit._messages import MotionPlanRequestIn, Quaternion, RobotState
 from trajcache.api.moveit._state import (
@@ -75,10 +75,15 @@ def motion_plan_query(
     targets = held_targets(model, held or {})
     warnings: list[str] = []
     start = read_start_state(message.start_state, model, targets, warnings)
-    goal = goal_values(
-        message.goal_constraints, model=model, start=start, held=targets, warnings=warnings
-    )
-    _checked(model, goal, "goal", _GOAL)
+    goal: dict[str, float] | None = None
+    pose = None
+    if not _joint_goal_given(message, model):
+        pose = pose_goal(message.goal_constraints, model)
+    if pose is None:
+        goal = goal_values(
+            message.goal_constraints, model=model, start=start, held=targets, warnings=warnings
+        )
+        _checked(model, goal, "goal", _GOAL)
     planner, budget_s = planner_and_budget(message, settings, warnings)
     request = resolve_request(
         settings=settings,
@@ -86,6 +91,7 @@ def motion_plan_query(
         goal=goal,
         options=PlanOptions(budget_s=budget_s, planner=planner),
         names={"budget_s": "allowed_planning_time"},
+        goal_pose=pose,
     )
     timing = TimingOptions(
         velocity_scaling=message.max_velocity_scaling_factor or 1.0,
@@ -95,6 +101,11 @@ def motion_plan_query(
     base_joint = _base_joint(message) if planar else DEFAULT_BASE_JOINT
     warnings += ignored_fields(message, planar)
     return MotionPlanQuery(request, start, timing, base_joint, tuple(warnings))
+
+
+def _joint_goal_given(message: MotionPlanRequestIn, model: RobotModel) -> bool:
+    """Whether some goal entry holds joint constraints (then the goal is read as joints)."""
+    return any(goal.joint_constraints for goal in message.goal_constraints)
 
 
 def read_start_state(

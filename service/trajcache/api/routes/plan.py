@@ -16,8 +16,9 @@ from trajcache.api.answer_extras import (
 from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, RobotIdPath
 from trajcache.api.responses import COMMON, errors
-from trajcache.api.schemas.plan import PlanBody, PlanResponse
+from trajcache.api.schemas.plan import GoalPoseIn, PlanBody, PlanResponse
 from trajcache.geometry.model.kinematics import StateInput
+from trajcache.services.plan.attempt import GoalPose
 from trajcache.services.plan.flow import PlanAnswer, answer_plan
 from trajcache.services.plan.options import PlanOptions as ServicePlanOptions
 
@@ -61,7 +62,8 @@ def plan_route(ctx: CtxDep, body: PlanBody, robot_id: RobotIdPath) -> Response:
         ctx=ctx,
         robot_id=robot_id,
         start=_state(body.start),
-        goal=_state(body.goal),
+        goal=None if body.goal is None else _state(body.goal),
+        goal_pose=_goal_pose(body.goal_pose),
         options=ServicePlanOptions(
             threshold=o.threshold,
             max_candidates=o.max_candidates,
@@ -89,6 +91,16 @@ def plan_route(ctx: CtxDep, body: PlanBody, robot_id: RobotIdPath) -> Response:
     )
 
 
+def _goal_pose(pose: GoalPoseIn | None) -> GoalPose | None:
+    if pose is None:
+        return None
+    x, y, z = pose.position
+    qx, qy, qz, qw = pose.orientation
+    return GoalPose(
+        pose.link, (x, y, z), (qx, qy, qz, qw), pose.position_tolerance, pose.orientation_tolerance
+    )
+
+
 def _response_body(answer: PlanAnswer) -> dict[str, object]:
     """The fields of PlanResponse, from a plan answer."""
     return {
@@ -106,6 +118,8 @@ def _response_body(answer: PlanAnswer) -> dict[str, object]:
             for r in answer.rejected
         ],
         "validation": _validation(answer),
+        "goal_state": None if answer.goal_state is None else answer.goal_state.tolist(),
+        "goal_found_by": answer.goal_found_by,
     }
 
 

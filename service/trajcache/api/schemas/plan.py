@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from trajcache.api.answer_extras import JointTrajectory, TimingOptions, TrajectoryQuality
 from trajcache.api.schemas.common import FiniteFloat
@@ -100,6 +100,34 @@ StateIn = (
 )
 
 
+class GoalPoseIn(RequestModel):
+    """Where a link must be at the goal: a position and orientation in the model's base frame
+    (the world frame for a planar base), within tolerances."""
+
+    link: str = Field(
+        default="",
+        max_length=200,
+        description="A link of the model, or an SRDF end effector (its parent link); empty: the "
+        "model's end-effector link.",
+    )
+    position: Annotated[list[FiniteFloat], Field(min_length=3, max_length=3)] = Field(
+        description="[x, y, z], metres."
+    )
+    orientation: Annotated[list[FiniteFloat], Field(min_length=4, max_length=4)] = Field(
+        default=[0.0, 0.0, 0.0, 1.0], description="[x, y, z, w], a unit quaternion."
+    )
+    position_tolerance: FiniteFloat = Field(
+        default=1e-3, gt=0, le=1.0, description="Largest distance from the position (m)."
+    )
+    orientation_tolerance: FiniteFloat = Field(
+        default=1e-2,
+        gt=0,
+        le=3.1416,
+        description="Largest angle of the rotation between the link's orientation and the "
+        "target's (rad).",
+    )
+
+
 class PlanBody(RequestModel):
     """A plan request: each state as values in the model's `state_names` order, as a map
     {joint name: value} (held joints may be given at their held values), or as the name of one
@@ -118,8 +146,21 @@ class PlanBody(RequestModel):
     )
 
     start: StateIn
-    goal: StateIn
+    goal: StateIn | None = Field(
+        default=None, description="The goal state; or give `goal_pose` instead."
+    )
+    goal_pose: GoalPoseIn | None = Field(
+        default=None,
+        description="The goal as where a link must be: the state is found among the cached "
+        "trajectories' ends, or by inverse kinematics (the answer's `goal_state`).",
+    )
     options: PlanOptions = Field(default_factory=PlanOptions)
+
+    @model_validator(mode="after")
+    def _one_goal(self) -> PlanBody:
+        if (self.goal is None) == (self.goal_pose is None):
+            raise ValueError("give exactly one of goal (a state) and goal_pose (a link's pose)")
+        return self
 
 
 class Rejection(BaseModel):
@@ -159,7 +200,8 @@ class PlanResponse(BaseModel):
     timings_ms: dict[str, float] = Field(
         description="Milliseconds per phase: lookup, validate, plan, db, total; a planned answer "
         "adds the planner's own: search, simplify, certify (in the worker), repair, worker (its "
-        "whole run) and pool (the round trip around it)."
+        "whole run) and pool (the round trip around it); a `goal_pose` adds pose_goal (finding "
+        "its state, part of lookup)."
     )
     message: str = ""
     warnings: list[str] = Field(
@@ -170,6 +212,15 @@ class PlanResponse(BaseModel):
     rejected: list[Rejection] = []
     joint_trajectory: JointTrajectory | None = None
     quality: TrajectoryQuality | None = None
+    goal_state: list[float] | None = Field(
+        default=None,
+        description="For a `goal_pose`: the goal state it resolved to (the path's last state).",
+    )
+    goal_found_by: Literal["cached", "ik"] | None = Field(
+        default=None,
+        description="For a `goal_pose`: `cached` (a cached trajectory's end reaches the pose as "
+        "it is) or `ik` (inverse kinematics, from nearby cached states or the start).",
+    )
     validation: ValidationReuse | None = Field(
         default=None,
         description="A cache answer's validation: what it could skip (null for other answers).",

@@ -13,7 +13,7 @@ a status, not an error.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,7 +45,7 @@ IK_BUDGET_MAX_S = 2.0  # the most a request may ask for
 CACHED_STARTS = 3  # cached endpoint states tried after the seed
 CACHED_POOL = 256  # the most recent cached trajectories whose endpoints are searched
 
-__all__ = ["IkAnswer", "IkRequest", "IkStatus", "answer_ik"]
+__all__ = ["IkAnswer", "IkRequest", "IkStatus", "answer_ik", "cached_starts", "free_fn", "link_of"]
 
 
 @dataclass(frozen=True)
@@ -93,18 +93,20 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         checked, lambda: PinKinematics.build(checked, source.urdf)
     )
     seed = _seed(checked, request)
-    target = _target(kinematics, _link(checked, source.srdf, request), request)
+    target = _target(
+        kinematics, link_of(checked, source.srdf, request.link, request.names), request
+    )
     valid_fn = None
     if request.avoid_collisions:
         checker = validator_for(checked, robot.scene, ctx.settings, cache=ctx.validators).checker
-        valid_fn = _free_fn(checker)
+        valid_fn = free_fn(checker)
     budget = request.budget_s if request.budget_s is not None else IK_BUDGET_S
     problem = IkProblem(
         kinematics,
         target,
         seed,
         move_base=request.move_base,
-        starts=_cached_starts(checked, endpoints, seed, target, move_base=request.move_base),
+        starts=cached_starts(checked, endpoints, seed, target, move_base=request.move_base),
         valid_fn=valid_fn,
         solutions=request.solutions,
         budget_s=min(budget, IK_BUDGET_MAX_S),
@@ -134,19 +136,22 @@ def _seed(model: RobotModel, request: IkRequest) -> FloatArray:
     return seed
 
 
-def _link(model: RobotModel, srdf: str | None, request: IkRequest) -> str:
+def link_of(
+    model: RobotModel, srdf: str | None, name: str, names: Mapping[str, str] | None = None
+) -> str:
     """The link a request names: a link, an SRDF end effector (its parent link), or none (the
-    model's end-effector link); InvalidInputError (422) when it names nothing known."""
-    if not request.link:
+    model's end-effector link); InvalidInputError (422) when it names nothing known (`names`:
+    the field names the caller used)."""
+    if not name:
         return model.link_names[end_effector_link(model)]
-    if request.link in model.link_names:
-        return request.link
+    if name in model.link_names:
+        return name
     effectors = parse_srdf(srdf).end_effectors if srdf else {}
-    if effectors.get(request.link) in model.link_names:
-        return effectors[request.link]
-    known = ", ".join([*model.link_names, *(f"{name} (end effector)" for name in effectors)])
+    if effectors.get(name) in model.link_names:
+        return effectors[name]
+    known = ", ".join([*model.link_names, *(f"{e} (end effector)" for e in effectors)])
     raise InvalidInputError(
-        f"{request.names.get('link', 'link')}: {request.link!r} is neither a link nor an SRDF "
+        f"{(names or {}).get('link', 'link')}: {name!r} is neither a link nor an SRDF "
         f"end effector of the model (known: {known})"
     )
 
@@ -159,7 +164,7 @@ def _target(kinematics: PinKinematics, link: str, request: IkRequest) -> PoseTar
     return PoseTarget(link, pose, request.position_tolerance, request.orientation_tolerance)
 
 
-def _free_fn(checker: CollisionChecker) -> Callable[[FloatArray], bool]:
+def free_fn(checker: CollisionChecker) -> Callable[[FloatArray], bool]:
     """A validity predicate: the state is free of the scene and of self-collision."""
 
     def free(state: FloatArray) -> bool:
@@ -168,7 +173,7 @@ def _free_fn(checker: CollisionChecker) -> Callable[[FloatArray], bool]:
     return free
 
 
-def _cached_starts(
+def cached_starts(
     model: RobotModel,
     endpoints: FloatArray,
     seed: FloatArray,

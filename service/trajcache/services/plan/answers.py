@@ -16,13 +16,19 @@ from collections.abc import Mapping
 import numpy as np
 
 from trajcache.cache.memo import MemoUse
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.scene import Scene
 from trajcache.metrics import record_plan
+from trajcache.services.context import ServiceContext
+from trajcache.services.errors import InvalidInputError
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
+from trajcache.services.plan.quality import AnswerExtras, answer_details
 from trajcache.services.plan.record_batch import EventDetails
 from trajcache.services.plan.records import PlanRecord, QualityJob
 from trajcache.services.plan.rejections import rejection_entries
+from trajcache.timing import TimingError
 
-__all__ = ["answer_hit", "answer_planned", "answer_without_path"]
+__all__ = ["answer_hit", "answer_planned", "answer_without_path", "describe_answer"]
 
 
 def answer_hit(
@@ -166,3 +172,33 @@ def _record(
         timings=timings,
     )
     return record
+
+
+def describe_answer(
+    *,
+    ctx: ServiceContext,
+    answer: PlanAnswer,
+    model: RobotModel,
+    scene: Scene,
+    extras: AnswerExtras,
+) -> PlanAnswer:
+    """`answer` with the details `extras` ask for, their cost in its timings (ms).
+
+    A timing the request's limits cannot satisfy is the caller's error (422).
+    """
+    if answer.states is None:
+        return answer
+    try:
+        details = answer_details(
+            ctx=ctx,
+            model=model,
+            scene=scene,
+            states=answer.states,
+            timing=extras.timing,
+            level=extras.quality,
+        )
+    except TimingError as exc:
+        raise InvalidInputError(f"options.timing: {exc}") from None
+    answer.details = details
+    answer.timings_ms.update({k: round(v, 3) for k, v in details.timings_ms.items()})
+    return answer

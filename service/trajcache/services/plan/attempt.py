@@ -30,6 +30,7 @@ from trajcache.services.plan.quality import AnswerDetails
 from trajcache.services.plan.rejections import RejectedCandidate
 
 __all__ = [
+    "GoalPose",
     "Origin",
     "PhaseClock",
     "PlanAnswer",
@@ -68,11 +69,23 @@ class PlanSource(str, Enum):
 
 
 @dataclass(frozen=True)
+class GoalPose:
+    """A link at a pose (the model's base frame; the world for a planar base), within
+    tolerances (metres; radians of the rotation between the two orientations)."""
+
+    link: str  # a link, an SRDF end effector, or "" (the model's end-effector link)
+    position: tuple[float, float, float]
+    orientation: tuple[float, float, float, float]  # x, y, z, w
+    position_tolerance: float = 1e-3
+    orientation_tolerance: float = 1e-2
+
+
+@dataclass(frozen=True)
 class PlanRequest:
     """A validated plan request with its options resolved against the settings."""
 
     start: StateInput  # values in state_names order, a {joint: value} map, or a named state
-    goal: StateInput
+    goal: StateInput | None  # None: `goal_pose` names the goal
     threshold: float
     max_candidates: int
     fallback: bool = True
@@ -80,6 +93,7 @@ class PlanRequest:
     planner: str = "compiled"
     arm_only: bool = False  # match on arm joints only when the base does not move
     lookup: bool = True  # False: skip the cache and plan (a fresh plan is still stored)
+    goal_pose: GoalPose | None = None  # the goal as a link's pose (`services.plan.pose_goal`)
 
 
 @dataclass(frozen=True)
@@ -114,6 +128,8 @@ class PlanAnswer:
     certificate: CertificateUse | None = None  # how the served candidate's certificate served
     warnings: list[str] = field(default_factory=list)  # what the caller should know (no scene)
     stored: bool | None = None  # a planned path: newly stored (False: identical to a stored one)
+    goal_state: np.ndarray | None = None  # a pose goal's state
+    goal_found_by: str | None = None  # how it was found: "cached" or "ik"
 
 
 class PhaseClock:
@@ -169,6 +185,8 @@ class PlanAttempt:
     tried: int = 0  # candidates counted in the answer and its plan event
     certificates: list[CertificateWrite] = field(default_factory=list)  # to write with the record
     certificate_use: CertificateUse | None = None  # the last certificate a validation used
+    goal_found_by: str | None = None  # a pose goal's state came from: "cached" or "ik"
+    pose_goal_ms: float = 0.0  # finding a pose goal's state (part of the lookup phase)
 
     @functools.cached_property
     def validator(self) -> TrajectoryValidator:

@@ -70,9 +70,10 @@ from trajcache.geometry.validation.validator import ValidationResult
 from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
-from trajcache.services.errors import InvalidInputError, SceneRequiredError
-from trajcache.services.plan.answers import answer_hit, answer_without_path
+from trajcache.services.errors import SceneRequiredError
+from trajcache.services.plan.answers import answer_hit, answer_without_path, describe_answer
 from trajcache.services.plan.attempt import (
+    GoalPose,
     Origin,
     PhaseClock,
     PlanAnswer,
@@ -85,10 +86,10 @@ from trajcache.services.plan.attempt import (
 from trajcache.services.plan.certified import validate_candidate
 from trajcache.services.plan.fallback import plan_fallback
 from trajcache.services.plan.options import PlanOptions, resolve_request
-from trajcache.services.plan.quality import AnswerExtras, answer_details
+from trajcache.services.plan.pose_goal import resolve_pose_goal
+from trajcache.services.plan.quality import AnswerExtras
 from trajcache.services.plan.rejections import RejectedCandidate
 from trajcache.services.plan.repair import repair_candidate
-from trajcache.timing import TimingError
 
 __all__ = [
     "NO_SCENE_WARNING",
@@ -122,12 +123,16 @@ def answer_plan(
     ctx: ServiceContext,
     robot_id: str,
     start: StateInput,
-    goal: StateInput,
+    goal: StateInput | None,
     options: PlanOptions,
     extras: AnswerExtras,
+    goal_pose: GoalPose | None = None,
 ) -> PlanAnswer:
-    """The plan endpoint's request: options resolved against the settings, answered with extras."""
-    request = resolve_request(settings=ctx.settings, start=start, goal=goal, options=options)
+    """The plan endpoint's request: options resolved against the settings, answered with extras;
+    the goal is a state, or else `goal_pose`."""
+    request = resolve_request(
+        settings=ctx.settings, start=start, goal=goal, options=options, goal_pose=goal_pose
+    )
     return answer_request(ctx=ctx, robot_id=robot_id, request=request, extras=extras)
 
 
@@ -200,6 +205,10 @@ def _plan_robot(
         )
         attempt = _open(ctx, session, robot_id, origin, model, robot.scene, request, clock)
         answer = _answer(attempt)
+        if request.goal_pose is not None:
+            answer.timings_ms["pose_goal"] = round(attempt.pose_goal_ms, 3)
+            if attempt.goal_found_by is not None:
+                answer.goal_state, answer.goal_found_by = attempt.goal, attempt.goal_found_by
         if robot.version == 0:
             answer.warnings.append(NO_SCENE_WARNING)
         return answer, attempt
@@ -220,7 +229,9 @@ def _open(
         # Checked as the robot holds its joints in this scene; cached under the registered model.
         checked = model_in_scene(model, scene, origin.held, cache=ctx.variants)
         start_values = resolve_state(checked, request.start, name="start")
-        goal_values = resolve_state(checked, request.goal, name="goal")
+        # a pose goal's state is found first thing (`_answer`); the start stands in till then
+        goal_in = request.start if request.goal is None else request.goal
+        goal_values = resolve_state(checked, goal_in, name="goal")
         start = check_states(model, start_values, name="start")[0]
         goal = check_states(model, goal_values, name="goal")[0]
         check_limits(model, start, name="start")
@@ -231,7 +242,17 @@ def _open(
 
 
 def _answer(attempt: PlanAttempt) -> PlanAnswer:
-    """Lookup → validate → the hit; else endpoints checked → a miss, or the planner's answer."""
+    """Lookup → validate → the hit; else endpoints checked → a miss, or the planner's answer.
+    A pose goal is resolved to a state first (`services.plan.pose_goal`, timed as lookup)."""
+    if attempt.request.goal_pose is not None:
+        began = attempt.clock.seconds("lookup")
+        with attempt.clock.measure("lookup"):
+            found = resolve_pose_goal(attempt, attempt.request.goal_pose)
+        attempt.pose_goal_ms = (attempt.clock.seconds("lookup") - began) * 1e3
+        if found.state is None:
+            return answer_without_path(attempt, PlanStatus.FAILURE, found.message)
+        attempt.goal = found.state
+        attempt.goal_found_by = found.found_by
     matches = lookup(attempt)
     hit = validate_candidates(attempt, matches)
     if hit is not None:
@@ -358,33 +379,3 @@ def _rejection(match: Match, result: ValidationResult) -> dict[str, object]:
         "status": result.status.value,
         "reason": result.message,
     }
-
-
-def describe_answer(
-    *,
-    ctx: ServiceContext,
-    answer: PlanAnswer,
-    model: RobotModel,
-    scene: Scene,
-    extras: AnswerExtras,
-) -> PlanAnswer:
-    """`answer` with the details `extras` ask for, their cost in its timings (ms).
-
-    A timing the request's limits cannot satisfy is the caller's error (422).
-    """
-    if answer.states is None:
-        return answer
-    try:
-        details = answer_details(
-            ctx=ctx,
-            model=model,
-            scene=scene,
-            states=answer.states,
-            timing=extras.timing,
-            level=extras.quality,
-        )
-    except TimingError as exc:
-        raise InvalidInputError(f"options.timing: {exc}") from None
-    answer.details = details
-    answer.timings_ms.update({k: round(v, 3) for k, v in details.timings_ms.items()})
-    return answer

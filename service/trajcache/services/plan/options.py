@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from trajcache.core.config import Settings
 from trajcache.geometry.model.kinematics import StateInput
 from trajcache.services.errors import InvalidInputError
-from trajcache.services.plan.attempt import PlanRequest
+from trajcache.services.plan.attempt import GoalPose, PlanRequest
 
 __all__ = ["PlanOptions", "resolve_request"]
 
@@ -43,9 +43,10 @@ def resolve_request(
     *,
     settings: Settings,
     start: StateInput,
-    goal: StateInput,
+    goal: StateInput | None,
     options: PlanOptions,
     names: Mapping[str, str] | None = None,
+    goal_pose: GoalPose | None = None,
 ) -> PlanRequest:
     """The plan request of `options`; `names` say how the caller calls an option in errors
     (default `options.<name>`)."""
@@ -69,4 +70,5 @@ def resolve_request(
         planner=options.planner or settings.default_planner,
         arm_only=options.arm_only,
         lookup=options.lookup,
+        goal_pose=goal_pose,
     )

@@ -3,7 +3,7 @@
 The one home of trajectory quality in the service: `trajectory_quality` gives the columns a
 stored trajectory carries (`services.catalog.trajectories`, the record writer for planned ones);
 `answer_details` gives what a plan request asked for (`AnswerExtras`): quality at a level, and
-the answer timed (`services.plan.flow.describe_answer` adds it to the answer). The metrics
+the answer timed (`services.plan.answers.describe_answer` adds it to the answer). The metrics
 themselves are `trajcache.trajectory_metrics`.
 """
 

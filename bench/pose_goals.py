@@ -1,0 +1,208 @@
+"""The MBM Panda problems with pose goals, through the REST API, checked independently.
+
+Each MotionBenchMaker Panda problem (`../shared/data/mbm-panda`, mbm_problems) is asked with its
+goal turned into the pose of `panda_hand` at the goal state (yourdfpy's forward kinematics of
+the shipped URDF), within a 5 mm sphere and 0.05 rad about each axis, as a MoveIt pick request
+gives it (`goal_pose`, native form):
+
+- first pass, `lookup: false`, fallback with --budget s: solved, the server's time, and the time
+  spent finding the goal state (`timings_ms.pose_goal`: IK, `ik_ms`);
+- replay: the pose moved by 1–3 cm in a random direction, the lookup on: answered from the
+  cache (`replay_hit_rate`), of which with a cached end that reaches the pose as it is
+  (`replay_as_is_share`), and the server's time of a hit (`hit_server_ms_median`).
+
+Every returned path is dense-checked as in bench/mbm.py (mbm_check: meshes, self-collision, the
+scene's allowed pairs), and its last state's hand pose is checked against the pose asked, with
+yourdfpy (`pose_errors`: out of tolerance). Prints a table and ends with one JSON line.
+
+    python bench/pose_goals.py [--smoke] [--per-family N] [--budget S] [--seed N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yourdfpy
+from rich.console import Console
+from rich.table import Table
+from scipy.spatial.transform import Rotation
+
+from harness.service import running_service
+from mbm_check import SceneChecker, check_path, panda_description
+from mbm_problems import (
+    ARM_JOINTS,
+    DEFAULT_DATA,
+    FAMILIES,
+    GROUP,
+    allowed_pairs,
+    clamp,
+    load_problems,
+    mesh_archive,
+    scene_objects,
+    unpacked,
+)
+from mbm_tally import Tally, percentile
+from trajcache_client import NO_RETRY, APIError, Client
+
+LINK = "panda_hand"
+POSITION_TOLERANCE = 0.005  # m: a 5 mm sphere
+ORIENTATION_TOLERANCE = 0.05  # rad
+MOVE_M = (0.01, 0.03)
+SMOKE_PER_FAMILY = 2
+
+
+class HandPose:
+    """The hand's pose by yourdfpy, from the shipped URDF (no meshes needed)."""
+
+    def __init__(self, robot_dir: Path) -> None:
+        self.urdf = yourdfpy.URDF.load(str(robot_dir / "panda.urdf"), load_meshes=False,
+                                       build_collision_scene_graph=False)  # fmt: skip
+
+    def of(self, state: np.ndarray) -> np.ndarray:
+        self.urdf.update_cfg(dict(zip(ARM_JOINTS, state.tolist(), strict=True)))
+        return np.asarray(self.urdf.get_transform(LINK, self.urdf.base_link))
+
+    def goal(self, state: np.ndarray, shift: np.ndarray | None = None) -> dict[str, Any]:
+        pose = self.of(state)
+        position = pose[:3, 3] + (0.0 if shift is None else shift)
+        return {"link": LINK, "position": position.tolist(),
+                "orientation": Rotation.from_matrix(pose[:3, :3]).as_quat().tolist(),
+                "position_tolerance": POSITION_TOLERANCE,
+                "orientation_tolerance": ORIENTATION_TOLERANCE}  # fmt: skip
+
+    def error(self, state: np.ndarray, goal: dict[str, Any]) -> bool:
+        """Whether the hand at `state` is out of the goal's tolerances."""
+        pose = self.of(state)
+        gap = np.linalg.norm(pose[:3, 3] - goal["position"])
+        turn = Rotation.from_matrix(pose[:3, :3]).inv() * Rotation.from_quat(goal["orientation"])
+        return bool(gap > POSITION_TOLERANCE + 1e-9 or turn.magnitude() > ORIENTATION_TOLERANCE)
+
+
+class PoseRun:
+    """The problems through a running service, with tallies of what came back."""
+
+    def __init__(self, client: Client, args: argparse.Namespace) -> None:
+        self.client, self.args = client, args
+        robot_dir = args.data / "robot"
+        self.hand = HandPose(robot_dir)
+        self.checker = SceneChecker(panda_description(robot_dir))
+        self.model_id = client.register_model(
+            (robot_dir / "panda.urdf").read_text(encoding="utf-8"),
+            srdf=(robot_dir / "panda.srdf").read_text(encoding="utf-8"),
+            group=GROUP, archive=mesh_archive(robot_dir), name="panda-mbm",
+        ).model_id  # fmt: skip
+        self.counts: Counter[str] = Counter()
+        self.times: dict[str, list[float]] = {"plan": [], "ik": [], "hit": []}
+
+    def ask(
+        self, robot_id: str, start: np.ndarray, goal: dict[str, Any], lookup: bool
+    ) -> dict[str, Any] | None:
+        options = {"fallback": True, "budget_s": self.args.budget, "lookup": lookup}
+        try:
+            answer = self.client.plan(robot_id, start.tolist(), None, options, goal_pose=goal)
+            return answer.model_dump()
+        except APIError as exc:
+            self.counts["http_5xx" if exc.status_code >= 500 else "http_4xx"] += 1
+            return None
+
+    def check(self, tally: Tally, answer: dict[str, Any], start: np.ndarray, goal: Any) -> None:
+        states = np.asarray(answer["states"], dtype=float)
+        check_path(tally, self.checker, states, (start, states[-1]), "pose")
+        self.counts["pose_errors"] += self.hand.error(states[-1], goal)
+
+    def problem(self, tally: Tally, problem: Any) -> None:
+        robot_id = f"pose-{problem.label}"
+        lower, upper = self.checker.lower, self.checker.upper
+        start, _ = clamp(problem.start, lower, upper)
+        goal_state, _ = clamp(problem.goal, lower, upper)
+        self.client.put_robot(robot_id, self.model_id)
+        self.client.put_scene(robot_id, problem.scene_text, media_type="application/yaml")
+        self.checker.set_scene(scene_objects(problem.scene), allowed_pairs(problem.scene))
+        tally.problems += 1
+        goal = self.hand.goal(goal_state)
+        answer = self.ask(robot_id, start, goal, lookup=False)
+        if answer is None or answer["status"] != "success":
+            tally.notes[str(answer and answer["message"])[:100]] += 1
+            return
+        tally.solved += 1
+        self.times["plan"].append(answer["timings_ms"]["total"])
+        self.times["ik"].append(answer["timings_ms"].get("pose_goal", 0.0))
+        self.check(tally, answer, start, goal)
+        rng = np.random.default_rng([self.args.seed, FAMILIES.index(problem.family), problem.index])
+        direction = rng.normal(size=3)
+        shift = direction / np.linalg.norm(direction) * rng.uniform(*MOVE_M)
+        moved = self.hand.goal(goal_state, shift)
+        self.counts["replays"] += 1
+        again = self.ask(robot_id, start, moved, lookup=True)
+        if again is None or again["status"] != "success":
+            return
+        self.check(tally, again, start, moved)
+        if again["source"] == "cache":
+            self.counts["replay_hits"] += 1
+            self.counts["as_is"] += again["goal_found_by"] == "cached"
+            self.times["hit"].append(again["timings_ms"]["total"])
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the mbm-panda folder")
+    parser.add_argument("--per-family", type=int, help="problems per family (default all)")
+    parser.add_argument("--budget", type=float, default=5.0, help="planning budget s")
+    parser.add_argument("--seed", type=int, default=1, help="of the replays' shifts")
+    parser.add_argument("--smoke", action="store_true", help=f"{SMOKE_PER_FAMILY} per family")
+    args = parser.parse_args(argv)
+    if args.smoke and args.per_family is None:
+        args.per_family, args.budget = SMOKE_PER_FAMILY, 2.0
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    began = time.perf_counter()
+    problems = load_problems(unpacked(args.data), list(FAMILIES), args.per_family)
+    tallies: dict[str, Tally] = {}
+    with running_service() as base, Client(base, timeout=120, retry=NO_RETRY) as client:
+        run = PoseRun(client, args)
+        for problem in problems:
+            run.problem(tallies.setdefault(problem.family, Tally(problem.family)), problem)
+    counts = sum((t.counts for t in tallies.values()), run.counts)
+    solved = sum(t.solved for t in tallies.values())
+    problems_n = sum(t.problems for t in tallies.values())
+    table = Table(title="MotionBenchMaker, Panda, pose goals (panda_hand, 5 mm, 0.05 rad)")
+    for name in ("family", "problems", "solved", "replay hits"):
+        table.add_column(name)
+    for t in tallies.values():
+        table.add_row(t.family, str(t.problems), str(t.solved), "")
+    Console(width=120).print(table)
+    replays, hits = counts["replays"], counts["replay_hits"]
+    figures = {
+        "problems": problems_n,
+        "success_rate": round(solved / problems_n, 4) if problems_n else None,
+        "plan_ms_median": percentile(run.times["plan"]),
+        "ik_ms_median": percentile(run.times["ik"]),
+        "replays": replays,
+        "replay_hit_rate": round(hits / replays, 4) if replays else None,
+        "replay_as_is_share": round(counts["as_is"] / hits, 4) if hits else None,
+        "hit_server_ms_median": percentile(run.times["hit"]),
+        "pose_errors": counts["pose_errors"],
+        "collisions": counts["collisions"],
+        "self_collisions": counts["self_collisions"],
+        "http_4xx": counts["http_4xx"],
+        "http_5xx": counts["http_5xx"],
+        "wall_s": round(time.perf_counter() - began, 1),
+        "smoke": args.smoke,
+    }
+    print(json.dumps(figures))
+    bad = figures["pose_errors"] or figures["collisions"] or figures["self_collisions"]
+    return 1 if bad or figures["http_5xx"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,166 @@
+"""Plans to a goal given as a link's pose, through the real app: the goal state is found by IK
+on a miss and among the cached trajectories' ends on a repeat; every answered path's last
+state is checked against the pose independently, with yourdfpy (not Pinocchio)."""
+
+from __future__ import annotations
+
+import io
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from scipy.spatial.transform import Rotation
+from yourdfpy import URDF
+from yourdfpy.urdf import filename_handler_null
+
+from tests.api.conftest import assert_detail, register
+from tests.robots import TWO_JOINT_URDF
+
+START = [0.0, 0.0]
+GOAL = [0.9, 0.3]  # the forearm's pose there is the target
+
+
+@pytest.fixture(scope="module")
+def arm() -> Any:
+    return URDF.load(
+        io.BytesIO(TWO_JOINT_URDF.encode()),
+        build_scene_graph=True,
+        load_meshes=False,
+        filename_handler=filename_handler_null,
+    )
+
+
+def fore_pose(arm: Any, state: list[float]) -> np.ndarray:
+    arm.update_cfg({"shoulder": state[0], "elbow": state[1]})
+    return np.asarray(arm.get_transform("fore", "base"))
+
+
+def target(arm: Any, state: list[float], **fields: Any) -> dict[str, Any]:
+    pose = fore_pose(arm, state)
+    quat = Rotation.from_matrix(pose[:3, :3]).as_quat()
+    return {"link": "fore", "position": pose[:3, 3].tolist(), "orientation": quat.tolist(),
+            "position_tolerance": 1e-3, "orientation_tolerance": 1e-2, **fields}  # fmt: skip
+
+
+def within(arm: Any, state: list[float], goal: dict[str, Any]) -> bool:
+    pose = fore_pose(arm, state)
+    gap = np.linalg.norm(pose[:3, 3] - goal["position"])
+    turn = Rotation.from_matrix(pose[:3, :3]).inv() * Rotation.from_quat(goal["orientation"])
+    return bool(
+        gap <= goal["position_tolerance"] and turn.magnitude() <= goal["orientation_tolerance"]
+    )
+
+
+@pytest.fixture
+def robot(app_client: TestClient) -> TestClient:
+    model_id = register(app_client)["model_id"]
+    assert app_client.put("/v1/robots/r1", json={"model_id": model_id}).status_code == 201
+    assert app_client.put("/v1/robots/r1/scene", json={"objects": []}).status_code == 200
+    return app_client
+
+
+def plan(client: TestClient, goal_pose: dict[str, Any], **options: Any) -> dict[str, Any]:
+    body = {"start": START, "goal_pose": goal_pose, "options": options}
+    reply = client.post("/v1/robots/r1/plan", json=body)
+    assert reply.status_code == 200, reply.text
+    return dict(reply.json())
+
+
+def test_a_pose_goal_is_planned_then_found_in_the_cache(robot: TestClient, arm: Any) -> None:
+    goal = target(arm, GOAL)
+    first = plan(robot, goal, fallback=True)
+    assert first["status"] == "success" and first["source"] == "planner"
+    assert first["goal_found_by"] == "ik"
+    assert first["states"][-1] == first["goal_state"]
+    assert within(arm, first["states"][-1], goal)
+    again = plan(robot, goal, fallback=False)  # the cached path's end reaches it as it is
+    assert again["source"] == "cache" and again["goal_found_by"] == "cached"
+    assert again["goal_state"] == first["goal_state"]
+    assert within(arm, again["states"][-1], goal)
+
+
+def test_a_pose_near_a_cached_end_is_solved_from_it(robot: TestClient, arm: Any) -> None:
+    """The second pose is the forearm's at a state 0.02 rad away: IK from the cached end finds
+    a state next to it, within the lookup threshold, and the cache answers."""
+    plan(robot, target(arm, GOAL), fallback=True)
+    nearby = target(arm, [GOAL[0] + 0.02, GOAL[1] - 0.02])
+    answer = plan(robot, nearby, fallback=False)
+    assert answer["source"] == "cache" and answer["goal_found_by"] == "ik"
+    assert within(arm, answer["states"][-1], nearby)
+
+
+def test_an_unreachable_pose_is_a_failure_not_an_error(robot: TestClient) -> None:
+    far = {"link": "fore", "position": [2.0, 0.0, 2.0], "orientation": [0, 0, 0, 1]}
+    answer = plan(robot, far, fallback=True)
+    assert answer["status"] == "failure" and answer["states"] is None
+    assert "no goal state puts 'fore'" in answer["message"]
+
+
+@pytest.mark.parametrize(
+    ("body", "needle"),
+    [
+        ({"start": START}, "exactly one of goal"),
+        ({"start": START, "goal": GOAL, "goal_pose": {"position": [0, 0, 1]}}, "exactly one"),
+        ({"start": START, "goal_pose": {"link": "nope", "position": [0, 0, 1]}}, "'nope'"),
+        ({"start": START, "goal_pose": {"position": [0, 0]}}, "goal_pose.position"),
+    ],
+)
+def test_a_malformed_pose_goal_is_a_422(
+    robot: TestClient, body: dict[str, Any], needle: str
+) -> None:
+    assert_detail(robot.post("/v1/robots/r1/plan", json=body), 422, needle)
+
+
+def moveit_request(goal: dict[str, Any], **position: Any) -> dict[str, Any]:
+    """A MotionPlanRequest whose goal is a position constraint (a sphere) and an orientation
+    constraint on the forearm, as MoveIt's pose goals are sent."""
+    sphere = {"type": 2, "dimensions": [goal["position_tolerance"]]}
+    at = {"position": goal["position"], "orientation": [0, 0, 0, 1]}
+    region = {"primitives": [sphere], "primitive_poses": [at]}
+    return {
+        "start_state": {"joint_state": {"name": ["shoulder", "elbow"], "position": START}},
+        "goal_constraints": [
+            {
+                "position_constraints": [
+                    {
+                        "link_name": "fore",
+                        "header": {"frame_id": "base"},
+                        "constraint_region": region,
+                        **position,
+                    }
+                ],
+                "orientation_constraints": [
+                    {
+                        "link_name": "fore",
+                        "orientation": goal["orientation"],
+                        "absolute_x_axis_tolerance": 0.01,
+                        "absolute_y_axis_tolerance": 0.01,
+                        "absolute_z_axis_tolerance": 0.01,
+                    }
+                ],
+            }
+        ],
+        "allowed_planning_time": 2.0,
+    }
+
+
+def test_moveit_pose_constraints_are_a_pose_goal(robot: TestClient, arm: Any) -> None:
+    goal = target(arm, GOAL)
+    reply = robot.post("/v1/robots/r1/motion-plan", json=moveit_request(goal))
+    assert reply.status_code == 200, reply.text
+    body = reply.json()
+    assert body["error_code"]["val"] == 1, body
+    points = body["trajectory"]["joint_trajectory"]["points"]
+    names = body["trajectory"]["joint_trajectory"]["joint_names"]
+    last = dict(zip(names, points[-1]["positions"], strict=True))
+    assert within(arm, [last["shoulder"], last["elbow"]], goal)
+
+
+def test_moveit_pose_goals_that_cannot_be_read_or_reached(robot: TestClient, arm: Any) -> None:
+    far = {**target(arm, GOAL), "position": [2.0, 0.0, 2.0]}
+    unreached = robot.post("/v1/robots/r1/motion-plan", json=moveit_request(far)).json()
+    assert unreached["error_code"]["val"] == -31  # NO_IK_SOLUTION
+    offset = moveit_request(target(arm, GOAL), target_point_offset=[0.0, 0.0, 0.1])
+    refused = robot.post("/v1/robots/r1/motion-plan", json=offset)
+    assert "target_point_offset" in refused.text
