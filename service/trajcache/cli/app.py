@@ -11,6 +11,7 @@ import trajcache.cli.reference as reference
 import trajcache.cli.seed as seed
 import trajcache.cli.serve as serve
 import trajcache.cli.transfer as transfer
+import trajcache.cli.warm as warm
 import trajcache.cli.worker as worker
 from trajcache.cli.help import TidyCommand, TidyGroup
 
@@ -21,6 +22,7 @@ app = typer.Typer(
 )
 app.command("serve", cls=TidyCommand)(serve.serve)
 app.command("migrate", cls=TidyCommand)(serve.migrate_command)
+app.command("warm", cls=TidyCommand)(warm.warm_command)
 app.command(
     "worker", cls=TidyCommand, help="Start a Celery planner worker (broker from settings)."
 )(worker.worker)
