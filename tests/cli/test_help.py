@@ -45,7 +45,7 @@ def _help(words: tuple[str, ...]) -> str:
 def test_every_command_group_is_listed() -> None:
     listed = {words[0] for words in COMMANDS if words}
     assert {"serve", "migrate", "worker", "keys", "seed", "export", "import", "prune"} <= listed
-    assert {"reference", "openapi", "config-table", "demo", "warm"} <= listed
+    assert {"reference", "openapi", "config-table", "demo", "warm", "robots"} <= listed
 
 
 @pytest.mark.parametrize("words", COMMANDS, ids=lambda w: " ".join(w) or "trajcache")

@@ -55,6 +55,7 @@ def test_the_probe_sees_a_heavy_import() -> None:
         ("serve", "--help"),
         ("warm", "--help"),
         ("keys", "create", "--help"),
+        ("robots", "fetch", "--help"),
         ("seed", "--help"),
         ("demo", "--help"),
         ("prune", "--help"),

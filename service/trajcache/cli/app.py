@@ -8,6 +8,7 @@ import trajcache.cli.demo as demo
 import trajcache.cli.docs as docs
 import trajcache.cli.keys as keys
 import trajcache.cli.reference as reference
+import trajcache.cli.robots as robots
 import trajcache.cli.seed as seed
 import trajcache.cli.serve as serve
 import trajcache.cli.transfer as transfer
@@ -32,6 +33,7 @@ app.command("export", cls=TidyCommand)(transfer.export_command)
 app.command("import", cls=TidyCommand)(transfer.import_command)
 app.command("prune", cls=TidyCommand)(transfer.prune_command)
 app.add_typer(reference.app, name="reference")
+app.add_typer(robots.app, name="robots")
 app.command("openapi", cls=TidyCommand)(docs.openapi)
 app.command("config-table", cls=TidyCommand)(docs.config_table_command)
 app.command("demo", cls=TidyCommand)(demo.demo)
