@@ -12,7 +12,7 @@ $(RUNTIME): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e .
-	$(BIN)/python -c "from trajcache.planning.warm import warm; warm()"  # numba's cache
+	$(BIN)/trajcache warm  # numba's cache, with its progress
 	touch $(RUNTIME)
 
 $(DEV): $(RUNTIME)

@@ -4,8 +4,6 @@ meshes, SRDF groups, states and collision matrices, mimic and held joints."""
 from __future__ import annotations
 
 import base64
-import io
-import zipfile
 from typing import Any
 
 import numpy as np
@@ -23,11 +21,7 @@ READY = [0.0, -0.785398, 0.0, -2.35619, 0.0, 1.5707, 0.785398]  # the SRDF's "de
 
 
 def _archive(robot: ExampleRobot) -> str:
-    buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
-        for path, data in robot.files().items():
-            archive.writestr(path, data)
-    return base64.b64encode(buffer.getvalue()).decode()
+    return base64.b64encode(robot.archive()).decode()
 
 
 def _register(client: TestClient, robot: ExampleRobot, **fields: Any) -> dict[str, Any]:

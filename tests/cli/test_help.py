@@ -9,6 +9,7 @@ import typer
 from typer.testing import CliRunner
 
 from trajcache.cli import app
+from trajcache.cli.keys import KeyRole
 from trajcache.cli.transfer import EvictionPolicy
 from trajcache.services.catalog.keys import Role
 from trajcache.services.maintenance.eviction import POLICIES
@@ -44,7 +45,7 @@ def _help(words: tuple[str, ...]) -> str:
 def test_every_command_group_is_listed() -> None:
     listed = {words[0] for words in COMMANDS if words}
     assert {"serve", "migrate", "worker", "keys", "seed", "export", "import", "prune"} <= listed
-    assert {"reference", "openapi", "config-table", "demo"} <= listed
+    assert {"reference", "openapi", "config-table", "demo", "warm", "robots"} <= listed
 
 
 @pytest.mark.parametrize("words", COMMANDS, ids=lambda w: " ".join(w) or "trajcache")
@@ -62,7 +63,7 @@ def test_database_commands_take_a_database_url(words: tuple[str, ...]) -> None:
 def test_help_lists_roles_and_policies() -> None:
     assert "[robot|seeder|admin]" in _help(("keys", "create"))
     assert f"[{'|'.join(POLICIES)}]" in _help(("prune",))
-    assert {r.value for r in Role} == {"robot", "seeder", "admin"}
+    assert [r.value for r in KeyRole] == [r.value for r in Role] == ["robot", "seeder", "admin"]
     assert tuple(p.value for p in EvictionPolicy) == POLICIES
 
 

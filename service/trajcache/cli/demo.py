@@ -11,14 +11,16 @@ from __future__ import annotations
 import json
 from contextlib import ExitStack
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
 from trajcache.cli.common import err_console
-from trajcache.cli.demo_play import RowResult
+
+if TYPE_CHECKING:
+    from trajcache.cli.demo_play import RowResult
 
 CACHES = ("none", "sim", "sim_arm", "seeded", "real", "real_arm")
 TITLES = {1: "Table 1: simulation", 2: "Table 2: pre-seeding and the real robot"}

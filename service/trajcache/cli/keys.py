@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from enum import Enum
 from typing import Annotated
 
 import typer
@@ -10,8 +11,16 @@ from rich.table import Column, Table
 
 from trajcache.cli.common import DatabaseUrlOption, err_console, fail, load_settings, open_session
 from trajcache.cli.help import TidyCommand, TidyGroup
-from trajcache.services.catalog.keys import Role
-from trajcache.services.errors import ServiceError
+
+
+class KeyRole(str, Enum):
+    """The roles `keys create --role` takes (those of `services.catalog.keys.Role`, named here
+    so that the command line's help needs no database layer)."""
+
+    ROBOT = "robot"
+    SEEDER = "seeder"
+    ADMIN = "admin"
+
 
 app = typer.Typer(cls=TidyGroup, help="Create, list and revoke API keys.", no_args_is_help=True)
 
@@ -19,7 +28,7 @@ app = typer.Typer(cls=TidyGroup, help="Create, list and revoke API keys.", no_ar
 @app.command(cls=TidyCommand)
 def create(
     name: Annotated[str, typer.Option(metavar="NAME", help="Who or what the key is for.")],
-    role: Annotated[Role, typer.Option(help="What the key may do.")],
+    role: Annotated[KeyRole, typer.Option(help="What the key may do.")],
     robot: Annotated[
         list[str] | None,
         typer.Option(
@@ -32,6 +41,7 @@ def create(
 ) -> None:
     """Create a key and print it once; only its hash is stored."""
     from trajcache.services.catalog.keys import create_key
+    from trajcache.services.errors import ServiceError
 
     settings = load_settings(database_url)
     with open_session(settings, migrate=True) as session:
@@ -90,6 +100,7 @@ def revoke(
 ) -> None:
     """Revoke a key; services stop accepting it within auth_cache_ttl_s."""
     from trajcache.services.catalog.keys import list_keys, revoke_key
+    from trajcache.services.errors import ServiceError
 
     settings = load_settings(database_url)
     with open_session(settings) as session:

@@ -7,6 +7,9 @@ import os
 import signal
 import socket
 import sys
+import threading
+import time
+import urllib.request
 from types import FrameType
 from typing import Annotated
 
@@ -21,6 +24,7 @@ from trajcache.cli.common import (
     require_database,
     upgrade_database,
 )
+from trajcache.cli.warm import warm_kernels
 
 
 def check_port(host: str, port: int) -> None:
@@ -36,6 +40,40 @@ def check_port(host: str, port: int) -> None:
             if exc.errno == errno.EADDRINUSE:
                 reason += " (another service listens there; choose --port or TRAJCACHE_PORT)"
             raise fail(RuntimeError(f"cannot serve on {shown}:{port}: {reason}")) from None
+
+
+def _probe_url(host: str, port: int) -> str:
+    """Where this machine reaches a service bound to `host` (a wildcard: loopback)."""
+    if host in ("0.0.0.0", ""):
+        host = "127.0.0.1"
+    elif host == "::":
+        host = "::1"
+    return f"http://[{host}]:{port}" if ":" in host else f"http://{host}:{port}"
+
+
+_DIRECT = urllib.request.build_opener(urllib.request.ProxyHandler({}))  # never through a proxy
+
+
+def _answers(base: str) -> bool:
+    try:
+        with _DIRECT.open(f"{base}/healthz", timeout=1.0) as response:
+            return bool(response.status == 200)
+    except (OSError, ValueError):
+        return False
+
+
+def announce_when_answering(base: str, message: str, interval_s: float = 0.2) -> threading.Thread:
+    """Print `message` once the service at `base` answers `GET /healthz`, from a daemon thread
+    that asks every `interval_s` (so the line follows the app's startup, never precedes it)."""
+
+    def wait_then_print() -> None:
+        while not _answers(base):
+            time.sleep(interval_s)
+        err_console().print(message, soft_wrap=True)
+
+    thread = threading.Thread(target=wait_then_print, name="announce", daemon=True)
+    thread.start()
+    return thread
 
 
 def _stop_on_sigterm(_signum: int, _frame: FrameType | None) -> None:
@@ -81,10 +119,12 @@ def serve(
     # process with status 0, through the interpreter's exit handlers (multiprocessing's release
     # the planner pool's semaphores), instead of the default handler killing it.
     signal.signal(signal.SIGTERM, _stop_on_sigterm)
-    err_console().print(
+    warm_kernels()  # with its progress; the app's own warming then finds them ready
+    message = (
         f"trajcache serving on [bold]http://{shown}:{port}[/bold] "
         f"(API docs at /docs, {workers} worker{'s' if workers > 1 else ''})"
     )
+    announce_when_answering(_probe_url(host, port), message)
     uvicorn.run(
         "trajcache.main:create_app",
         factory=True,

@@ -6,6 +6,8 @@ from typing import Annotated
 
 import typer
 
+from trajcache.cli.warm import warm_kernels
+
 
 def worker(
     concurrency: Annotated[
@@ -45,4 +47,5 @@ def worker(
     ]
     if hostname is not None:
         argv.append(f"--hostname={hostname}")
+    warm_kernels()  # with its progress; the worker's own warming then finds them ready
     celery_app.worker_main(argv)

@@ -1,11 +1,15 @@
 """Warming: compile (or load from numba's cache) every geometry kernel before a request needs it.
 
-`planning/warm.py` calls `warm()` and then warms the compiled planner's kernels; the service
-calls that when it starts, the Celery worker before it forks its processes, `make setup` once to
-fill numba's on-disk cache, and the planner pool's forkserver through `trajcache.jobs.preload`.
+`warm_steps` names the kernel groups in order; `planning/warm.py` adds the compiled planner's
+after them. The service warms them all when it starts, the Celery worker before it forks its
+processes, `trajcache warm` (and so `make setup`) once to fill numba's on-disk cache, and the
+planner pool's forkserver through `trajcache.jobs.preload`.
 """
 
 from __future__ import annotations
+
+import functools
+from collections.abc import Callable
 
 import numpy as np
 
@@ -31,30 +35,60 @@ _WARM_URDF = """<robot name="warm">
     <origin xyz="0 0 0.4"/><axis xyz="0 0 1"/>
     <limit lower="0" upper="0.1" effort="1" velocity="1"/></joint>
 </robot>"""
+_KEY = np.array([[-1.5, 0.0], [1.5, 0.1]])  # two states of the small robot, both free
+
+
+WarmStep = tuple[str, Callable[[], None]]  # (the kernels' group, the call that warms them)
+
+
+def warm_steps() -> list[WarmStep]:
+    """The geometry's kernel groups in the order they are warmed, each through the code that
+    calls them (so with the argument types a request passes), on a small robot near a box and
+    a mesh: the distance bounds, certified validation, a state check with pads and a planner's
+    quick motion check, and a sphere-cover state check."""
+    problem = functools.cache(warm_problem)
+
+    @functools.cache
+    def checker() -> CollisionChecker:
+        return CollisionChecker(*problem())
+
+    return [
+        ("distance bounds", _warm_bounds),
+        ("certified validation", lambda: _warm_validation(*problem())),
+        ("collision checks", lambda: _warm_checks(checker())),
+        ("sphere checks", lambda: _warm_spheres(checker())),
+    ]
 
 
 def warm() -> None:
-    """Compile (or load from numba's cache) every kernel now, through the code that calls them
-    (so with the argument types a request passes): certified validation, a state check with
-    pads, a planner's quick motion check and a sphere-cover state check, of a small robot
-    near a box and a mesh."""
+    """Compile (or load from numba's cache) every geometry kernel now (`warm_steps`)."""
+    for _, run in warm_steps():
+        run()
 
+
+def _warm_bounds() -> None:
     vertices = np.zeros((1, 3))
     index = np.zeros(1, dtype=np.int64)
     hull_support_climb(
         vertices, index, index + 1, index, index, index + 1, index, np.zeros(2, dtype=np.int64),
         index, np.zeros((1, 3)), np.zeros(1),
     )  # fmt: skip
-    model, scene = warm_problem()
-    key = np.array([[-1.5, 0.0], [1.5, 0.1]])
+
+
+def _warm_validation(model: RobotModel, scene: Scene) -> None:
     validator = TrajectoryValidator(model, scene)
-    validator.validate(key)
-    validator.certifier.settled_by_bounds(key)
-    checker = CollisionChecker(model, scene)
-    checker.check(key, element_pad=np.full((2, len(model.elements)), 0.01),
+    validator.validate(_KEY)
+    validator.certifier.settled_by_bounds(_KEY)
+
+
+def _warm_checks(checker: CollisionChecker) -> None:
+    checker.check(_KEY, element_pad=np.full((2, len(checker.model.elements)), 0.01),
                   pair_pad=np.full((2, len(checker.robot.pair_i)), 0.01))  # fmt: skip
+
+
+def _warm_spheres(checker: CollisionChecker) -> None:
     tables = sphere_tables(checker)
-    sphere_state(key[0], tables.fk, tables.robot, tables.scene, tables.pairs, tables.work())
+    sphere_state(_KEY[0], tables.fk, tables.robot, tables.scene, tables.pairs, tables.work())
 
 
 def warm_problem() -> tuple[RobotModel, Scene]:

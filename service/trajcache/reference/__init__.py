@@ -6,7 +6,8 @@
   cleaning runs (the plan calls and the scene changes between them), the workload of the
   paper's protocol, of `trajcache demo` and of the benchmarks.
 - `example_robots`: the robots of the `example-robot-data` package as it ships them (a second,
-  real-robot workload for tests and benchmarks; the package itself is a development extra).
+  real-robot workload for tests and benchmarks, and the files `trajcache robots fetch` writes;
+  the package itself is the `robots` extra, and in `dev`).
 """
 
 from __future__ import annotations

@@ -5,13 +5,19 @@ group to plan with, or the listed planning joints and base type for a robot with
 mesh files come with it, keyed as `robots/<path below the package's robots/ folder>`, which is
 what the URDFs' `package://example-robot-data/robots/...` URIs resolve to in an upload.
 
-The package is a development dependency; `robots_dir` raises LookupError without it.
+An archive for the service holds each mesh at the path its URI names below the package
+(`package://example-robot-data/robots/panda_description/meshes/…` at
+`robots/panda_description/meshes/…`): `archive()` writes it so, and `trajcache robots fetch`
+writes it to disk. The package is an optional extra (`pip install trajcache[robots]`, and in
+`dev`); `robots_dir` raises LookupError without it.
 """
 
 from __future__ import annotations
 
+import io
 import re
 import sysconfig
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,6 +53,14 @@ class ExampleRobot:
         root = robots_dir()
         paths = sorted(set(_MESH_URI.findall(self.urdf)))
         return {f"robots/{p}": (root / p).read_bytes() for p in paths if (root / p).is_file()}
+
+    def archive(self) -> bytes:
+        """A zip of `files()`, laid out as the URDF's mesh URIs resolve in an upload."""
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path, data in self.files().items():
+                archive.writestr(path, data)
+        return buffer.getvalue()
 
 
 ROBOTS: dict[str, ExampleRobot] = {
@@ -92,4 +106,7 @@ def robots_dir() -> Path:
         ):
             if candidate.is_dir():
                 return candidate
-    raise LookupError("example-robot-data is not installed: pip install example-robot-data")
+    raise LookupError(
+        "example-robot-data is not installed: pip install 'trajcache[robots]' "
+        "(or pip install example-robot-data)"
+    )
