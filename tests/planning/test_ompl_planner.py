@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tests.robots import TWO_ROD_URDF
+from tests.waiting import NEVER_BINDS_S
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
@@ -29,9 +30,6 @@ from trajcache.reference.robot import STOWED_ARM, reference_model
 # Two arm configurations at stall 2 (doors at 45°) whose straight segment collides.
 DOWN = (-2.39, 1.55, 0.96, 1.02, 1.75, -0.29, 2.48)
 FORWARD = (0.27, 0.53, 2.65, 3.46, -2.78, 2.04, -1.5)
-# A budget for problems that must be solved: it never binds, even on a loaded machine (a search
-# returns as soon as it is solved), so the verdict is the planner's, not the clock's.
-NEVER_BINDS_S = 60.0
 
 
 @pytest.fixture(scope="module")

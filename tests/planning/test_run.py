@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from tests.planning.test_ompl_planner import DOWN, FORWARD
+from tests.waiting import NEVER_BINDS_S
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
 from trajcache.planning import ompl_planner, rris, run
@@ -44,7 +45,7 @@ def problem() -> PlanningProblem:
         scene=SceneSource(scene.hash, scene_to_payload(scene)),
         start=base + DOWN,
         goal=base + FORWARD,
-        budget_s=30.0,  # never binds, even on a loaded machine: the search ends when solved
+        budget_s=NEVER_BINDS_S,
         seed=1,
     )
 
