@@ -17,6 +17,7 @@ import pytest
 import sqlalchemy as sa
 
 from tests.services.hit_setup import context, count_statements, store, two_joint
+from tests.waiting import NEVER_BINDS_S
 from trajcache.cache.memo import MemoUse
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.errors import CollisionStateError
@@ -380,7 +381,8 @@ def test_the_worker_s_certificate_stands_for_the_service_s_validation(
     setup_robot(ctx, [blocker()], DETOUR)
     planner = WorkerPlanner()
     use_planner(ctx, monkeypatch, planner)
-    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, max_candidates=0)
+    options = {"fallback": True, "max_candidates": 0, "budget_s": NEVER_BINDS_S}
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], **options)
     assert (answer.status, answer.source) == (PlanStatus.SUCCESS, PlanSource.PLANNER)
     assert planner.validations_before_answer > 0  # the worker certified its path
     assert counted[0] == planner.validations_before_answer  # the service did not again
@@ -405,7 +407,8 @@ def test_a_certificate_that_does_not_name_the_path_here_is_validated_again(
         return PlanResult(PlannerStatus.SOLVED, through)
 
     use_planner(ctx, monkeypatch, WorkerPlanner(change))
-    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, max_candidates=0)
+    options = {"fallback": True, "max_candidates": 0, "budget_s": NEVER_BINDS_S}
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], **options)
     assert answer.status is PlanStatus.FAILURE
     assert answer.message.startswith("planned path failed validation")
     assert "blocker" in answer.message
