@@ -2,8 +2,8 @@
 
 It shares no code with the service's validator: the robot is read by `pin.buildModelFromUrdf`
 and `pin.buildGeomFromUrdf` (collision meshes as coal BVH models, not convex hulls, an OBJ file's
-triangles read as written rather than through assimp: `obj_triangles`; URDF primitives as coal
-primitives), the scene from the native payload sent to the service, and every
+triangles read as written rather than through assimp: `coal_geometry.obj_triangles`; URDF
+primitives as coal primitives), the scene from the native payload sent to the service, and every
 verdict is `pin.computeCollisions` over explicit pairs at one state.
 
 - States: the service's order, base x, y, θ first for a planar base (the root link then moves on
@@ -35,76 +35,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from coal_geometry import (
+    FloatArray,
+    obj_meshes_as_written,
+    quaternion_placement,
+    scene_geometry,
+)
 from robot_description import RobotDescription, urdf_mimics
-
-FloatArray = NDArray[np.float64]
 
 JOINT_STEP, PRISMATIC_STEP, BASE_STEP, HEADING_STEP = 0.00875, 0.01, 0.01, 0.01
 LIMIT_TOLERANCE = 1e-9
-
-
-def obj_triangles(path: Path) -> tuple[FloatArray, NDArray[np.int64]]:
-    """The vertices and triangles of a Wavefront OBJ file as written: `v` lines, and `f` lines
-    (1-based or negative indices, polygons fanned into triangles). Read here rather than by
-    assimp, whose import of such a file can hold triangles the file does not: on the MBM
-    Panda's link6.obj (24 vertices no face uses) one lay 8 mm off the mesh, and coal then saw
-    contacts that were not there."""
-    vertices: list[list[float]] = []
-    faces: list[list[int]] = []
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
-        parts = line.split()
-        if not parts:
-            continue
-        if parts[0] == "v":
-            vertices.append([float(x) for x in parts[1:4]])
-        elif parts[0] == "f":
-            index = [int(item.split("/")[0]) for item in parts[1:]]
-            index = [i - 1 if i > 0 else len(vertices) + i for i in index]
-            faces += [[index[0], index[k], index[k + 1]] for k in range(1, len(index) - 1)]
-    return np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64)
-
-
-def _obj_meshes_as_written(geoms: pin.GeometryModel) -> None:
-    """Replace each OBJ collision mesh's coal model by one of its triangles as written
-    (`obj_triangles`), scaled as the URDF says."""
-    for obj in geoms.geometryObjects:
-        path = Path(obj.meshPath) if obj.meshPath else None
-        if path is None or path.suffix.lower() != ".obj" or not path.is_file():
-            continue
-        vertices, faces = obj_triangles(path)
-        vertices = vertices * np.asarray(obj.meshScale, dtype=float)
-        bvh = coal.BVHModelOBBRSS()
-        bvh.beginModel(len(faces), len(vertices))
-        bvh.addVertices(vertices)
-        bvh.addTriangles(faces)
-        bvh.endModel()
-        obj.geometry = bvh
-
-
-def _quaternion_placement(pose: Mapping[str, Any] | None) -> pin.SE3:
-    pose = pose or {}
-    x, y, z, w = pose.get("orientation") or (0.0, 0.0, 0.0, 1.0)
-    rotation = pin.Quaternion(float(w), float(x), float(y), float(z)).normalized().matrix()
-    return pin.SE3(rotation, np.asarray(pose.get("position") or (0.0, 0.0, 0.0), dtype=float))
-
-
-def scene_geometry(obj: Mapping[str, Any]) -> coal.CollisionGeometry:
-    """A coal primitive for one scene object of the native payload."""
-    kind, size = obj["type"], [float(v) for v in obj["size"]]
-    if kind == "box":
-        return coal.Box(*size)  # full side lengths
-    if kind == "sphere":
-        return coal.Sphere(size[0])
-    if kind == "cylinder":
-        return coal.Cylinder(size[0], size[1])
-    if kind == "capsule":
-        return coal.Capsule(size[0], size[1])
-    raise ValueError(f"scene object {obj['id']!r}: type {kind!r} is not supported here")
 
 
 @dataclass
@@ -144,7 +88,7 @@ class MeshChecker:
         geoms = pin.buildGeomFromUrdf(
             model, urdf_path, pin.COLLISION, package_dirs=[str(robot.package_dir)]
         )
-        _obj_meshes_as_written(geoms)
+        obj_meshes_as_written(geoms)
         self.model, self.data = model, model.createData()
         self.robot_geoms = geoms
         self.joint_ids = [model.getJointId(name) for name in robot.joint_names]
@@ -288,7 +232,7 @@ class MeshChecker:
             geoms.addGeometryObject(obj)
         self.object_ids: list[str] = []
         for obj in objects:
-            placement = _quaternion_placement(obj.get("pose"))
+            placement = quaternion_placement(obj.get("pose"))
             geoms.addGeometryObject(
                 pin.GeometryObject(f"scene:{obj['id']}", 0, 0, placement, scene_geometry(obj))
             )

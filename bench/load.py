@@ -44,336 +44,26 @@ import os
 import statistics
 import threading
 import time
-from collections.abc import Iterator
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 import sqlalchemy as sa
 
 from harness.caches import fresh_schema
 from harness.replay import RobotClient, register_reference_model
+from harness.report import pct, print_measures
 from harness.service import running_service, server_cpu_seconds
-from trajcache.core.config import Settings
-from trajcache.geometry.model.robot import RobotModel
-from trajcache.geometry.scene.payload import scene_to_payload
-from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.validation.validator import build_validator
-from trajcache.reference.cleaning import CleaningRun, PlanCall, cleaning_run
+from load_drive import Outcome, Robot, Tally, install_event_loop_policy, run_load
+from load_scripts import PLAN_OPTIONS, MissMaker, robot_script
+from trajcache.reference.cleaning import CleaningRun, cleaning_run
 from trajcache.reference.robot import reference_model
 from trajcache_client import NO_RETRY, APIError, Client
 
 POSTGRES_URL = os.environ.get(
     "TRAJCACHE_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 )
-PLAN_OPTIONS = {"fallback": True}
-MISS_OFFSET_RAD = (0.22, 0.4)  # how far a miss's endpoint joints move (threshold: 0.2)
-MISS_JOINTS = 3
-REQUEST_TIMEOUT_S = 30.0
 CAPACITY_GUESS = 800.0  # plans/s, to size the scripts of robots that do not wait (--rate 0)
-
-
-@dataclass(frozen=True)
-class Step:
-    """One request of a robot's script, encoded once before the load starts."""
-
-    kind: str  # "scene", "hit" (a call of the run) or "miss" (a novel request)
-    method: str
-    path: str
-    body: bytes
-    scene_hash: str = ""  # a scene step: the hash the service must answer
-
-
-@dataclass
-class Robot:
-    """A simulated robot: its id, the replica it talks to and its requests in order."""
-
-    robot_id: str
-    replica: int
-    steps: list[Step]
-
-
-@dataclass
-class Outcome:
-    """What one plan request returned."""
-
-    kind: str
-    latency_ms: float
-    ok: bool
-    source: str | None = None
-    trajectory_id: int | None = None
-    replica: int = 0
-    timings: dict[str, float] = field(default_factory=dict)  # the answer's timings_ms
-
-
-@dataclass
-class Tally:
-    """Everything the robots observed."""
-
-    plans: list[Outcome] = field(default_factory=list)
-    scene_updates: int = 0
-    errors: list[str] = field(default_factory=list)
-
-
-class Connection:
-    """One keep-alive HTTP/1.1 connection sending pre-encoded JSON requests."""
-
-    def __init__(self, host: str, port: int) -> None:
-        self.host, self.port = host, port
-        self._reader: asyncio.StreamReader | None = None
-        self._writer: asyncio.StreamWriter | None = None
-
-    async def connect(self) -> None:
-        """Open the connection (if it is not open)."""
-        if self._reader is None or self._writer is None:
-            self._reader, self._writer = await asyncio.open_connection(self.host, self.port)
-
-    async def request(self, method: str, path: str, body: bytes) -> tuple[int, bytes]:
-        """Send one request; its status code and body."""
-        await self.connect()
-        assert self._reader is not None and self._writer is not None
-        head = (
-            f"{method} {path} HTTP/1.1\r\nHost: {self.host}\r\n"
-            f"Content-Type: application/json\r\nContent-Length: {len(body)}\r\n\r\n"
-        )
-        try:
-            self._writer.write(head.encode() + body)
-            raw = await self._reader.readuntil(b"\r\n\r\n")
-            status = int(raw[9:12])
-            headers = raw.decode("latin-1").lower()
-            marker = headers.find("content-length:")
-            if marker < 0:
-                raise ConnectionError(f"answer {status} without content-length")
-            length = int(headers[marker + 15 : headers.find("\r\n", marker)])
-            content = await self._reader.readexactly(length)
-            if "connection: close" in headers:
-                self.close()
-            return status, content
-        except BaseException:
-            self.close()
-            raise
-
-    def close(self) -> None:
-        """Drop the connection (the next request opens a new one)."""
-        if self._writer is not None:
-            self._writer.close()
-        self._reader = self._writer = None
-
-
-# --- the robots' scripts -------------------------------------------------------------------
-
-
-def scene_step(robot_id: str, scene: Scene, shown: dict[str, Any] | None) -> Step:
-    """The request that makes `scene` the robot's scene: PUT at first, then a PATCH."""
-    payload = scene_to_payload(scene)
-    path = f"/v1/robots/{robot_id}/scene"
-    if shown is None:
-        return Step("scene", "PUT", path, json.dumps(payload).encode(), scene.hash)
-    before = {o["id"]: o for o in shown["objects"]}
-    after = {o["id"]: o for o in payload["objects"]}
-    env: dict[str, float | None] = {
-        k: v for k, v in payload["env"].items() if shown["env"].get(k) != v
-    }
-    env.update({k: None for k in shown["env"] if k not in payload["env"]})
-    patch = {
-        "upsert": [o for oid, o in after.items() if before.get(oid) != o],
-        "remove": [oid for oid in before if oid not in after],
-        "env": env,
-    }
-    return Step("scene", "PATCH", path, json.dumps(patch).encode(), scene.hash)
-
-
-class MissMaker:
-    """Novel, collision-free plan requests near the workload's arm moves."""
-
-    def __init__(self, model: RobotModel, seed: int) -> None:
-        self.model = model
-        self.rng = np.random.default_rng(seed)
-        arm = slice(3, model.dof)
-        self.lower = np.maximum(model.lower[arm], -np.pi)
-        self.upper = np.minimum(model.upper[arm], np.pi)
-        self._checkers: dict[str, Any] = {}
-        self._settings = Settings()
-
-    def _free(self, scene: Scene, state: np.ndarray) -> bool:
-        checker = self._checkers.get(scene.hash)
-        if checker is None:
-            checker = build_validator(self.model, scene, self._settings).checker
-            self._checkers[scene.hash] = checker
-        return not checker.state_contacts(state)
-
-    def _moved(self, state: np.ndarray) -> np.ndarray | None:
-        moved = state.copy()
-        joints = self.rng.choice(len(self.lower), MISS_JOINTS, replace=False)
-        offsets = self.rng.uniform(*MISS_OFFSET_RAD, MISS_JOINTS)
-        signs = self.rng.choice([-1.0, 1.0], MISS_JOINTS)
-        moved[3 + joints] += signs * offsets
-        arm = moved[3:]
-        if np.any(arm < self.lower) or np.any(arm > self.upper):
-            return None
-        return moved
-
-    def make(self, call: PlanCall, scene: Scene) -> tuple[np.ndarray, np.ndarray] | None:
-        """Start and goal of a miss derived from `call`, or None if none was found."""
-        for _ in range(30):
-            start, goal = self._moved(call.start), self._moved(call.goal)
-            if start is None or goal is None:
-                continue
-            if self._free(scene, start) and self._free(scene, goal):
-                return start, goal
-        return None
-
-
-def plan_step(robot_id: str, kind: str, start: np.ndarray, goal: np.ndarray) -> Step:
-    """A plan request."""
-    body = {"start": start.tolist(), "goal": goal.tolist(), "options": PLAN_OPTIONS}
-    return Step(kind, "POST", f"/v1/robots/{robot_id}/plan", json.dumps(body).encode())
-
-
-def robot_script(
-    robot_id: str, runs: list[CleaningRun], calls: int | None, misses: MissMaker, share: float
-) -> list[Step]:
-    """The requests of one robot replaying the first `calls` calls of each of `runs`."""
-    steps: list[Step] = []
-    shown: dict[str, Any] | None = None
-    shown_hash = ""
-    for run in runs:
-        played = run.calls[:calls]
-        arm_moves = [c.index for c in played if not c.base_moves]
-        count = min(len(arm_moves), round(share * len(played)))
-        chosen = set(misses.rng.choice(arm_moves, count, replace=False).tolist())
-        for call in played:
-            scene = run.scene_for(call)
-            if scene.hash != shown_hash:
-                steps.append(scene_step(robot_id, scene, shown))
-                shown, shown_hash = scene_to_payload(scene), scene.hash
-            miss = misses.make(call, scene) if call.index in chosen else None
-            if miss is not None:
-                steps.append(plan_step(robot_id, "miss", *miss))
-            else:
-                steps.append(plan_step(robot_id, "hit", call.start, call.goal))
-    return steps
-
-
-# --- the load ------------------------------------------------------------------------------
-
-
-async def drive(
-    robot: Robot, conn: Connection, tally: Tally, *, slot: float, until: float, interval: float
-) -> None:
-    """Play the robot's script until `until`: each plan at its slot (or at once, interval 0).
-
-    Scene updates go out as soon as the previous plan is answered (the scene changes while the
-    robot executes), so a plan's latency is the plan's alone.
-    """
-    steps = _cycle(robot.steps)
-    loop = asyncio.get_running_loop()
-    while True:
-        step = next(steps)
-        while step.kind == "scene":
-            await _scene(robot, conn, step, tally)
-            step = next(steps)
-        if interval > 0 and (wait := slot - loop.time()) > 0:
-            await asyncio.sleep(wait)
-        sent = slot if interval > 0 else loop.time()
-        if sent >= until:
-            return
-        tally.plans.append(await _plan(robot, conn, step, tally, sent, loop))
-        slot += interval
-
-
-def _cycle(steps: list[Step]) -> Iterator[Step]:
-    """The script over and over (a repeated hit is validated again only if the memo lost it)."""
-    while True:
-        yield from steps
-
-
-async def _scene(robot: Robot, conn: Connection, step: Step, tally: Tally) -> None:
-    try:
-        status, content = await asyncio.wait_for(
-            conn.request(step.method, step.path, step.body), REQUEST_TIMEOUT_S
-        )
-    except (TimeoutError, OSError, asyncio.IncompleteReadError, ValueError) as exc:
-        tally.errors.append(f"{robot.robot_id} scene: {type(exc).__name__}: {exc}")
-        return
-    tally.scene_updates += 1
-    if status // 100 != 2:
-        tally.errors.append(f"{robot.robot_id} scene: {status} {content[:300]!r}")
-    elif json.loads(content).get("hash") != step.scene_hash:
-        tally.errors.append(f"{robot.robot_id} scene: hash differs from {step.scene_hash}")
-
-
-async def _plan(
-    robot: Robot,
-    conn: Connection,
-    step: Step,
-    tally: Tally,
-    sent: float,
-    loop: asyncio.AbstractEventLoop,
-) -> Outcome:
-    try:
-        status, content = await asyncio.wait_for(
-            conn.request(step.method, step.path, step.body), REQUEST_TIMEOUT_S
-        )
-    except (TimeoutError, OSError, asyncio.IncompleteReadError, ValueError) as exc:
-        tally.errors.append(f"{robot.robot_id} plan: {type(exc).__name__}: {exc}")
-        return Outcome(step.kind, (loop.time() - sent) * 1e3, False, replica=robot.replica)
-    latency = (loop.time() - sent) * 1e3
-    if status != 200:
-        tally.errors.append(f"{robot.robot_id} plan: {status} {content[:300]!r}")
-        return Outcome(step.kind, latency, False, replica=robot.replica)
-    answer = json.loads(content)
-    ok = answer["status"] == "success"
-    if not ok:
-        tally.errors.append(f"{robot.robot_id} plan: {answer['status']}: {answer['message']}")
-    return Outcome(
-        step.kind,
-        latency,
-        ok,
-        answer.get("source"),
-        answer.get("trajectory_id"),
-        robot.replica,
-        answer.get("timings_ms") or {},
-    )
-
-
-async def run_load(
-    robots: list[Robot], bases: list[str], *, duration_s: float, rate: float
-) -> tuple[Tally, float]:
-    """Drive every robot for `duration_s`; what they saw and the elapsed time (s)."""
-    tally = Tally()
-    conns = [Connection(*_host_port(bases[r.replica])) for r in robots]
-    await asyncio.gather(*(conn.connect() for conn in conns))  # before the clock starts
-    loop = asyncio.get_running_loop()
-    interval = len(robots) / rate if rate > 0 else 0.0
-    began = loop.time()
-    until = began + duration_s
-    await asyncio.gather(
-        *(
-            drive(
-                r, c, tally, slot=began + interval * k / len(robots), until=until, interval=interval
-            )
-            for k, (r, c) in enumerate(zip(robots, conns, strict=True))
-        )
-    )
-    elapsed = loop.time() - began
-    for conn in conns:
-        conn.close()
-    return tally, elapsed
-
-
-def _host_port(base: str) -> tuple[str, int]:
-    host, _, port = base.removeprefix("http://").partition(":")
-    return host, int(port)
-
-
-def _event_loop_policy() -> None:
-    try:
-        import uvloop
-    except ImportError:  # plain asyncio
-        return
-    asyncio.set_event_loop_policy(uvloop.EventLoopPolicy())
 
 
 # --- setup and the check afterwards --------------------------------------------------------
@@ -450,13 +140,24 @@ def lost_trajectories(url: str, bases: list[str], plans: list[Outcome]) -> tuple
     return len(ids), missing
 
 
-def pct(values: list[float], q: float) -> float:
-    """The q-th percentile (0-100); NaN when there are none."""
-    return float(np.percentile(values, q)) if values else float("nan")
+@dataclass
+class Measured:
+    """What one run observed: the robots' tally and the figures taken around it."""
+
+    tally: Tally
+    elapsed: float  # s the robots were driven
+    warmed: int  # trajectories planned in warm-up
+    client_cpu: float  # s
+    server_cpu: float  # s, all replicas
+    planned: int  # planned trajectories checked afterwards
+    lost: int
 
 
-def main() -> None:
-    """Run the load and print the table and the JSON line."""
+# --- the run --------------------------------------------------------------------------------
+
+
+def parse_args() -> argparse.Namespace:
+    """The command line, with the smoke run's defaults filled in."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--smoke", action="store_true", help="a few seconds, few robots (CI)")
     parser.add_argument("--robots", type=int, default=None, help="default 64 (smoke: 8)")
@@ -468,31 +169,38 @@ def main() -> None:
     parser.add_argument("--database-url", default=POSTGRES_URL, help="a PostgreSQL server")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
-    robots_n = args.robots or (8 if args.smoke else 64)
-    duration = args.duration or (4.0 if args.smoke else 30.0)
-    rate = args.rate if args.rate is not None else (80.0 if args.smoke else 320.0)
-    calls = 60 if args.smoke else None  # calls per run played
+    args.robots = args.robots or (8 if args.smoke else 64)
+    args.duration = args.duration or (4.0 if args.smoke else 30.0)
+    if args.rate is None:
+        args.rate = 80.0 if args.smoke else 320.0
+    args.calls = 60 if args.smoke else None  # calls per run played
+    return args
 
-    _event_loop_policy()
-    model = reference_model()
-    misses = MissMaker(model, args.seed)
-    per_run = len(cleaning_run(args.seed).calls[:calls])
-    expected = (rate or CAPACITY_GUESS) * duration / robots_n  # plans per robot
-    runs = int(expected * 1.5 // per_run) + 1  # the script repeats only if the guess is short
-    robots = [
+
+def build_robots(args: argparse.Namespace) -> list[Robot]:
+    """The robots and their scripts, long enough for the run (they repeat if the guess is short)."""
+    misses = MissMaker(reference_model(), args.seed)
+    per_run = len(cleaning_run(args.seed).calls[: args.calls])
+    expected = (args.rate or CAPACITY_GUESS) * args.duration / args.robots  # plans per robot
+    runs = int(expected * 1.5 // per_run) + 1
+    return [
         Robot(
             f"load-{k}",
             k % args.replicas,
             robot_script(
                 f"load-{k}",
-                [cleaning_run(args.seed + 1 + k + j * robots_n) for j in range(runs)],
-                calls,
+                [cleaning_run(args.seed + 1 + k + j * args.robots) for j in range(runs)],
+                args.calls,
                 misses,
                 args.miss_share,
             ),
         )
-        for k in range(robots_n)
+        for k in range(args.robots)
     ]
+
+
+def measure(args: argparse.Namespace, robots: list[Robot]) -> Measured:
+    """Start the replicas, warm the cache, drive the robots and check what they planned."""
     with ExitStack() as stack:
         url = stack.enter_context(fresh_schema(args.database_url))
         assert url is not None
@@ -503,15 +211,22 @@ def main() -> None:
         ]
         with Client(bases[0], timeout=60, retry=NO_RETRY) as client:
             model_id = register_reference_model(client)
-        warmed = warm_cache(bases, model_id, cleaning_run(args.seed), calls)
-        register_robots(bases[0], model_id, robots_n)
+        warmed = warm_cache(bases, model_id, cleaning_run(args.seed), args.calls)
+        register_robots(bases[0], model_id, args.robots)
         cpu = [server_cpu_seconds(b) for b in bases]
         client_cpu = time.process_time()
-        tally, elapsed = asyncio.run(run_load(robots, bases, duration_s=duration, rate=rate))
+        tally, elapsed = asyncio.run(
+            run_load(robots, bases, duration_s=args.duration, rate=args.rate)
+        )
         client_cpu = time.process_time() - client_cpu
         server_cpu = sum(server_cpu_seconds(b) - c for b, c in zip(bases, cpu, strict=True))
         planned, lost = lost_trajectories(url, bases, tally.plans)
+    return Measured(tally, elapsed, warmed, client_cpu, server_cpu, planned, lost)
 
+
+def summarize(args: argparse.Namespace, run: Measured) -> dict[str, Any]:
+    """The final JSON line's figures."""
+    tally = run.tally
     plans = tally.plans
     answered = [o for o in plans if o.ok]
     hits = [o.latency_ms for o in answered if o.source == "cache"]
@@ -523,17 +238,17 @@ def main() -> None:
         values = [o.timings.get(key, 0.0) for o in answered if o.source == source]
         return round(statistics.median(values), 3) if values else float("nan")
 
-    summary = {
-        "plans_per_s": round(len(plans) / elapsed, 1),
+    return {
+        "plans_per_s": round(len(plans) / run.elapsed, 1),
         "p50_ms": round(pct(every, 50), 3),
         "p99_ms": round(pct(every, 99), 3),
         "errors": len(tally.errors),
-        "lost": lost,
+        "lost": run.lost,
         "hit_share": round(len(hits) / n, 4),
-        "robots": robots_n,
+        "robots": args.robots,
         "replicas": args.replicas,
         "plans": len(plans),
-        "planned": planned,
+        "planned": run.planned,
         "hit_p50_ms": round(pct(hits, 50), 3),
         "hit_p99_ms": round(pct(hits, 99), 3),
         "miss_p50_ms": round(pct(fresh, 50), 3),
@@ -542,43 +257,56 @@ def main() -> None:
         "miss_server_total_ms": server_ms("planner", "total"),
         "miss_server_plan_ms": server_ms("planner", "plan"),
         "scene_updates": tally.scene_updates,
-        "offered_rate": rate,
-        "duration_s": round(elapsed, 2),
-        "server_cpu_ms_per_plan": round(server_cpu / n * 1e3, 3),
-        "client_cpu_ms_per_plan": round(client_cpu / n * 1e3, 3),
-        "warm_trajectories": warmed,
+        "offered_rate": args.rate,
+        "duration_s": round(run.elapsed, 2),
+        "server_cpu_ms_per_plan": round(run.server_cpu / n * 1e3, 3),
+        "client_cpu_ms_per_plan": round(run.client_cpu / n * 1e3, 3),
+        "warm_trajectories": run.warmed,
         "workers": args.workers,
         "smoke": args.smoke,
     }
+
+
+def print_table(summary: dict[str, Any], errors: list[str]) -> None:
+    """The figures as a two-column table, then the first errors."""
+    s = summary
+    rate = s["offered_rate"]
     rows: list[tuple[str, object]] = [
-        ("robots / replicas", f"{robots_n} / {args.replicas}"),
+        ("robots / replicas", f"{s['robots']} / {s['replicas']}"),
         ("offered plans/s", "as fast as answered" if rate <= 0 else rate),
-        ("trajectories planned in warm-up", warmed),
-        ("plans", len(plans)),
-        ("plans/s", summary["plans_per_s"]),
-        ("p50 ms", summary["p50_ms"]),
-        ("p99 ms", summary["p99_ms"]),
-        ("hit share", summary["hit_share"]),
-        ("hits p50 / p99 ms", f"{summary['hit_p50_ms']} / {summary['hit_p99_ms']}"),
-        ("planned p50 / p99 ms", f"{summary['miss_p50_ms']} / {summary['miss_p99_ms']}"),
+        ("trajectories planned in warm-up", s["warm_trajectories"]),
+        ("plans", s["plans"]),
+        ("plans/s", s["plans_per_s"]),
+        ("p50 ms", s["p50_ms"]),
+        ("p99 ms", s["p99_ms"]),
+        ("hit share", s["hit_share"]),
+        ("hits p50 / p99 ms", f"{s['hit_p50_ms']} / {s['hit_p99_ms']}"),
+        ("planned p50 / p99 ms", f"{s['miss_p50_ms']} / {s['miss_p99_ms']}"),
         (
             "server total p50 ms: hit / planned",
-            f"{summary['hit_server_total_ms']} / {summary['miss_server_total_ms']}",
+            f"{s['hit_server_total_ms']} / {s['miss_server_total_ms']}",
         ),
-        ("  of which planner p50 ms", summary["miss_server_plan_ms"]),
-        ("scene updates", tally.scene_updates),
-        ("errors", len(tally.errors)),
-        ("planned trajectories checked", planned),
-        ("lost", lost),
-        ("server CPU per plan ms", summary["server_cpu_ms_per_plan"]),
-        ("client CPU per plan ms", summary["client_cpu_ms_per_plan"]),
+        ("  of which planner p50 ms", s["miss_server_plan_ms"]),
+        ("scene updates", s["scene_updates"]),
+        ("errors", s["errors"]),
+        ("planned trajectories checked", s["planned"]),
+        ("lost", s["lost"]),
+        ("server CPU per plan ms", s["server_cpu_ms_per_plan"]),
+        ("client CPU per plan ms", s["client_cpu_ms_per_plan"]),
     ]
-    print(f"{'measure':<34}{'value':>22}")
-    for label, value in rows:
-        text = f"{value:.3f}" if isinstance(value, float) else str(value)
-        print(f"{label:<34}{text:>22}")
-    for error in tally.errors[:5]:
+    print_measures(rows, 34, 22)
+    for error in errors[:5]:
         print(f"error: {error[:300]}")
+
+
+def main() -> None:
+    """Run the load and print the table and the JSON line."""
+    args = parse_args()
+    install_event_loop_policy()
+    robots = build_robots(args)
+    run = measure(args, robots)
+    summary = summarize(args, run)
+    print_table(summary, run.tally.errors)
     print(json.dumps(summary))
 
 

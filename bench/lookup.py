@@ -113,6 +113,81 @@ def rss_bytes() -> int:
     return 0
 
 
+Entries = tuple[np.ndarray, np.ndarray, np.ndarray]  # ids, starts, goals
+
+
+def grow_to(index: TrajectoryIndex, data: Entries, n_main: int, size: int) -> tuple[int, float]:
+    """Add entries up to `size`: a rebuilt main block, then the largest delta that does not
+    rebuild; (the delta's size, the seconds to grow and rebuild the main block)."""
+    ids, starts, goals = data
+    delta = index.delta_limit(size - index.delta_limit(size))  # largest that won't rebuild
+    delta = min(delta, size // 4)
+    t0 = time.perf_counter()
+    grow, recent = slice(n_main, size - delta), slice(size - delta, size)
+    index.add(ids[grow], starts[grow], goals[grow])
+    index.rebuild()  # main block: everything but the delta
+    build_s = time.perf_counter() - t0
+    index.add(ids[recent], starts[recent], goals[recent])
+    assert len(index) == size and index.delta_size == delta
+    return delta, build_s
+
+
+def measure_size(
+    index: TrajectoryIndex,
+    work: Workload,
+    data: Entries,
+    size: int,
+    n_queries: int,
+    delta: int,
+    build_s: float,
+) -> dict[str, float]:
+    """Time queries of both kinds against the first `size` entries; the table's row."""
+    _, starts, goals = data
+    qs, qg = make_queries(work, starts[:size], goals[:size], n_queries)
+    ms, hits = time_queries(index, qs, qg, arm_only=False)
+    still = qs.copy()
+    still_goal = qg.copy()
+    still_goal[:, :3] = still[:, :3]  # base-still requests, served from anywhere
+    arm_ms, arm_hits = time_queries(index, still, still_goal, arm_only=True)
+    mem = index.memory_bytes()
+    return {
+        "size": size,
+        "delta": delta,
+        "build_s": build_s,
+        "p50_ms": float(np.percentile(ms, 50)),
+        "p99_ms": float(np.percentile(ms, 99)),
+        "hits_per_query": hits,
+        "arm_only_p50_ms": float(np.percentile(arm_ms, 50)),
+        "arm_only_p99_ms": float(np.percentile(arm_ms, 99)),
+        "arm_only_hits_per_query": arm_hits,
+        "bytes_per_entry": (mem["main"] + mem["delta"]) / size,
+        "arm_only_bytes_per_entry": mem["arm_only"] / size,
+    }
+
+
+def print_row(row: dict[str, float]) -> None:
+    """One line of the table."""
+    print(
+        f"{row['size']:>9} {row['delta']:>6} {row['build_s']:>8.2f} {row['p50_ms']:>7.3f}"
+        f" {row['p99_ms']:>7.3f} {row['hits_per_query']:>7.2f} {row['arm_only_p50_ms']:>8.3f}"
+        f" {row['arm_only_p99_ms']:>8.3f} {row['arm_only_hits_per_query']:>8.2f}"
+        f" {row['bytes_per_entry']:>8.0f} {row['arm_only_bytes_per_entry']:>7.0f}"
+    )
+
+
+def mismatches_against_brute_force(
+    index: TrajectoryIndex, work: Workload, data: Entries, size: int
+) -> int:
+    """How many of 200 queries the index answers differently from a brute-force scan."""
+    ids, starts, goals = data
+    qs, qg = make_queries(work, starts[:size], goals[:size], 200)
+    return sum(
+        [(m.trajectory_id, m.reversed) for m in index.query(s, g, limit=LIMIT)]
+        != brute_force(ids[:size], starts[:size], goals[:size], s, g)
+        for s, g in zip(qs, qg, strict=True)
+    )
+
+
 def main() -> None:
     """Run the benchmark and print the table and the JSON line."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -124,6 +199,7 @@ def main() -> None:
     work = Workload(np.random.default_rng(args.seed))
     starts, goals = work.draw(sizes[-1])
     ids = np.arange(sizes[-1], dtype=np.int64) * 7 + 11  # not dense, not 0-based
+    data = (ids, starts, goals)
     rss0 = rss_bytes()
     index = TrajectoryIndex(DIM, arm_offset=ARM, background_rebuild=False)
     index.query(starts[0], goals[0], arm_only=True)  # arm-only tree is kept from now on
@@ -134,50 +210,13 @@ def main() -> None:
     print(header)
     rows, mismatches, n_main = [], None, 0
     for size in sizes:
-        delta = index.delta_limit(size - index.delta_limit(size))  # largest that won't rebuild
-        delta = min(delta, size // 4)
-        t0 = time.perf_counter()
-        grow, recent = slice(n_main, size - delta), slice(size - delta, size)
-        index.add(ids[grow], starts[grow], goals[grow])
-        index.rebuild()  # main block: everything but the delta
-        build_s = time.perf_counter() - t0
-        index.add(ids[recent], starts[recent], goals[recent])
+        delta, build_s = grow_to(index, data, n_main, size)
         n_main = size
-        assert len(index) == size and index.delta_size == delta
-        qs, qg = make_queries(work, starts[:size], goals[:size], n_queries)
-        ms, hits = time_queries(index, qs, qg, arm_only=False)
-        still = qs.copy()
-        still_goal = qg.copy()
-        still_goal[:, :3] = still[:, :3]  # base-still requests, served from anywhere
-        arm_ms, arm_hits = time_queries(index, still, still_goal, arm_only=True)
-        mem = index.memory_bytes()
-        row = {
-            "size": size,
-            "delta": delta,
-            "build_s": build_s,
-            "p50_ms": float(np.percentile(ms, 50)),
-            "p99_ms": float(np.percentile(ms, 99)),
-            "hits_per_query": hits,
-            "arm_only_p50_ms": float(np.percentile(arm_ms, 50)),
-            "arm_only_p99_ms": float(np.percentile(arm_ms, 99)),
-            "arm_only_hits_per_query": arm_hits,
-            "bytes_per_entry": (mem["main"] + mem["delta"]) / size,
-            "arm_only_bytes_per_entry": mem["arm_only"] / size,
-        }
+        row = measure_size(index, work, data, size, n_queries, delta, build_s)
         rows.append(row)
-        print(
-            f"{size:>9} {delta:>6} {build_s:>8.2f} {row['p50_ms']:>7.3f} {row['p99_ms']:>7.3f}"
-            f" {hits:>7.2f} {row['arm_only_p50_ms']:>8.3f} {row['arm_only_p99_ms']:>8.3f}"
-            f" {arm_hits:>8.2f} {row['bytes_per_entry']:>8.0f}"
-            f" {row['arm_only_bytes_per_entry']:>7.0f}"
-        )
+        print_row(row)
         if size == 10_000:
-            qs, qg = make_queries(work, starts[:size], goals[:size], 200)
-            mismatches = sum(
-                [(m.trajectory_id, m.reversed) for m in index.query(s, g, limit=LIMIT)]
-                != brute_force(ids[:size], starts[:size], goals[:size], s, g)
-                for s, g in zip(qs, qg, strict=True)
-            )
+            mismatches = mismatches_against_brute_force(index, work, data, size)
             print(f"brute-force check at 10⁴: 200 queries, {mismatches} mismatches")
     last = rows[-1]
     rss_per_entry = (rss_bytes() - rss0) / last["size"]

@@ -18,8 +18,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from dense_mesh import FloatArray, MeshChecker, scene_geometry
-from dense_mesh import _quaternion_placement as placement
+from coal_geometry import quaternion_placement as placement
+from coal_geometry import scene_geometry
+from dense_mesh import FloatArray, MeshChecker
 from mbm_problems import ARM_JOINTS
 from mbm_tally import Tally
 from robot_description import RobotDescription

@@ -40,89 +40,37 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import http.client
 import json
 import statistics
-import threading
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
-import httpx
-import numpy as np
-
 from harness.caches import fresh_schema
+from harness.report import pct, print_measures
 from harness.service import running_service, server_cpu_seconds
+from plan_hit_clients import (
+    CONCURRENCY,
+    Query,
+    Sample,
+    api_client,
+    http_floor,
+    run_both,
+    run_concurrent,
+    run_sequential,
+)
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.scene.scene import Scene
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
 from trajcache.reference.cleaning import CleaningRun, cleaning_run
 from trajcache.reference.robot import reference_model, reference_urdf
-from trajcache_client import NO_RETRY, APIError, Client
+from trajcache_client import APIError, Client
 
-CONCURRENCY = 16
 QUERY_DOORS_START = (4.0, 11.0, 17.0)  # degrees per stall; run 1 draws its own
 QUERY_DOORS_OPEN = 83.0
 PLAN_OPTIONS = {"fallback": False}
-
-
-@dataclass(frozen=True)
-class Query:
-    """One plan request of the workload, addressed to the robot that holds its scene."""
-
-    robot_id: str
-    body: dict[str, object]
-
-
-PLAN_PARTS = {"db", "lookup", "validate", "plan", "total"}  # timings_ms inside the plan flow
-
-
-@dataclass
-class Sample:
-    """What one request returned."""
-
-    latency_ms: float
-    hit: bool
-    timings: dict[str, float] = field(default_factory=dict)  # timings_ms of the answer
-    server_timing: dict[str, float] = field(default_factory=dict)  # the Server-Timing header
-
-    @property
-    def serialize_ms(self) -> float:
-        """Time spent serializing the answer."""
-        return self.server_timing.get("serialize", 0.0)
-
-    @property
-    def extras_ms(self) -> float:
-        """Time the route spent besides the plan flow and serializing (answer extras)."""
-        return sum(v for k, v in self.server_timing.items() if k not in PLAN_PARTS | {"serialize"})
-
-
-class ServerTimingTransport(httpx.HTTPTransport):
-    """The HTTP transport, keeping the Server-Timing header of the last answer."""
-
-    last = ""
-
-    def handle_request(self, request: httpx.Request) -> httpx.Response:
-        """Send `request`; note its answer's Server-Timing header."""
-        response = super().handle_request(request)
-        self.last = response.headers.get("server-timing", "")
-        return response
-
-
-class TimedClient(Client):
-    """The Python client, not retrying, noting each answer's Server-Timing header."""
-
-    def __init__(self, base: str, timeout_s: float) -> None:
-        self.timing = ServerTimingTransport()
-        super().__init__(base, timeout=timeout_s, retry=NO_RETRY, transport=self.timing)
-
-
-def api_client(base: str, timeout_s: float) -> TimedClient:
-    """A client of the service for the benchmark."""
-    return TimedClient(base, timeout_s)
 
 
 def fill_cache(client: Client, model_id: str, run: CleaningRun, calls: int) -> int:
@@ -201,124 +149,6 @@ def _timed(query: Query) -> Query:
     return Query(query.robot_id, {**query.body, "options": options})
 
 
-def send(client: TimedClient, query: Query) -> Sample:
-    """Send one plan request with the Python client and time it."""
-    body = query.body
-    began = time.perf_counter()
-    try:
-        answer = client.plan(query.robot_id, body["start"], body["goal"], body["options"])
-    except APIError as exc:
-        raise RuntimeError(f"plan answered {exc.status_code}: {exc.detail[:300]}") from exc
-    latency = (time.perf_counter() - began) * 1e3
-    timing = _server_timing(client.timing.last)
-    return Sample(latency, answer.source == "cache", answer.timings_ms, timing)
-
-
-def send_lean(conn: http.client.HTTPConnection, query: Query) -> Sample:
-    """Send one plan request with http.client on a keep-alive connection and time it."""
-    began = time.perf_counter()
-    conn.request(
-        "POST",
-        f"/v1/robots/{query.robot_id}/plan",
-        body=json.dumps(query.body).encode(),
-        headers={"content-type": "application/json"},
-    )
-    reply = conn.getresponse()
-    data = reply.read()
-    latency = (time.perf_counter() - began) * 1e3
-    if reply.status != 200:
-        raise RuntimeError(f"plan answered {reply.status}: {data[:300]!r}")
-    return _sample(latency, json.loads(data), reply.getheader("server-timing", ""))
-
-
-def _sample(latency: float, body: dict[str, Any], server_timing: str) -> Sample:
-    return Sample(
-        latency,
-        body.get("source") == "cache",
-        body.get("timings_ms", {}),
-        _server_timing(server_timing),
-    )
-
-
-def _server_timing(header: str) -> dict[str, float]:
-    out: dict[str, float] = {}
-    for part in header.split(","):
-        name, _, rest = part.strip().partition(";dur=")
-        if rest:
-            out[name] = float(rest)
-    return out
-
-
-def run_sequential(base: str, queries: list[Query]) -> list[Sample]:
-    """Each query once, one Python client, in order."""
-    with api_client(base, 30) as client:
-        return [send(client, q) for q in queries]
-
-
-def run_both(base: str, queries: list[Query]) -> tuple[list[Sample], list[Sample]]:
-    """Each query once, in order, the lean and the Python client taking turns: (lean, python)."""
-    url = httpx.URL(base)
-    lean: list[Sample] = []
-    other: list[Sample] = []
-    conn = http.client.HTTPConnection(url.host, url.port, timeout=30)
-    try:
-        with api_client(base, 30) as client:
-            for k, query in enumerate(queries):
-                if k % 2 == 0:
-                    lean.append(send_lean(conn, query))
-                else:
-                    other.append(send(client, query))
-    finally:
-        conn.close()
-    return lean, other
-
-
-def http_floor(base: str, n: int = 200) -> tuple[float, float]:
-    """Median latency (ms) of GET /healthz, transport and framework only: (lean, python)."""
-    url = httpx.URL(base)
-    conn = http.client.HTTPConnection(url.host, url.port, timeout=30)
-    lean, other = [], []
-    try:
-        with api_client(base, 30) as client:
-            for _ in range(n):
-                began = time.perf_counter()
-                conn.request("GET", "/healthz")
-                reply = conn.getresponse()
-                json.loads(reply.read())
-                lean.append((time.perf_counter() - began) * 1e3)
-                began = time.perf_counter()
-                client.health()
-                other.append((time.perf_counter() - began) * 1e3)
-    finally:
-        conn.close()
-    return statistics.median(lean), statistics.median(other)
-
-
-def run_concurrent(base: str, queries: list[Query]) -> tuple[float, int]:
-    """Plans per second and hits with CONCURRENCY clients, each sending its share in order."""
-    shares = [queries[k::CONCURRENCY] for k in range(CONCURRENCY)]
-    hits = [0] * CONCURRENCY
-    errors: list[str] = []
-
-    def worker(k: int) -> None:
-        with api_client(base, 60) as client:
-            try:
-                hits[k] = sum(send(client, q).hit for q in shares[k])
-            except Exception as exc:  # reported below
-                errors.append(str(exc))
-
-    threads = [threading.Thread(target=worker, args=(k,)) for k in range(CONCURRENCY)]
-    began = time.perf_counter()
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    elapsed = time.perf_counter() - began
-    if errors:
-        raise RuntimeError(f"{len(errors)} clients failed, first: {errors[0][:300]}")
-    return len(queries) / elapsed, sum(hits)
-
-
 @contextmanager
 def database(url: str | None) -> Iterator[str | None]:
     """`url` as given (None: the service's temporary SQLite), or a fresh PostgreSQL schema."""
@@ -327,11 +157,6 @@ def database(url: str | None) -> Iterator[str | None]:
         return
     with fresh_schema(url) as schema_url:
         yield schema_url
-
-
-def pct(values: list[float], q: float) -> float:
-    """The q-th percentile (0–100); NaN when there are none."""
-    return float(np.percentile(values, q)) if values else float("nan")
 
 
 def summarize(samples: list[Sample]) -> dict[str, float]:
@@ -359,49 +184,98 @@ def summarize(samples: list[Sample]) -> dict[str, float]:
     }
 
 
-def main() -> None:
-    """Run the benchmark and print the table and the JSON line."""
+@dataclass
+class Workload:
+    """The cache filled from run 1, and the queries of the further runs."""
+
+    stored: int  # trajectories cached
+    robots: Robots
+    queries: list[Query]  # sequential ones first, then the concurrent ones
+    warmup: list[Query]  # one per robot, of an unrelated run
+
+
+@dataclass
+class Measured:
+    """What the service answered in each phase."""
+
+    sequential: int
+    concurrent: int
+    floor: float  # GET /healthz p50 ms, http.client
+    floor_httpx: float  # … and trajcache_client
+    first: list[Sample]  # fresh sequential queries, http.client
+    first_httpx: list[Sample]  # … and trajcache_client
+    again: list[Sample]  # the same queries repeated
+    timed: list[Sample]  # … repeated asking for toppra timing
+    cpu_seq: float  # server CPU ms per plan
+    rps: float
+    conc_hits: int
+    cpu_conc: float
+
+
+def parse_args() -> argparse.Namespace:
+    """The command line."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--smoke", action="store_true", help="small run for CI")
     parser.add_argument("--database-url", default=None, help="default: a temporary SQLite file")
     parser.add_argument("--workers", type=int, default=1, help="server worker processes")
     parser.add_argument("--seed", type=int, default=1)
-    args = parser.parse_args()
-    calls, sequential, concurrent = (40, 60, 160) if args.smoke else (None, 600, 3200)
-    fill_run = cleaning_run(args.seed)
+    return parser.parse_args()
+
+
+def prepare(base: str, seed: int, calls: int | None, wanted: int) -> Workload:
+    """Register the model, fill the cache from run `seed` and make `wanted` queries or more."""
+    fill_run = cleaning_run(seed)
     per_run = len(fill_run.calls[:calls])
+    with api_client(base, 60) as client:
+        model = client.register_model(reference_urdf(), base="planar", name="xarm7-mobile")
+        model_id = model.model_id
+        stored = fill_cache(client, model_id, fill_run, per_run)
+        robots = Robots(client, model_id)
+        runs = -(-wanted // per_run) + 1
+        queries = [q for k in range(1, runs + 1) for q in query_run(seed + k, per_run, robots)]
+        warmup = {q.robot_id: q for q in query_run(seed + 10_000, per_run, robots)}
+    return Workload(stored, robots, queries, list(warmup.values()))
 
-    with database(args.database_url) as url, running_service(url, workers=args.workers) as base:
-        with api_client(base, 60) as client:
-            model = client.register_model(reference_urdf(), base="planar", name="xarm7-mobile")
-            model_id = model.model_id
-            stored = fill_cache(client, model_id, fill_run, per_run)
-            robots = Robots(client, model_id)
-            runs = -(-(sequential + concurrent) // per_run) + 1
-            queries = [
-                q for k in range(1, runs + 1) for q in query_run(args.seed + k, per_run, robots)
-            ]
-            warmup = {q.robot_id: q for q in query_run(args.seed + 10_000, per_run, robots)}
-        run_sequential(base, list(warmup.values()))
-        seq_queries, conc_queries = queries[:sequential], queries[sequential:]
-        conc_queries = conc_queries[:concurrent]
-        floor, floor_httpx = http_floor(base)
-        cpu = server_cpu_seconds(base)
-        first, first_httpx = run_both(base, seq_queries)
-        cpu_seq = (server_cpu_seconds(base) - cpu) / len(seq_queries) * 1e3
-        again, _ = run_both(base, seq_queries)
-        timed, _ = run_both(base, [_timed(q) for q in seq_queries])
-        cpu = server_cpu_seconds(base)
-        rps, conc_hits = run_concurrent(base, conc_queries)
-        cpu_conc = (server_cpu_seconds(base) - cpu) / len(conc_queries) * 1e3
 
-    fresh, repeat, timed_repeat = summarize(first), summarize(again), summarize(timed)
-    fresh_httpx = summarize(first_httpx)
+def measure(base: str, workload: Workload, sequential: int, concurrent: int) -> Measured:
+    """Warm each robot's validator, then time the sequential, repeated and concurrent phases."""
+    run_sequential(base, workload.warmup)
+    seq_queries = workload.queries[:sequential]
+    conc_queries = workload.queries[sequential:][:concurrent]
+    floor, floor_httpx = http_floor(base)
+    cpu = server_cpu_seconds(base)
+    first, first_httpx = run_both(base, seq_queries)
+    cpu_seq = (server_cpu_seconds(base) - cpu) / len(seq_queries) * 1e3
+    again, _ = run_both(base, seq_queries)
+    timed, _ = run_both(base, [_timed(q) for q in seq_queries])
+    cpu = server_cpu_seconds(base)
+    rps, conc_hits = run_concurrent(base, conc_queries)
+    cpu_conc = (server_cpu_seconds(base) - cpu) / len(conc_queries) * 1e3
+    return Measured(
+        len(seq_queries),
+        len(conc_queries),
+        floor,
+        floor_httpx,
+        first,
+        first_httpx,
+        again,
+        timed,
+        cpu_seq,
+        rps,
+        conc_hits,
+        cpu_conc,
+    )
+
+
+def print_table(workload: Workload, m: Measured) -> None:
+    """The figures as a two-column table."""
+    fresh, fresh_httpx = summarize(m.first), summarize(m.first_httpx)
+    repeat, timed_repeat = summarize(m.again), summarize(m.timed)
     timing_cost = timed_repeat.get("p50", float("nan")) - repeat.get("p50", float("nan"))
     rows: list[tuple[str, object]] = [
-        ("trajectories cached (run 1)", stored),
-        ("scenes (robots)", len(robots.by_hash)),
-        ("sequential requests", len(seq_queries)),
+        ("trajectories cached (run 1)", workload.stored),
+        ("scenes (robots)", len(workload.robots.by_hash)),
+        ("sequential requests", m.sequential),
         ("cache hits", fresh["hits"] + fresh_httpx["hits"]),
         ("client p50 ms (http.client)", fresh.get("p50")),
         ("client p99 ms (http.client)", fresh.get("p99")),
@@ -415,55 +289,65 @@ def main() -> None:
         ("answer extras (quality) p50 ms", fresh.get("extras")),
         ("server serialize p50 ms", fresh.get("serialize")),
         ("http p50 ms (http.client)", fresh.get("http")),
-        ("http floor: GET /healthz p50 ms", floor),
-        ("http floor: GET /healthz p50 ms (trajcache_client)", floor_httpx),
-        ("server CPU per plan, sequential ms", cpu_seq),
+        ("http floor: GET /healthz p50 ms", m.floor),
+        ("http floor: GET /healthz p50 ms (trajcache_client)", m.floor_httpx),
+        ("server CPU per plan, sequential ms", m.cpu_seq),
         ("repeat: client p50 ms", repeat.get("p50")),
         ("repeat: client p99 ms", repeat.get("p99")),
         ("repeat: server validate p50 ms", repeat.get("validate")),
         ("timed repeat (toppra): client p50 ms", timed_repeat.get("p50")),
         ("added p50 ms for timing", timing_cost),
-        (f"concurrent rps ({CONCURRENCY} clients)", rps),
-        ("concurrent hit rate", conc_hits / max(len(conc_queries), 1)),
-        ("server CPU per plan, concurrent ms", cpu_conc),
+        (f"concurrent rps ({CONCURRENCY} clients)", m.rps),
+        ("concurrent hit rate", m.conc_hits / max(m.concurrent, 1)),
+        ("server CPU per plan, concurrent ms", m.cpu_conc),
     ]
-    print(f"{'measure':<36}{'value':>10}")
-    for label, value in rows:
-        text = f"{value:.3f}" if isinstance(value, float) else str(value)
-        print(f"{label:<36}{text:>10}")
-    print(
-        json.dumps(
-            {
-                "p50_ms": round(fresh.get("p50", float("nan")), 3),
-                "p99_ms": round(fresh.get("p99", float("nan")), 3),
-                "concurrent_rps": round(rps, 1),
-                "httpx_p50_ms": round(fresh_httpx.get("p50", float("nan")), 3),
-                "httpx_p99_ms": round(fresh_httpx.get("p99", float("nan")), 3),
-                "hit_rate": round(
-                    (fresh["hits"] + fresh_httpx["hits"]) / max(len(seq_queries), 1), 4
-                ),
-                "repeat_p50_ms": round(repeat.get("p50", float("nan")), 3),
-                "repeat_p99_ms": round(repeat.get("p99", float("nan")), 3),
-                "timed_repeat_p50_ms": round(timed_repeat.get("p50", float("nan")), 3),
-                "timing_added_p50_ms": round(timing_cost, 3),
-                "server_db_ms": round(fresh.get("db", float("nan")), 3),
-                "server_lookup_ms": round(fresh.get("lookup", float("nan")), 3),
-                "server_validate_ms": round(fresh.get("validate", float("nan")), 3),
-                "server_total_ms": round(fresh.get("total", float("nan")), 3),
-                "server_total_p99_ms": round(fresh.get("total_p99", float("nan")), 3),
-                "server_extras_ms": round(fresh.get("extras", float("nan")), 3),
-                "server_serialize_ms": round(fresh.get("serialize", float("nan")), 3),
-                "http_ms": round(fresh.get("http", float("nan")), 3),
-                "healthz_ms": round(floor, 3),
-                "httpx_healthz_ms": round(floor_httpx, 3),
-                "server_cpu_ms_sequential": round(cpu_seq, 3),
-                "server_cpu_ms_concurrent": round(cpu_conc, 3),
-                "database": "postgresql" if url and url.startswith("postgresql") else "sqlite",
-                "workers": args.workers,
-                "smoke": args.smoke,
-            }
-        )
-    )
+    print_measures(rows, 36, 10)
+
+
+def summary_line(args: argparse.Namespace, url: str | None, m: Measured) -> dict[str, Any]:
+    """The final JSON line's figures."""
+    nan = float("nan")
+    fresh, fresh_httpx = summarize(m.first), summarize(m.first_httpx)
+    repeat, timed_repeat = summarize(m.again), summarize(m.timed)
+    timing_cost = timed_repeat.get("p50", nan) - repeat.get("p50", nan)
+    return {
+        "p50_ms": round(fresh.get("p50", nan), 3),
+        "p99_ms": round(fresh.get("p99", nan), 3),
+        "concurrent_rps": round(m.rps, 1),
+        "httpx_p50_ms": round(fresh_httpx.get("p50", nan), 3),
+        "httpx_p99_ms": round(fresh_httpx.get("p99", nan), 3),
+        "hit_rate": round((fresh["hits"] + fresh_httpx["hits"]) / max(m.sequential, 1), 4),
+        "repeat_p50_ms": round(repeat.get("p50", nan), 3),
+        "repeat_p99_ms": round(repeat.get("p99", nan), 3),
+        "timed_repeat_p50_ms": round(timed_repeat.get("p50", nan), 3),
+        "timing_added_p50_ms": round(timing_cost, 3),
+        "server_db_ms": round(fresh.get("db", nan), 3),
+        "server_lookup_ms": round(fresh.get("lookup", nan), 3),
+        "server_validate_ms": round(fresh.get("validate", nan), 3),
+        "server_total_ms": round(fresh.get("total", nan), 3),
+        "server_total_p99_ms": round(fresh.get("total_p99", nan), 3),
+        "server_extras_ms": round(fresh.get("extras", nan), 3),
+        "server_serialize_ms": round(fresh.get("serialize", nan), 3),
+        "http_ms": round(fresh.get("http", nan), 3),
+        "healthz_ms": round(m.floor, 3),
+        "httpx_healthz_ms": round(m.floor_httpx, 3),
+        "server_cpu_ms_sequential": round(m.cpu_seq, 3),
+        "server_cpu_ms_concurrent": round(m.cpu_conc, 3),
+        "database": "postgresql" if url and url.startswith("postgresql") else "sqlite",
+        "workers": args.workers,
+        "smoke": args.smoke,
+    }
+
+
+def main() -> None:
+    """Run the benchmark and print the table and the JSON line."""
+    args = parse_args()
+    calls, sequential, concurrent = (40, 60, 160) if args.smoke else (None, 600, 3200)
+    with database(args.database_url) as url, running_service(url, workers=args.workers) as base:
+        workload = prepare(base, args.seed, calls, sequential + concurrent)
+        measured = measure(base, workload, sequential, concurrent)
+    print_table(workload, measured)
+    print(json.dumps(summary_line(args, url, measured)))
 
 
 if __name__ == "__main__":

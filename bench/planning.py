@@ -147,8 +147,8 @@ def summarize(results: list[PlanResult]) -> dict[str, float]:
     }
 
 
-def main() -> None:
-    """Build the pairs, run the three planners, print a table and one JSON line."""
+def parse_args() -> argparse.Namespace:
+    """The command line."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--smoke", action="store_true", help="10 pairs")
     parser.add_argument("--pairs", type=int, default=120)
@@ -160,20 +160,13 @@ def main() -> None:
         help="share of calls whose straight segment collides (the workload itself has ~1%%)",
     )
     parser.add_argument("--cleaning-runs", type=int, default=20, help="runs to draw calls from")
-    args = parser.parse_args()
-    count = 10 if args.smoke else max(100, args.pairs)
-    began = time.perf_counter()
-    model = reference_model()
-    runs = 2 if args.smoke else args.cleaning_runs
-    pairs, scenes = build_pairs(model, count, args.seed, args.detour_share, runs)
-    kinds = {k: sum(p.kind == k for p in pairs) for k in ("arm", "base")}
-    straight = sum(p.straight_free for p in pairs)
-    print(
-        f"pairs: {len(pairs)} planning calls of the reference workload (seed {args.seed}: "
-        f"cleaning runs {args.seed}..{args.seed + runs - 1}, door sweep {SWEEP_DOORS_DEG}°); "
-        f"{kinds['arm']} arm, {kinds['base']} base; {straight} straight-line free; "
-        f"{len(scenes)} scenes; built in {time.perf_counter() - began:.1f} s"
-    )
+    return parser.parse_args()
+
+
+def run_planners(
+    pairs: list[Pair], model: RobotModel, scenes: dict[str, Scene]
+) -> dict[str, dict[str, float]]:
+    """Each planner over all pairs: its summary, wall time and median on detour pairs."""
     summary: dict[str, dict[str, float]] = {}
     for planner in ("compiled", "rrtconnect", "rris", "naive"):
         t = time.perf_counter()
@@ -187,6 +180,11 @@ def main() -> None:
         failures = [r for r in results if not r.solved]
         for r in failures[:3]:
             print(f"  {planner} failure: {r.status.value}: {r.message[:120]}")
+    return summary
+
+
+def print_table(summary: dict[str, dict[str, float]]) -> None:
+    """One row per planner."""
     header = (
         f"{'planner':<11}{'success':>8}{'plan med':>10}{'plan p95':>10}{'total med':>11}"
         f"{'total p95':>11}{'len raw':>9}{'len short':>10}{'states':>8}{'calls':>7}{'fcl':>7}"
@@ -201,7 +199,28 @@ def main() -> None:
             f"{s['length_after']:>10.2f}{s['checks']:>8.0f}{s['check_calls']:>7.0f}"
             f"{s['narrow_checks']:>7.0f}{s['detour_median_ms']:>11.1f}{s['wall_s']:>8.1f}"
         )
+
+
+def main() -> None:
+    """Build the pairs, run the three planners, print a table and one JSON line."""
+    args = parse_args()
+    count = 10 if args.smoke else max(100, args.pairs)
+    began = time.perf_counter()
+    model = reference_model()
+    runs = 2 if args.smoke else args.cleaning_runs
+    pairs, scenes = build_pairs(model, count, args.seed, args.detour_share, runs)
+    kinds = {k: sum(p.kind == k for p in pairs) for k in ("arm", "base")}
+    straight = sum(p.straight_free for p in pairs)
+    print(
+        f"pairs: {len(pairs)} planning calls of the reference workload (seed {args.seed}: "
+        f"cleaning runs {args.seed}..{args.seed + runs - 1}, door sweep {SWEEP_DOORS_DEG}°); "
+        f"{kinds['arm']} arm, {kinds['base']} base; {straight} straight-line free; "
+        f"{len(scenes)} scenes; built in {time.perf_counter() - began:.1f} s"
+    )
+    summary = run_planners(pairs, model, scenes)
+    print_table(summary)
     ours, rris, naive = summary["rrtconnect"], summary["rris"], summary["naive"]
+    compiled = summary["compiled"]
     line = {
         "success_rate": round(ours["success_rate"], 4),
         "median_ms": round(ours["median_ms"], 2),
@@ -214,11 +233,11 @@ def main() -> None:
         "speedup_vs_naive": round(naive["median_ms"] / max(ours["median_ms"], 1e-9), 2),
         "detour_median_ms": round(ours["detour_median_ms"], 2),
         "naive_detour_median_ms": round(naive["detour_median_ms"], 2),
-        "compiled_success_rate": round(summary["compiled"]["success_rate"], 4),
-        "compiled_median_ms": round(summary["compiled"]["median_ms"], 2),
-        "compiled_p95_ms": round(summary["compiled"]["p95_ms"], 2),
-        "compiled_median_total_ms": round(summary["compiled"]["median_total_ms"], 2),
-        "compiled_detour_median_ms": round(summary["compiled"]["detour_median_ms"], 2),
+        "compiled_success_rate": round(compiled["success_rate"], 4),
+        "compiled_median_ms": round(compiled["median_ms"], 2),
+        "compiled_p95_ms": round(compiled["p95_ms"], 2),
+        "compiled_median_total_ms": round(compiled["median_total_ms"], 2),
+        "compiled_detour_median_ms": round(compiled["detour_median_ms"], 2),
         "pairs": len(pairs),
         "straight_free_pairs": straight,
         "budget_s": BUDGET_S,

@@ -195,16 +195,19 @@ def replay_latency(client: Client, hits: list[Hit], rounds: int) -> tuple[list[f
     return plain, timed
 
 
-def main() -> None:
-    """Run the benchmark and print the table and the JSON line."""
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--smoke", action="store_true", help="30 calls per run, for CI")
-    parser.add_argument("--database-url", default=None, help="default: a temporary SQLite file")
-    parser.add_argument("--seed", type=int, default=1)
-    args = parser.parse_args()
+@dataclass
+class Collected:
+    """The hits of the runs (with their fresh plans) and the latencies of replaying them."""
+
+    hits: list[Hit]
+    counts: list[tuple[int, int, int, int, int]]  # run, calls, hits, planned, other
+    plain: list[float]  # client latency ms, untimed hits
+    timed: list[float]  # … asking for timing
+
+
+def collect(args: argparse.Namespace, model: RobotModel, settings: Settings) -> Collected:
+    """Play two cleaning runs through the service, plan each hit afresh, replay the hits."""
     limit = 30 if args.smoke else None
-    settings = Settings()
-    model = reference_model()
     source = ModelSource(
         model_id=model.model_id,
         urdf=reference_urdf(),
@@ -212,7 +215,6 @@ def main() -> None:
         joint_names=model.joint_names,
     )
     runs = [cleaning_run(args.seed), cleaning_run(args.seed + 1)]
-
     with (
         running_service(args.database_url) as base,
         Client(base, timeout=60, retry=NO_RETRY) as client,
@@ -233,24 +235,11 @@ def main() -> None:
         replayed = hits[: 20 if args.smoke else 100]
         replay_latency(client, replayed[:5], 1)  # warm-up
         plain, timed = replay_latency(client, replayed, 3 if args.smoke else 5)
+    return Collected(hits, counts, plain, timed)
 
-    compared = [h for h in hits if h.fresh is not None]
-    toppra_ms, toppra_failures = timing_cost_ms(model, hits, settings)
-    server_ms = [h.server_timing_ms for h in hits]
 
-    print(f"{'run':<6}{'calls':>7}{'hits':>7}{'planned':>9}{'other':>7}")
-    for index, calls_n, hits_n, planned, other in counts:
-        print(f"{index:<6}{calls_n:>7}{hits_n:>7}{planned:>9}{other:>7}")
-    print(f"\ncached / fresh, {len(compared)} hits (fresh plan failed: "
-          f"{len(hits) - len(compared)})")  # fmt: skip
-    if FAILURES:
-        print(f"first fresh-plan failure: {FAILURES[0]}")
-    differ = [h for h in compared if not _same_path(h)]
-    summary: dict[str, Any] = {
-        "hits": len(hits),
-        "compared": len(compared),
-        "different_paths": len(differ),
-    }
+def print_ratios(compared: list[Hit], differ: list[Hit], summary: dict[str, Any]) -> None:
+    """Cached / fresh ratios of each metric, for all compared hits and the differing paths."""
     for title, group in (("all compared hits", compared), ("paths unlike the fresh", differ)):
         print(f"\n{title} ({len(group)})")
         print(f"{'metric':<32}{'median':>9}{'p10':>9}{'p90':>9}{'min':>9}{'max':>9}")
@@ -267,17 +256,55 @@ def main() -> None:
                 summary[f"p90_{key}_ratio"] = round(p90, 4)
             elif metric in ("path_length", "duration_s"):
                 summary[f"median_{key}_ratio_different_paths"] = round(med, 4)
-    added = percentile(timed, 50) - percentile(plain, 50)
+
+
+def print_timing_costs(got: Collected, toppra_ms: list[float], server_ms: list[float]) -> float:
+    """What timing a hit costs, in process, at the server and at the client; the added p50."""
+    added = percentile(got.timed, 50) - percentile(got.plain, 50)
     print(f"\n{'timing cost (ms)':<40}{'p50':>9}{'p90':>9}")
     for label, values in (
         ("toppra in-process, per answered hit", toppra_ms),
         ("server 'timing' (toppra + sampling)", server_ms),
         ("all metrics of a plan (store time)", STORE_QUALITY_MS),
-        ("client latency, untimed hit", plain),
-        ("client latency, timed hit", timed),
+        ("client latency, untimed hit", got.plain),
+        ("client latency, timed hit", got.timed),
     ):
         print(f"{label:<40}{percentile(values, 50):>9.2f}{percentile(values, 90):>9.2f}")
     print(f"{'added p50 latency of a timed hit':<40}{added:>9.2f}")
+    return added
+
+
+def main() -> None:
+    """Run the benchmark and print the table and the JSON line."""
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--smoke", action="store_true", help="30 calls per run, for CI")
+    parser.add_argument("--database-url", default=None, help="default: a temporary SQLite file")
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    settings = Settings()
+    model = reference_model()
+    got = collect(args, model, settings)
+    hits = got.hits
+    compared = [h for h in hits if h.fresh is not None]
+    toppra_ms, toppra_failures = timing_cost_ms(model, hits, settings)
+    server_ms = [h.server_timing_ms for h in hits]
+
+    print(f"{'run':<6}{'calls':>7}{'hits':>7}{'planned':>9}{'other':>7}")
+    for index, calls_n, hits_n, planned, other in got.counts:
+        print(f"{index:<6}{calls_n:>7}{hits_n:>7}{planned:>9}{other:>7}")
+    print(f"\ncached / fresh, {len(compared)} hits (fresh plan failed: "
+          f"{len(hits) - len(compared)})")  # fmt: skip
+    if FAILURES:
+        print(f"first fresh-plan failure: {FAILURES[0]}")
+    differ = [h for h in compared if not _same_path(h)]
+    summary: dict[str, Any] = {
+        "hits": len(hits),
+        "compared": len(compared),
+        "different_paths": len(differ),
+    }
+    print_ratios(compared, differ, summary)
+    added = print_timing_costs(got, toppra_ms, server_ms)
+    plain, timed = got.plain, got.timed
     summary.update(
         {
             "toppra_ms_p50": round(percentile(toppra_ms, 50), 3),

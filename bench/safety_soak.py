@@ -56,13 +56,14 @@ from soak_geometry import (
     path_obstacle,
     sphere,
 )
+from soak_report import print_table
+from soak_scene import CHANGE_KINDS, SceneChanger, SoakRobot
 from trajcache.cache.adapt import adapt_trajectory, base_is_still
 from trajcache.cache.metric import PLANAR_ARM_OFFSET, wrap_angle
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.scene.payload import apply_patch, object_to_payload, scene_to_payload
-from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.scene.payload import apply_patch, scene_to_payload
 from trajcache.reference.cleaning import PlanCall, cleaning_run
-from trajcache.reference.restroom import STALL_COUNT, restroom_scene
+from trajcache.reference.restroom import restroom_scene
 from trajcache.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
 from trajcache.reference.tasks import STOW, TASKS, work_stations
 from trajcache_client import NO_RETRY, APIError, Client
@@ -76,50 +77,6 @@ VARIANTS: dict[str, dict[str, Any]] = {  # the other requests draw one of these
 }
 BLOCKED_SHARE, RUN_SHARE = 0.3, 0.35  # the rest: task pairs and drives
 GRAZING_SHARE = 0.5  # of path obstacles: only just reaching into the path, not on a link
-CHANGE_KINDS = ("door", "seat", "move", "add", "remove")
-CHANGE_WEIGHTS = (0.3, 0.1, 0.25, 0.2, 0.15)
-MOVABLE = (
-    *("trash_bin", "hand_dryer", "sink_1_soap", "sink_2_soap"),
-    *(f"stall_{i}_{part}" for i in range(1, STALL_COUNT + 1) for part in ("bin", "paper_holder")),
-)  # small fixtures that the soak shifts by a few cm
-BOX_FACES = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-             [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]  # fmt: skip
-MAX_EXTRAS = 10  # added objects (clutter and path obstacles) kept at once
-
-
-class SoakRobot(RobotClient):
-    """The soak's robot: its scene is changed by patches, applied here and at the service."""
-
-    def __init__(self, client: Client, robot_id: str, model_id: str, scene: Scene) -> None:
-        super().__init__(client, robot_id, model_id, "real")
-        self.show(scene)
-        self.scene = scene
-        self.changes: Counter[str] = Counter()
-
-    def patch(self, patch: dict[str, Any], kind: str) -> None:
-        """Apply `patch` locally and at the service; both must hold the same scene."""
-        scene = apply_patch(self.scene, patch)
-        reply = self.client.patch_scene(
-            self.robot_id,
-            upsert=patch.get("upsert", ()),
-            remove=patch.get("remove", ()),
-            env=patch.get("env"),
-        )
-        if reply.hash != scene.hash:
-            raise RuntimeError(f"the service holds scene {reply.hash}, not {scene.hash}")
-        self.scene, self.scene_hash = scene, scene.hash
-        self.changes[kind] += 1
-
-    def ask(
-        self, start: FloatArray, goal: FloatArray, options: dict[str, Any]
-    ) -> tuple[int, dict[str, Any]]:
-        """Ask for a plan; the HTTP status and the answer as JSON (4xx/5xx: their detail)."""
-        start_values, goal_values = [float(v) for v in start], [float(v) for v in goal]
-        try:
-            answer = self.client.plan(self.robot_id, start_values, goal_values, options)
-        except APIError as exc:
-            return exc.status_code, {"detail": exc.detail[:300]}
-        return 200, answer.model_dump(mode="json")
 
 
 @dataclass
@@ -140,11 +97,7 @@ class Soak:
     def __init__(self, robot: SoakRobot, checker: DenseChecker, seed: int, model_id: str) -> None:
         self.robot, self.checker, self.model_id = robot, checker, model_id
         self.rng = np.random.default_rng([seed, 7])
-        self.doors = [0.0] * STALL_COUNT
-        self.seats = [0.0] * STALL_COUNT
-        self.fixtures = {o.id: o.pose for o in robot.scene.objects if o.id in MOVABLE}
-        self.extras: list[str] = []
-        self.added = 0
+        self.changer = SceneChanger(robot, self.rng)
         self.run_calls: list[PlanCall] = cleaning_run(seed + 1).calls
         self.run_next = 0
         model = reference_model()
@@ -157,82 +110,6 @@ class Soak:
         self.unsafe_cases: list[dict[str, Any]] = []  # what reproduces each unsafe answer
 
     # --- scene changes -------------------------------------------------------------------
-
-    def change_scene(self) -> None:
-        """One random scene change (PATCH)."""
-        kind = str(self.rng.choice(CHANGE_KINDS, p=CHANGE_WEIGHTS))
-        if kind == "remove" and not self.extras:
-            kind = "add"
-        k = int(self.rng.integers(STALL_COUNT))
-        if kind == "door":
-            angle = self.rng.choice([0.0, 90.0, round(float(self.rng.uniform(0.0, 90.0)), 1)])
-            self.doors[k] = float(angle)  # closed, wide open or in between
-            self._restroom_part(k, ("stall_{i}_door", "stall_{i}_door_handle"), "door")
-        elif kind == "seat":
-            self.seats[k] = 90.0 if self.seats[k] == 0.0 else 0.0
-            self._restroom_part(k, ("toilet_{i}_seat",), "seat")
-        elif kind == "move":
-            self._move()
-        elif kind == "add":
-            self._add(self._clutter(f"clutter_{self.added}"), "add")
-        else:
-            self.remove(self.extras[int(self.rng.integers(len(self.extras)))])
-
-    def remove(self, oid: str) -> None:
-        """Remove an added object."""
-        self.extras.remove(oid)
-        self.robot.patch({"remove": [oid]}, "remove")
-
-    def _restroom_part(self, k: int, ids: tuple[str, ...], kind: str) -> None:
-        full = restroom_scene(doors=self.doors, seats=self.seats)
-        wanted = {p.format(i=k + 1) for p in ids}
-        upsert = [object_to_payload(o) for o in full.objects if o.id in wanted]
-        env_key = f"stall_{k + 1}_{kind}"
-        self.robot.patch({"upsert": upsert, "env": {env_key: full.env[env_key]}}, kind)
-
-    def _move(self) -> None:
-        names = [*self.fixtures, *self.extras]
-        oid = names[int(self.rng.integers(len(names)))]
-        current = next(o for o in self.robot.scene.objects if o.id == oid)
-        payload = object_to_payload(current)
-        if oid in self.fixtures:  # a fixture shifts a little from where it belongs
-            shift = self.rng.uniform(-0.03, 0.03, 2)
-            payload["pose"]["position"][:2] = (self.fixtures[oid][:2, 3] + shift).tolist()
-        else:
-            payload["pose"] = self._clutter(oid)["pose"]
-        self.robot.patch({"upsert": [payload]}, "move")
-
-    def _clutter(self, oid: str) -> dict[str, Any]:
-        """A random object, turned any way: on the floor (a bucket, a mop) or in the air."""
-        kind = str(self.rng.choice(["box", "cylinder", "capsule", "sphere", "mesh"]))
-        u = self.rng.uniform
-        size: FloatArray = {"box": u(0.08, 0.3, 3), "cylinder": u([0.04, 0.1], [0.15, 0.5]),
-                            "capsule": u([0.015, 0.2], [0.05, 0.8]), "sphere": u(0.04, 0.12, 1),
-                            "mesh": u(0.08, 0.3, 3)}[kind]  # fmt: skip
-        reach = float(np.linalg.norm(size)) / 2  # about its bounding radius
-        x, y = self.rng.uniform(0.3, 5.7), self.rng.uniform(0.3, 3.7)
-        z = reach if self.rng.random() < 0.6 else self.rng.uniform(0.5, 1.5)
-        turn = self.rng.normal(size=4)
-        obj: dict[str, Any] = {"id": oid, "type": kind}
-        if kind == "mesh":  # a box as 12 triangles
-            corners = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)])
-            obj["vertices"] = (corners * size / 2).round(4).tolist()
-            obj["faces"] = BOX_FACES
-        else:
-            obj["size"] = [round(float(v), 4) for v in size]
-        obj["pose"] = {
-            "position": [x, y, float(z)],
-            "orientation": [float(v) for v in turn / np.linalg.norm(turn)],
-        }
-        return obj
-
-    def _add(self, obj: dict[str, Any], kind: str) -> None:
-        upsert, remove = [obj], []
-        if len(self.extras) >= MAX_EXTRAS:
-            remove.append(self.extras.pop(0))
-        self.robot.patch({"upsert": upsert, "remove": remove}, kind)
-        self.extras.append(obj["id"])
-        self.added += 1
 
     # --- requests ------------------------------------------------------------------------
 
@@ -301,7 +178,7 @@ class Soak:
             if placed is None:
                 continue
             obstacle, grazing = placed
-            self._add(obstacle, "path_obstacle")
+            self.changer.add(obstacle, "path_obstacle")
             scene = self.robot.scene  # the new scene, as the service holds it
             confirmed = self.checker.check(stored, scene.hash, scene_to_payload(scene)).collides
             self.tally["blocked_candidates_confirmed"] += confirmed
@@ -314,7 +191,7 @@ class Soak:
     ) -> tuple[dict[str, Any], bool] | None:
         """A sphere that the stored path and its adaptation to the request run into, clear of
         the request's start and goal, and whether it only grazes the paths."""
-        oid = f"obstacle_{self.added}"
+        oid = f"obstacle_{self.changer.added}"
         obstacle = path_obstacle(self.checker, stored, oid, self.rng)
         if obstacle is None:
             return None
@@ -413,11 +290,11 @@ def soak(plans: int, warm_calls: int | None, seed: int) -> dict[str, Any]:
         soak_began = time.perf_counter()
         while run.tally["plans"] < plans:
             while run.rng.random() < 0.5:
-                run.change_scene()
+                run.changer.change()
             request = run.next_request()
             run.request(request)
             if request.kind == "blocked" and run.rng.random() < 0.5:
-                run.remove(run.extras[-1])  # the obstacle has done its work
+                run.changer.remove(run.changer.extras[-1])  # the obstacle has done its work
         soak_s = time.perf_counter() - soak_began
         cached_end = cached_count(client, model_id)
     t = run.tally
@@ -457,46 +334,6 @@ def soak(plans: int, warm_calls: int | None, seed: int) -> dict[str, Any]:
         "errors": run.errors[:10],
         "unsafe_cases": run.unsafe_cases,
     }
-
-
-def print_table(f: dict[str, Any]) -> None:
-    """The figures as a two-column table."""
-    rows: list[tuple[str, object]] = [
-        ("warm-up calls (cleaning run S)", f["warm_calls"]),
-        ("trajectories cached after warm-up", f["cached_after_warm"]),
-        ("plan requests", f["plans"]),
-        *((f"  {k}", v) for k, v in f["plans_by_kind"].items()),
-        *((f"  options {k}", v) for k, v in f["plans_by_options"].items()),
-        ("cache hits (dense-checked)", f["hits"]),
-        ("planned (dense-checked)", f["planned"]),
-        ("failed / no path", f["failed"]),
-        ("4xx answers (start/goal in collision, …)", f["http_4xx"]),
-        ("5xx answers", f["http_5xx"]),
-        ("scene changes", sum(f["scene_changes"].values())),
-        *((f"  {k}", v) for k, v in f["scene_changes"].items()),
-        ("obstacles placed in cached paths", f["path_obstacles"]),
-        ("  of them only grazing the path", f["path_obstacles_grazing"]),
-        ("  blocked candidates confirmed (dense)", f["blocked_candidates_confirmed"]),
-        ("  blocked candidate rejected by service", f["blocked_target_rejected"]),
-        ("  answered from the cache anyway", f["blocked_hits"]),
-        ("  … with the blocked trajectory itself", f["blocked_hits_target"]),
-        ("  … for a grazing obstacle", f["blocked_hits_grazing"]),
-        ("dense samples checked", f["dense_samples"]),
-        ("collisions (dense)", f["collisions"]),
-        ("out of joint limits (dense)", f["limit_violations"]),
-        ("not from start to goal", f["endpoint_errors"]),
-        ("UNSAFE", f["unsafe"]),
-        ("trajectories cached at the end", f["cached_end"]),
-        ("soak wall time s", f["soak_s"]),
-        ("total wall time s", f["wall_s"]),
-    ]
-    print(f"{'measure':<44}{'value':>10}")
-    for label, value in rows:
-        print(f"{label:<44}{value!s:>10}")
-    for example, count in f["http_4xx_examples"].items():
-        print(f"  {count} × {example}")
-    for error in f["errors"]:
-        print(f"! {error}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -217,63 +217,71 @@ def run(url: str, events: int, trajectories: int, repeats: int, seed: int) -> di
     """Fill the database, then time every query; their medians (ms) by name."""
     migrate.upgrade(url)
     engine = make_engine(url, pool_size=2)
-    figures: dict[str, float] = {}
     try:
         began = time.perf_counter()
-        insert_trajectories(engine, trajectories, seed)
-        insert_events(engine, make_events(events, 7.0, 50, trajectories, seed))
-        if engine.dialect.name == "postgresql":
-            with engine.connect() as conn:
-                conn.execute(sa.text("ANALYZE"))
-                conn.commit()
-        figures["insert_s"] = time.perf_counter() - began
+        fill(engine, events, trajectories, seed)
+        figures = {"insert_s": time.perf_counter() - began}
         with Session(engine) as session:
-            began = time.perf_counter()
-            plan_stats(session=session, window_s=7 * 86400)
-            figures["initial_rollup_ms"] = (time.perf_counter() - began) * 1e3
-            for label, window, group_by in (
-                ("stats_1h", 3600, "robot"),
-                ("stats_24h", 86400, "robot"),
-                ("stats_7d", 7 * 86400, "robot"),
-                ("stats_7d_by_model", 7 * 86400, "model"),
-                ("stats_30d_by_source", 30 * 86400, "source"),
-            ):
-                figures[label], stats = timed(
-                    lambda w=window, g=group_by: plan_stats(
-                        session=session, window_s=w, group_by=g
-                    ),
-                    repeats,
-                )
-                if label == "stats_7d":
-                    figures["requests_in_7d"] = stats.totals.requests
-            figures["events_first_page"], page = timed(
-                lambda: list_plan_events(session=session, limit=100), repeats
-            )
-            cursor = page.next_cursor
-            for _ in range(50):  # 5,000 events deep
-                cursor = list_plan_events(session=session, limit=100, cursor=cursor).next_cursor
-            figures["events_page_51"], _ = timed(
-                lambda: list_plan_events(session=session, limit=100, cursor=cursor), repeats
-            )
-            figures["events_by_robot"], _ = timed(
-                lambda: list_plan_events(session=session, limit=100, robot_id="robot-007"),
-                repeats,
-            )
-            figures["events_failures"], _ = timed(
-                lambda: list_plan_events(session=session, limit=100, status="failure"), repeats
-            )
-            figures["trajectory_usage"], _ = timed(
-                lambda: trajectory_usage(session=session, trajectory_id=42), repeats
-            )
-            figures["top_trajectories"], _ = timed(
-                lambda: top_trajectories(session=session, limit=10), repeats
-            )
-            since = datetime.now(UTC) - timedelta(days=7)
-            figures["raw_events_equivalent_7d"], _ = timed(
-                lambda: raw_equivalent(session, since), max(1, repeats // 3)
-            )
+            figures.update(time_queries(session, repeats))
     finally:
         engine.dispose()
+    return figures
+
+
+def fill(engine: sa.Engine, events: int, trajectories: int, seed: int) -> None:
+    """Insert the trajectories and a week of events (and ANALYZE on PostgreSQL)."""
+    insert_trajectories(engine, trajectories, seed)
+    insert_events(engine, make_events(events, 7.0, 50, trajectories, seed))
+    if engine.dialect.name == "postgresql":
+        with engine.connect() as conn:
+            conn.execute(sa.text("ANALYZE"))
+            conn.commit()
+
+
+def time_queries(session: Session, repeats: int) -> dict[str, float]:
+    """The first roll-up's time, then each query's median (ms) over `repeats` runs."""
+    figures: dict[str, float] = {}
+    began = time.perf_counter()
+    plan_stats(session=session, window_s=7 * 86400)
+    figures["initial_rollup_ms"] = (time.perf_counter() - began) * 1e3
+    for label, window, group_by in (
+        ("stats_1h", 3600, "robot"),
+        ("stats_24h", 86400, "robot"),
+        ("stats_7d", 7 * 86400, "robot"),
+        ("stats_7d_by_model", 7 * 86400, "model"),
+        ("stats_30d_by_source", 30 * 86400, "source"),
+    ):
+        figures[label], stats = timed(
+            lambda w=window, g=group_by: plan_stats(session=session, window_s=w, group_by=g),
+            repeats,
+        )
+        if label == "stats_7d":
+            figures["requests_in_7d"] = stats.totals.requests
+    figures["events_first_page"], page = timed(
+        lambda: list_plan_events(session=session, limit=100), repeats
+    )
+    cursor = page.next_cursor
+    for _ in range(50):  # 5,000 events deep
+        cursor = list_plan_events(session=session, limit=100, cursor=cursor).next_cursor
+    figures["events_page_51"], _ = timed(
+        lambda: list_plan_events(session=session, limit=100, cursor=cursor), repeats
+    )
+    figures["events_by_robot"], _ = timed(
+        lambda: list_plan_events(session=session, limit=100, robot_id="robot-007"), repeats
+    )
+    figures["events_failures"], _ = timed(
+        lambda: list_plan_events(session=session, limit=100, status="failure"), repeats
+    )
+    figures["trajectory_usage"], _ = timed(
+        lambda: trajectory_usage(session=session, trajectory_id=42), repeats
+    )
+    figures["top_trajectories"], _ = timed(
+        lambda: top_trajectories(session=session, limit=10), repeats
+    )
+    since = datetime.now(UTC) - timedelta(days=7)
+    figures["raw_events_equivalent_7d"], _ = timed(
+        lambda: raw_equivalent(session, since), max(1, repeats // 3)
+    )
     return figures
 
 

@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from tests.client.conftest import LiveServer, make_app
+from tests.waiting import SOLVABLE
 from trajcache.cli import app as cli_app
 from trajcache.cli.docs import TABLE_END, TABLE_START, config_table, with_config_table
 from trajcache.core.config import Settings
@@ -124,7 +125,7 @@ def test_the_first_plan_with_curl_works_as_written(first_plan_dir: Path) -> None
     if shutil.which("curl") is None or shutil.which("bash") is None:
         pytest.skip("curl and bash are needed to run the README's shell commands")
     (block,) = [b for b in _blocks("sh") if "curl" in b and "/plan" in b]
-    app = make_app(f"sqlite:///{first_plan_dir / 'readme.db'}", worker_processes=1)
+    app = make_app(f"sqlite:///{first_plan_dir / 'readme.db'}", worker_processes=1, **SOLVABLE)
     with LiveServer(app) as server:
         script = block.replace("localhost:8000", server.url.removeprefix("http://"))
         run = subprocess.run(
@@ -151,7 +152,7 @@ def test_the_python_client_examples_work_as_written(
     first_plan, blocking, asyncio_ = [b for b in _blocks("python") if "trajcache_client" in b]
     assert "register_model" in first_plan and "AsyncClient" in asyncio_
     monkeypatch.chdir(first_plan_dir)
-    app = make_app(f"sqlite:///{first_plan_dir / 'readme.db'}", worker_processes=1)
+    app = make_app(f"sqlite:///{first_plan_dir / 'readme.db'}", worker_processes=1, **SOLVABLE)
     with LiveServer(app) as server:
         _run(first_plan, server.url)
         there, back = capsys.readouterr().out.splitlines()

@@ -1,5 +1,7 @@
-"""The package stays readable: no module over 400 lines, and long functions only where they are
-numeric kernels (numba compiles one function; splitting it would cost a call per element)."""
+"""The package and the benchmarks stay readable: no module over 400 lines, and long functions
+only where they are numeric kernels (numba compiles one function; splitting it would cost a call
+per element). The benchmarks (bench/, not installed) have no kernels: none of their functions is
+long."""
 
 from __future__ import annotations
 
@@ -9,6 +11,7 @@ from pathlib import Path
 import trajcache
 
 PACKAGE_DIR = Path(trajcache.__file__).parent
+BENCH_DIR = Path(__file__).resolve().parents[1] / "bench"
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 60
 MAX_LONG_FUNCTIONS = 5
@@ -57,3 +60,15 @@ def test_only_numeric_kernels_are_long_functions() -> None:
     found = long_functions(PACKAGE_DIR, MAX_FUNCTION_LINES)
     assert set(found) <= KERNELS, f"functions over {MAX_FUNCTION_LINES} lines: {found}"
     assert len(found) <= MAX_LONG_FUNCTIONS
+
+
+def test_no_benchmark_module_is_over_400_lines() -> None:
+    lengths = module_lengths(BENCH_DIR)
+    assert "load.py" in lengths and "harness/service.py" in lengths  # the harness is scanned too
+    long = {path: n for path, n in lengths.items() if n > MAX_MODULE_LINES}
+    assert not long, f"bench modules over {MAX_MODULE_LINES} lines: {long}"
+
+
+def test_no_benchmark_function_is_long() -> None:
+    found = long_functions(BENCH_DIR, MAX_FUNCTION_LINES)
+    assert not found, f"bench functions over {MAX_FUNCTION_LINES} lines: {found}"

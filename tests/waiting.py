@@ -7,6 +7,13 @@ from collections.abc import Callable
 
 from trajcache.planning.deadline import Deadline
 
+# A planning budget for problems a test needs solved: it never binds, even on a loaded machine
+# (a search returns as soon as it is solved), so the verdict is the planner's, not the clock's.
+NEVER_BINDS_S = 60.0
+# App settings under which a request that does not name a budget plans with that one, too (the
+# first miss also starts the app's worker within it).
+SOLVABLE = {"plan_budget_s": NEVER_BINDS_S, "plan_budget_max_s": NEVER_BINDS_S}
+
 
 class FakeClock:
     """A monotonic clock that moves only when told to (inject it where a `clock` is taken)."""

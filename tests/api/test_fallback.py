@@ -17,6 +17,7 @@ from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, ctx_of, register
 from tests.conftest import REDIS_URL, require_service
+from tests.waiting import SOLVABLE
 from trajcache.db.models import PlanEvent
 from trajcache.geometry.validation.validator import validator_for
 from trajcache.jobs.pool import PlannerPool
@@ -96,7 +97,7 @@ def _recording(client: TestClient) -> _RecordingBackend:
 
 
 def test_miss_is_planned_stored_and_then_served_from_cache(client_factory: ClientFactory) -> None:
-    client = client_factory(worker_processes=1)
+    client = client_factory(worker_processes=1, **SOLVABLE)
     _setup(client, DETOUR_SCENE)
     body = _plan(client)
     assert (body["status"], body["source"]) == ("success", "planner"), body
@@ -143,7 +144,7 @@ def test_unreachable_goal_fails_within_budget_then_fails_fast(
 
 
 def test_concurrent_identical_misses_plan_once(client_factory: ClientFactory) -> None:
-    client = client_factory(worker_processes=1)
+    client = client_factory(worker_processes=1, **SOLVABLE)
     _setup(client, DETOUR_SCENE)
     pool = ctx_of(client).planner_pool()
     assert pool is not None
@@ -230,7 +231,7 @@ def test_unknown_planner_is_422(client_factory: ClientFactory) -> None:
 
 
 def test_rris_is_selectable(client_factory: ClientFactory) -> None:
-    client = client_factory(worker_processes=1)
+    client = client_factory(worker_processes=1, **SOLVABLE)
     _setup(client, DETOUR_SCENE)
     body = _plan(client, options={"planner": "RRIS"})
     assert (body["status"], body["source"]) == ("success", "planner"), body

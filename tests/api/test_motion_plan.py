@@ -14,6 +14,7 @@ from fastapi.testclient import TestClient
 
 from tests.api.conftest import ClientFactory, assert_detail, register
 from tests.api.test_fallback import WALL_SCENE
+from tests.waiting import SOLVABLE
 from trajcache.api.moveit import MotionPlanResponseOut
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -79,7 +80,7 @@ def _code(answer: dict[str, Any]) -> int:
 def test_yaml_request_is_planned_then_served_from_the_cache(
     client_factory: ClientFactory,
 ) -> None:
-    client = client_factory(worker_processes=1)
+    client = client_factory(worker_processes=1, **SOLVABLE)
     model_id = register(client)["model_id"]
     assert client.put("/v1/robots/robot-1", json={"model_id": model_id}).status_code == 201
     first = _answer(client, _request())

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from load import MissMaker, robot_script
+from load_scripts import MissMaker, robot_script
 from tests.conftest import POSTGRES_URL, require_service
 from trajcache.reference.cleaning import cleaning_run
 from trajcache.reference.robot import reference_model

@@ -9,7 +9,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from dense_mesh import _quaternion_placement, obj_triangles, scene_geometry
+from coal_geometry import obj_triangles, quaternion_placement, scene_geometry
 from mbm import parse_args, planner_ms
 from mbm_check import SceneChecker, panda_description
 from mbm_cross import MOVE_M, moved_scene
@@ -161,7 +161,7 @@ def test_obj_meshes_are_checked_as_written_not_as_assimp_reads_them(
     pin.updateGeometryPlacements(checker.model, checker.data, checker.geoms, checker.geom_data, q)
     link6 = next(g for g, o in enumerate(checker.robot_geoms.geometryObjects) if "link6" in o.name)
     placed = checker.geom_data.oMg[link6]
-    box_pose = _quaternion_placement(bar["pose"])
+    box_pose = quaternion_placement(bar["pose"])
     world = vertices @ placed.rotation.T + placed.translation
     least = np.inf
     for face in faces:

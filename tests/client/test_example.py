@@ -12,6 +12,7 @@ from types import ModuleType
 import pytest
 
 from tests.client.conftest import LiveServer, make_app
+from tests.waiting import NEVER_BINDS_S, SOLVABLE
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.reference.restroom import restroom_scene
 from trajcache.reference.robot import reference_urdf
@@ -45,7 +46,7 @@ def test_the_loop_plans_then_serves_the_second_round_from_the_cache(
         payload = scene_to_payload(restroom_scene(doors=doors, seats=(0,)))
         (tmp_path / name).write_text(json.dumps(payload))
     loop = _load_example()
-    app = make_app(f"sqlite:///{tmp_path / 'loop.db'}", worker_processes=1)
+    app = make_app(f"sqlite:///{tmp_path / 'loop.db'}", worker_processes=1, **SOLVABLE)
     with LiveServer(app) as server:
         code = loop.main(
             [
@@ -57,6 +58,8 @@ def test_the_loop_plans_then_serves_the_second_round_from_the_cache(
                 str(tmp_path / "scene.json"),
                 "--scene-door-open",
                 str(tmp_path / "scene_door_open.json"),
+                "--budget",
+                str(NEVER_BINDS_S),  # every task is planned, however loaded the machine
             ]
         )
     out = capsys.readouterr().out

@@ -21,7 +21,10 @@ from trajcache.core.config import Settings
 from trajcache.main import create_app
 
 ROBOT = "r1"
-SLACK_S = 0.5  # request handling around the planner pool's deadline (budget + OVERHEAD_S)
+# Request handling around the planner pool's deadline (budget + OVERHEAD_S): HTTP, the plan
+# event, the answer. Generous, as on a machine loaded by other jobs, yet well below any budget
+# the tests give: waiting for the budget a second time still shows.
+SLACK_S = 1.5
 
 
 @contextmanager

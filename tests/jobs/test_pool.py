@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from tests.robots import BOXED_TWO_LINK_URDF, OPAQUE_URDF
-from tests.waiting import FakeClock, wait_until
+from tests.waiting import NEVER_BINDS_S, FakeClock, wait_until
 from trajcache.core.config import Settings
 from trajcache.jobs.local import LocalBackend
 from trajcache.jobs.pool import PlannerPool, coalescing_key, make_pool
@@ -99,7 +99,8 @@ WALL = {
 def two_link_problem(goal: tuple[float, float]) -> PlanningProblem:
     """A real problem for `run_planning`: a planar two-link arm next to a wall."""
     model = ModelSource("two-link", BOXED_TWO_LINK_URDF, "fixed", ("shoulder", "elbow"))
-    return PlanningProblem(model, SceneSource("wall", WALL), (0.0, 0.0), goal, budget_s=2.0)
+    scene = SceneSource("wall", WALL)
+    return PlanningProblem(model, scene, (0.0, 0.0), goal, budget_s=NEVER_BINDS_S)
 
 
 def runs(tmp_path: Path, scene: str = "scene-a") -> int:

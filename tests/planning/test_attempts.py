@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from tests.robots import TWO_ROD_URDF
+from tests.waiting import NEVER_BINDS_S
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
@@ -76,7 +77,7 @@ def test_a_path_that_fails_certification_is_repaired(
 ) -> None:
     use(monkeypatch, in_fog)
     model = load_robot_model(TWO_ROD_URDF, base="fixed")
-    result = planner(model, empty, START, GOAL, budget_s=5.0, seed=0)
+    result = planner(model, empty, START, GOAL, budget_s=NEVER_BINDS_S, seed=0)
     assert result.status is PlannerStatus.SOLVED, result.message
     assert result.path is not None and np.allclose(result.path[[0, -1]], [START, GOAL])
     assert not in_fog(interpolate(result.path, model, TrajectoryValidator(model, empty).resolution))

@@ -9,6 +9,7 @@ import pytest
 import trimesh
 
 from tests.robots import TWO_JOINT_URDF
+from tests.waiting import NEVER_BINDS_S
 from trajcache.geometry.collision.checker import FREE, CollisionChecker
 from trajcache.geometry.collision.compiled.spheres import COLLIDING, OPEN, sphere_state
 from trajcache.geometry.collision.sphere_tables import planner_trees, sphere_tables
@@ -118,7 +119,7 @@ def test_the_compiled_planner_finds_a_certified_path_around_a_wall() -> None:
     start, goal = np.array([-1.2, 0.3]), np.array([1.2, 0.3])
     direct = CollisionChecker(model, scene).check(np.linspace(start, goal, 40), stop_at_first=True)
     assert direct.first_collision >= 0  # the straight way is blocked
-    result = plan_compiled(model, scene, start, goal, budget_s=5.0, seed_value=1)
+    result = plan_compiled(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed_value=1)
     assert result.status is PlannerStatus.SOLVED, result.message
     assert result.path is not None
     np.testing.assert_allclose(result.path[0], start)
@@ -147,7 +148,7 @@ def test_the_worker_task_dispatches_compiled_for_a_planar_base() -> None:
                          joint_names=model.joint_names)  # fmt: skip
     payload = SceneSource(scene.hash, scene_to_payload(scene))
     problem = PlanningProblem(model=source, scene=payload, start=base + DOWN, goal=base + FORWARD,
-                              budget_s=5.0, seed=3)  # fmt: skip
+                              budget_s=NEVER_BINDS_S, seed=3)  # fmt: skip
     result = run_planning(replace(problem, planner="compiled"))
     assert result.status is PlannerStatus.SOLVED, result.message
     assert result.path is not None

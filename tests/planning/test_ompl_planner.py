@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tests.robots import TWO_ROD_URDF
+from tests.waiting import NEVER_BINDS_S
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
@@ -62,7 +63,7 @@ def test_arm_motion_around_an_obstacle_is_certified(model: RobotModel, scene: Sc
     query = prepare_query(model, scene, start, goal)
     assert isinstance(query, Query) and query.base_still
     assert not query.checker.segment_free(start, goal)  # the straight motion collides
-    result = plan_ompl(model, scene, start, goal, budget_s=2.0, seed=1)
+    result = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=1)
     assert_certified(model, scene, result)
     assert result.path is not None and len(result.path) >= 3
     assert np.allclose(result.path[0], start) and np.allclose(result.path[-1], goal)
@@ -83,7 +84,7 @@ def test_base_drives_around_a_pillar(model: RobotModel) -> None:
     query = prepare_query(model, scene, start, goal)
     assert isinstance(query, Query) and not query.base_still
     assert not query.checker.segment_free(start, goal)
-    result = plan_ompl(model, scene, start, goal, budget_s=2.0, seed=3)
+    result = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=3)
     assert_certified(model, scene, result)
     assert result.path is not None
     assert np.abs(result.path[:, 1] - 1.3).max() > 0.2  # it left the straight line
@@ -97,7 +98,7 @@ def test_fixed_base_arm_folds_past_a_post() -> None:
     start, goal = np.array([-1.0, 0.0]), np.array([1.0, 0.0])
     query = prepare_query(model, scene, start, goal)
     assert isinstance(query, Query) and not query.checker.segment_free(start, goal)
-    result = plan_ompl(model, scene, start, goal, budget_s=2.0, seed=0)
+    result = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=0)
     assert_certified(model, scene, result)
     assert result.path is not None
     assert np.abs(result.path[:, 1]).max() > 0.5  # the elbow folded to pass the post
@@ -152,7 +153,7 @@ def test_tiny_budget_on_an_impossible_problem_times_out_quickly(
 
 def test_naive_baseline_solves_the_same_query(model: RobotModel, scene: Scene) -> None:
     start, goal = arm_query()
-    result = plan_ompl(model, scene, start, goal, budget_s=5.0, seed=1, naive=True)
+    result = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=1, naive=True)
     assert_certified(model, scene, result)
     # one call per state, except the endpoint check (start and goal in one call)
     assert result.stats["check_calls"] == result.stats["checks"] - 1
@@ -161,8 +162,8 @@ def test_naive_baseline_solves_the_same_query(model: RobotModel, scene: Scene) -
 def test_same_seed_gives_the_same_path(model: RobotModel, scene: Scene) -> None:
     start, goal = arm_query()
     # a budget that never binds, even on a loaded machine: a cut-short shortcut phase differs
-    first = plan_ompl(model, scene, start, goal, budget_s=30.0, seed=5)
-    second = plan_ompl(model, scene, start, goal, budget_s=30.0, seed=5)
+    first = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=5)
+    second = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=5)
     assert first.path is not None and second.path is not None
     assert first.path.shape == second.path.shape and np.allclose(first.path, second.path)
 
@@ -172,12 +173,14 @@ def test_other_planners_run_in_both_kinds_of_space(
     model: RobotModel, scene: Scene, planner: str
 ) -> None:
     start, goal = arm_query()
-    result = plan_ompl(model, scene, start, goal, planner=planner, budget_s=5.0, seed=2)
+    result = plan_ompl(model, scene, start, goal, planner=planner, budget_s=NEVER_BINDS_S, seed=2)
     assert_certified(model, scene, result)
     stowed = list(STOWED_ARM)
     drive_from = np.array(station("stall_3") + stowed)
     drive_to = np.array([3.4, 1.6, -math.pi / 2, *stowed])  # base turns and moves
-    result = plan_ompl(model, scene, drive_from, drive_to, planner=planner, budget_s=5.0, seed=2)
+    result = plan_ompl(
+        model, scene, drive_from, drive_to, planner=planner, budget_s=NEVER_BINDS_S, seed=2
+    )
     assert_certified(model, scene, result)
 
 

@@ -8,7 +8,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from tests.waiting import FakeClock
+from tests.waiting import NEVER_BINDS_S, FakeClock
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.rris import plan_rris
 
@@ -59,7 +59,7 @@ class Geometry:
 def plan(
     geometry: Geometry,
     seed: int,
-    budget_s: float = 2.0,
+    budget_s: float = NEVER_BINDS_S,
     clock: FakeClock | None = None,
     **kw: object,
 ) -> list | None:

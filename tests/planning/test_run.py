@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from tests.planning.test_ompl_planner import DOWN, FORWARD
+from tests.waiting import NEVER_BINDS_S
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
 from trajcache.planning import ompl_planner, rris, run
@@ -44,7 +45,7 @@ def problem() -> PlanningProblem:
         scene=SceneSource(scene.hash, scene_to_payload(scene)),
         start=base + DOWN,
         goal=base + FORWARD,
-        budget_s=2.0,
+        budget_s=NEVER_BINDS_S,
         seed=1,
     )
 
@@ -67,9 +68,10 @@ def test_run_planning_in_a_worker_process(problem: PlanningProblem) -> None:
         assert result.path is not None and np.allclose(result.path[0], problem.start)
         for key in ("plan_ms", "shortcut_ms", "length_before", "length_after", "checks"):
             assert key in result.stats
+    # the second call skipped URDF loading and scene parsing: it found both in the worker's
+    # caches (counted, not timed: a cache hit's setup time says nothing on a busy machine)
     assert (models, model_hits, scenes, scene_hits) == (1, 1, 1, 1)
-    # the second call skipped URDF loading and scene parsing
-    assert second.stats["setup_ms"] < first.stats["setup_ms"] / 5
+    assert first.stats["setup_ms"] > 0.0 and second.stats["setup_ms"] > 0.0
     assert pickle.loads(pickle.dumps(first)).status is PlannerStatus.SOLVED
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from tests.planning.test_rris import Geometry
+from tests.waiting import NEVER_BINDS_S
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.planning.shortcut import (
     path_length,
@@ -91,7 +92,7 @@ def test_shortcut_never_collides_and_never_lengthens(seed: int) -> None:
         segment_free_fn=geometry.segment_free,
         distance_fn=distance,
         interpolate_fn=interpolate,
-        budget_s=1.0,
+        budget_s=NEVER_BINDS_S,
         rng=rng,
         max_iters=300,
     )
@@ -110,7 +111,7 @@ def test_free_space_collapses_to_the_straight_segment() -> None:
         segment_free_fn=geometry.segment_free,
         distance_fn=distance,
         interpolate_fn=interpolate,
-        budget_s=1.0,
+        budget_s=NEVER_BINDS_S,
         rng=np.random.default_rng(0),
     )
     assert len(out) == 2
@@ -172,7 +173,7 @@ def test_finishing_falls_back_to_the_raw_path_when_the_shortcut_fails_validation
         distance_fn=distance,
         interpolate_fn=interpolate,
         validate_fn=validate,
-        budget_s=1.0,
+        budget_s=NEVER_BINDS_S,
         rng=np.random.default_rng(0),
     )
     assert finished.path is not None and len(finished.path) == len(raw)
@@ -186,7 +187,7 @@ def test_finishing_falls_back_to_the_raw_path_when_the_shortcut_fails_validation
         distance_fn=distance,
         interpolate_fn=interpolate,
         validate_fn=lambda path: (False, "nope"),
-        budget_s=1.0,
+        budget_s=NEVER_BINDS_S,
         rng=np.random.default_rng(0),
     )
     assert rejected.path is None and "nope" in rejected.message

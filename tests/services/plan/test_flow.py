@@ -3,6 +3,7 @@ bookkeeping through the ordered record writer only, and the time of each phase."
 
 from __future__ import annotations
 
+import inspect
 import math
 import threading
 import time
@@ -16,6 +17,7 @@ import pytest
 import sqlalchemy as sa
 
 from tests.services.hit_setup import context, count_statements, store, two_joint
+from tests.waiting import NEVER_BINDS_S
 from trajcache.cache.memo import MemoUse
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.errors import CollisionStateError
@@ -272,29 +274,70 @@ def test_an_unavailable_planner_is_a_503_whose_event_is_written_first(
         assert row is not None and row.failures == 1
 
 
+class SimulatedTime:
+    """The `time` module as the phase clock sees it: real time plus simulated waits.
+
+    A wait adds to the clock at once instead of sleeping, so a phase's simulated seconds stand
+    out from whatever the real work costs, however loaded the machine is.
+    """
+
+    def __init__(self) -> None:
+        self.waited_s = 0.0
+
+    def wait(self, seconds: float) -> None:
+        """Let `seconds` pass on this clock only."""
+        self.waited_s += seconds
+
+    def perf_counter(self) -> float:
+        return time.perf_counter() + self.waited_s
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(time, name)
+
+
+class WaitingPlanner(FakePlanner):
+    """A planner pool that answers with `result` after a simulated wait."""
+
+    def __init__(self, result: PlanResult, clock: SimulatedTime, wait_s: float) -> None:
+        super().__init__(result)
+        self.clock, self.wait_s = clock, wait_s
+
+    def submit(self, problem: PlanningProblem) -> PlanResult:
+        self.clock.wait(self.wait_s)
+        return super().submit(problem)
+
+
 def test_the_clock_gives_each_phase_its_time(
     ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """State checks and validation count as validation, the planner as planning, never as db."""
+    """State checks and validation count as validation, the planner as planning, never as db.
+
+    The waits are simulated (tens of seconds on the phase clock, none in fact), so the real
+    lookup and database work, which takes milliseconds, cannot reach the bounds on a busy
+    machine.
+    """
     setup_robot(ctx, [blocker()], DETOUR)
+    clock = SimulatedTime()
+    monkeypatch.setattr(inspect.getmodule(flow.PhaseClock), "time", clock)
     check_states, validate_candidate = flow.check_states, flow.validate_candidate
 
     def slow_check(*args: Any, **kwargs: Any) -> Any:
-        time.sleep(0.02)
+        clock.wait(20.0)
         return check_states(*args, **kwargs)
 
     def slow_validate(*args: Any, **kwargs: Any) -> Any:
-        time.sleep(0.05)
+        clock.wait(50.0)
         return validate_candidate(*args, **kwargs)
 
-    monkeypatch.setattr(flow, "check_states", slow_check)  # start and goal: 40 ms
-    monkeypatch.setattr(flow, "validate_candidate", slow_validate)  # one candidate: 50 ms
+    monkeypatch.setattr(flow, "check_states", slow_check)  # start and goal: 40 s
+    monkeypatch.setattr(flow, "validate_candidate", slow_validate)  # one candidate: 50 s
     result = PlanResult(PlannerStatus.TIMEOUT, message="no path", seed=1)
-    use_planner(ctx, monkeypatch, FakePlanner(result, delay_s=0.06))
+    use_planner(ctx, monkeypatch, WaitingPlanner(result, clock, wait_s=60.0))
     timings = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True).timings_ms
     assert set(timings) == {"lookup", "validate", "plan", "db", "total"}
-    assert timings["validate"] >= 90.0 and timings["plan"] >= 60.0
-    assert timings["db"] < 40.0 and timings["lookup"] < 40.0
+    assert 90_000.0 <= timings["validate"] < 130_000.0
+    assert 60_000.0 <= timings["plan"] < 100_000.0
+    assert timings["db"] < 40_000.0 and timings["lookup"] < 40_000.0  # none of the waits
     parts = timings["lookup"] + timings["validate"] + timings["plan"] + timings["db"]
     assert parts <= timings["total"] + 0.01
 
@@ -338,7 +381,8 @@ def test_the_worker_s_certificate_stands_for_the_service_s_validation(
     setup_robot(ctx, [blocker()], DETOUR)
     planner = WorkerPlanner()
     use_planner(ctx, monkeypatch, planner)
-    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, max_candidates=0)
+    options = {"fallback": True, "max_candidates": 0, "budget_s": NEVER_BINDS_S}
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], **options)
     assert (answer.status, answer.source) == (PlanStatus.SUCCESS, PlanSource.PLANNER)
     assert planner.validations_before_answer > 0  # the worker certified its path
     assert counted[0] == planner.validations_before_answer  # the service did not again
@@ -363,7 +407,8 @@ def test_a_certificate_that_does_not_name_the_path_here_is_validated_again(
         return PlanResult(PlannerStatus.SOLVED, through)
 
     use_planner(ctx, monkeypatch, WorkerPlanner(change))
-    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, max_candidates=0)
+    options = {"fallback": True, "max_candidates": 0, "budget_s": NEVER_BINDS_S}
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], **options)
     assert answer.status is PlanStatus.FAILURE
     assert answer.message.startswith("planned path failed validation")
     assert "blocker" in answer.message

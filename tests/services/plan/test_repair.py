@@ -20,6 +20,7 @@ import sqlalchemy as sa
 
 from tests.services.hit_setup import context, store, two_joint
 from tests.services.plan.test_flow import FakePlanner, WorkerPlanner, use_planner
+from tests.waiting import NEVER_BINDS_S
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
@@ -30,6 +31,9 @@ from trajcache.services.context import ServiceContext
 from trajcache.services.plan.flow import PlanAnswer, PlanRequest, PlanSource, plan
 
 PATH = [[0.0, 0.0], [0.3, 0.2], [0.7, 0.2], [1.0, 0.0]]
+# Budgets that never bind, even on a loaded machine (the stretch is planned in milliseconds), and
+# apart, so that the stretch's problem shows which one it was given.
+REPAIR_BUDGET_S = NEVER_BINDS_S / 2
 
 
 def forearm_box(shoulder: float = 0.5, elbow: float = 0.2, along: float = 0.18) -> dict[str, Any]:
@@ -42,7 +46,8 @@ def forearm_box(shoulder: float = 0.5, elbow: float = 0.2, along: float = 0.18) 
 
 @pytest.fixture
 def ctx(tmp_path: Path) -> Iterator[ServiceContext]:
-    with context(f"sqlite:///{tmp_path / 'repair.db'}", certificate_audit=True) as service:
+    url = f"sqlite:///{tmp_path / 'repair.db'}"
+    with context(url, certificate_audit=True, repair_budget_s=REPAIR_BUDGET_S) as service:
         yield service
 
 
@@ -64,7 +69,7 @@ def ask(ctx: ServiceContext) -> PlanAnswer:
         threshold=0.2,
         max_candidates=3,
         fallback=True,
-        budget_s=2.0,
+        budget_s=NEVER_BINDS_S,
     )
     return plan(ctx=ctx, robot_id="r1", request=request)
 

@@ -15,7 +15,7 @@ import sqlalchemy as sa
 from pydantic import ValidationError
 
 from tests.robots import TWO_JOINT_URDF
-from tests.waiting import wait_until
+from tests.waiting import SOLVABLE, wait_until
 from trajcache.core.config import Settings
 from trajcache.db.models import PlanEvent, SeedJob, Trajectory, utcnow
 from trajcache.reference.cleaning import cleaning_run
@@ -514,7 +514,7 @@ def test_planned_results_are_stored_as_sim_with_scene_and_env(
     migrated_url: str, tmp_path: Path
 ) -> None:
     context = ServiceContext.create(
-        Settings(database_url=migrated_url, worker_processes=1, seed_heartbeat_s=0.1)
+        Settings(database_url=migrated_url, worker_processes=1, seed_heartbeat_s=0.1, **SOLVABLE)
     )
     try:
         with context.session() as session:
@@ -582,6 +582,7 @@ def test_misses_go_through_celery_workers_when_configured(
             celery_result_backend=REDIS_URL,
             celery_queue=queue,
             seed_heartbeat_s=0.1,
+            **SOLVABLE,
         )
     )
     try:
