@@ -11,7 +11,7 @@ from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.reference.robot import STOWED_ARM, reference_model
 from trajcache.services.errors import InvalidInputError
-from trajcache.services.ik.solve import CACHED_STARTS, IkRequest, _cached_starts, _link
+from trajcache.services.ik.solve import CACHED_STARTS, IkRequest, cached_starts, link_of
 
 
 def test_cached_endpoints_nearest_the_target_come_first_on_the_seeds_base() -> None:
@@ -26,15 +26,15 @@ def test_cached_endpoints_nearest_the_target_come_first_on_the_seeds_base() -> N
     tool = model.link_names.index("tool_tip")
     poses = link_transforms(model, on_seed_base)[:, tool]
     target = PoseTarget("tool_tip", poses[17])
-    starts = _cached_starts(model, endpoints, seed, target, move_base=False)
+    starts = cached_starts(model, endpoints, seed, target, move_base=False)
     assert len(starts) == CACHED_STARTS
     np.testing.assert_allclose(starts[0], on_seed_base[17])
     gaps = [
         np.linalg.norm(link_transforms(model, s)[0, tool, :3, 3] - poses[17][:3, 3]) for s in starts
     ]
     assert gaps == sorted(gaps)
-    assert _cached_starts(model, endpoints[:0], seed, target, move_base=False) == []
-    moved = _cached_starts(model, endpoints, seed, target, move_base=True)
+    assert cached_starts(model, endpoints[:0], seed, target, move_base=False) == []
+    moved = cached_starts(model, endpoints, seed, target, move_base=True)
     assert all(any(np.array_equal(s, e) for e in endpoints) for s in moved)
 
 
@@ -47,10 +47,10 @@ def test_a_request_names_a_link_an_end_effector_or_none() -> None:
         "</robot>", '<end_effector name="gripper" parent_link="upper" group="arm"/></robot>'
     )
     model = load_robot_model(PINCER_URDF, srdf=srdf)
-    assert _link(model, srdf, _request("upper")) == "upper"
-    assert _link(model, srdf, _request("gripper")) == "upper"
-    assert _link(model, srdf, _request("")) in model.link_names
+    assert link_of(model, srdf, _request("upper").link) == "upper"
+    assert link_of(model, srdf, _request("gripper").link) == "upper"
+    assert link_of(model, srdf, _request("").link) in model.link_names
     with pytest.raises(
         InvalidInputError, match=r"link: 'claw' is neither .* gripper \(end effector\)"
     ):
-        _link(model, srdf, _request("claw"))
+        link_of(model, srdf, _request("claw").link)
