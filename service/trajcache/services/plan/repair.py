@@ -1,19 +1,19 @@
-"""Repair of a near-miss candidate, as OMPL's Lightning does: keep the certified parts of the
-best rejected candidate and plan only across the stretch that failed.
+"""Repair of a near-miss candidate, as OMPL's Lightning does: keep the good parts of the best
+rejected candidate and plan only across the stretch that failed.
 
 The best candidate that collided or came too close (the first in ranking order) is validated
-again, forwards and backwards. Validation reports its earliest finding, and certifies every
-segment before it (`TrajectoryValidator.validate`: `segment` is the key segment of the finding),
-so the forward pass proves the prefix up to key state `a`, the start of the first failing
-segment, and the backward pass the suffix from key state `b`, the end of the last. A finding
-exactly at a key state moves that end one state outward, so both ends are free states.
+again, forwards and backwards: `segment` of each finding (`TrajectoryValidator.validate`) is the
+key segment where it lies, the first failing one forwards (key state `a` starts it) and the last
+one backwards (key state `b` ends it). A finding exactly at a key state moves that end one state
+outward. These only choose the stretch to replace: validation stops at a colliding sample
+without looking at what lies between earlier ones, so the kept prefix and suffix are not
+thereby proved.
 
 When prefix and suffix keep at least half of the candidate's length (`KEEP`), the planner pool
-plans from state `a` to state `b` with the repair budget (`repair_budget_s`), and only the new
-segments, from `a` to `b`, are validated in the service; the joined path is certified because
-each of its segments is (validation certifies each straight segment on its own). It is stored
-as a new trajectory naming its parent, and answered with source "repaired". Otherwise, or when
-the planner finds nothing, the full planner runs as before.
+plans from state `a` to state `b` with the repair budget (`repair_budget_s`), and the joined
+path is validated whole, as any path the service answers with. It is stored as a new trajectory
+naming its parent, and answered with source "repaired". Otherwise, or when the planner finds
+nothing, or the joined path fails validation, the full planner runs as before.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def repair_candidate(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer |
     middle[0], middle[-1] = path[a], path[b]
     joined = np.vstack([path[:a], middle, path[b + 1 :]])
     with attempt.clock.measure("validate"):
-        result = attempt.validator.validate_segments(joined, list(range(a, a + len(middle) - 1)))
+        result = attempt.validator.validate(joined)  # whole: the kept parts are not proved
     if not result.valid:
         return None
     seed = outcome.seed if outcome.seed is not None else problem.seed
@@ -75,8 +75,8 @@ def repair_candidate(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer |
 
 
 def _failing_stretch(attempt: PlanAttempt, path: FloatArray) -> tuple[int, int] | None:
-    """Key states (a, b): path[:a + 1] and path[b:] certified, a < b; None when what they keep
-    is less than `KEEP` of the path's length."""
+    """Key states (a, b), a < b: the stretch between them holds every finding of either pass;
+    None when what lies outside it is less than `KEEP` of the path's length."""
     validator, n = attempt.validator, len(path)
     forward = validator.validate(path)
     if forward.valid or forward.segment < 0:
