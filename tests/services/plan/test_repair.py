@@ -28,6 +28,7 @@ from trajcache.planning.problem import PlannerStatus, PlanResult
 from trajcache.services.catalog.robots import put_robot
 from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
+from trajcache.services.plan import repair
 from trajcache.services.plan.flow import PlanAnswer, PlanRequest, PlanSource, plan
 
 PATH = [[0.0, 0.0], [0.3, 0.2], [0.7, 0.2], [1.0, 0.0]]
@@ -136,3 +137,19 @@ def test_repair_is_off_with_a_zero_budget(tmp_path: Path, monkeypatch: pytest.Mo
         answer = ask(ctx)
         assert [list(p.start) for p in planner.problems] == [[0.02, 0.0]]
         assert answer.source is not PlanSource.REPAIRED
+
+
+def test_the_kept_parts_are_validated_too(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Validation stops at a colliding sample without looking at earlier segments, so the parts
+    a repair keeps are not proved by the candidate's rejection. Here the stretch chosen is the
+    middle segment while the box blocks the first: the joined path must be refused, and the
+    full problem planned."""
+    cached(ctx, [forearm_box(0.15, 0.1, 0.19)], PATH)
+    monkeypatch.setattr(repair, "_failing_stretch", lambda attempt, path: (1, 2))
+    planner = WorkerPlanner()
+    use_planner(ctx, monkeypatch, planner)
+    answer = ask(ctx)
+    assert [list(p.start) for p in planner.problems] == [[0.3, 0.2], [0.02, 0.0]]
+    assert answer.source is not PlanSource.REPAIRED
