@@ -43,8 +43,10 @@ def validate_candidate(
 ) -> tuple[ValidationResult, MemoUse]:
     """The verdict on an adapted candidate, and what spared work (module docstring)."""
     ctx, scope, validator = attempt.ctx, attempt.memo_scope, attempt.validator
-    key = _key(attempt, adapted)
-    if key is not None and scope is not None and not _memo_knows(attempt, adapted):
+    # A hit the memo knows (the same scene) needs no certificate: its key is not even computed.
+    known = scope is None or _memo_knows(attempt, adapted)
+    key = None if known else _key(attempt, adapted)
+    if key is not None and scope is not None:
         with ctx.session() as session:
             certified = ctx.certificates.get(session, match.trajectory_id, key)
         if certified:
