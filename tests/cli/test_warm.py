@@ -8,10 +8,19 @@ import os
 import re
 import subprocess
 import sys
+from pathlib import Path
 
+import pytest
 from rich.console import Console
 
-from trajcache.cli.warm import warm_kernels
+from trajcache.cli.warm import (
+    OFFLOADED,
+    SECOND_PROCESS_NOTE,
+    _cores,
+    _offload_choice,
+    kernels_cached,
+    warm_kernels,
+)
 from trajcache.planning.warm import warm_steps
 
 GROUPS = [name for name, _ in warm_steps()]
@@ -63,3 +72,54 @@ def test_warm_draws_a_bar_on_a_terminal() -> None:
     for name in GROUPS:
         assert re.search(rf"{re.escape(name)}: \d+\.\d s", text), text
     assert re.search(r"kernels ready in \d+\.\d s", text)
+
+
+_KERNEL = "import numba\n\n\n@numba.njit(cache=True)\ndef twice(x):\n    return 2 * x\n"
+_TOY_STEPS = """import os
+
+
+def _record(name):
+    def run():
+        with open(os.environ["TRAJCACHE_WARM_TOY"], "a") as out:
+            out.write(f"{name} {os.getpid()}\\n")
+
+    return run
+
+
+def steps():
+    return [(name, _record(name)) for name in ("first", "long", "last")]
+"""
+
+
+def test_kernels_cached_reads_numba_index_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "warm_probe_kernel.py").write_text(_KERNEL)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import warm_probe_kernel
+
+    probe = ("warm_probe_kernel:twice",)
+    assert not kernels_cached(probe)  # never compiled: numba has no index for it
+    assert not kernels_cached(("warm_probe_kernel:no_such_kernel",))
+    assert _offload_choice(None, probe) == (OFFLOADED if _cores() >= 2 else None)
+    assert warm_probe_kernel.twice(3) == 6
+    assert kernels_cached(probe)
+    assert _offload_choice(None, probe) is None  # a warm cache: nothing is started
+
+
+def test_an_offloaded_group_is_compiled_in_a_second_process_then_loaded_here(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "warm_toy_steps.py").write_text(_TOY_STEPS)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    record = tmp_path / "runs.txt"
+    monkeypatch.setenv("TRAJCACHE_WARM_TOY", str(record))
+    out = io.StringIO()
+    warm_kernels(Console(file=out, width=200), steps="warm_toy_steps:steps", offload="long")
+    runs = [line.split() for line in record.read_text().splitlines()]
+    here = str(os.getpid())
+    assert [name for name, pid in runs if pid == here] == ["first", "last", "long"]
+    assert [name for name, pid in runs if pid != here] == ["long"]  # the second process's
+    lines = out.getvalue().splitlines()
+    assert lines[1] == f"kernels: long {SECOND_PROCESS_NOTE}"
+    assert re.fullmatch(rf"kernels 3/3: long in \d+\.\d s \({SECOND_PROCESS_NOTE}\)", lines[4])
