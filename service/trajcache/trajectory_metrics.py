@@ -96,12 +96,11 @@ def ee_path_length(
     steps = np.abs(deltas).max(axis=1) / step
     total = float(steps.sum())
     scale = min(1.0, max_samples / total) if total > 0 else 1.0
-    counts = np.maximum(np.ceil(steps * scale), 1).astype(np.int64).tolist()
-    pieces = [
-        array[k] + np.linspace(0.0, 1.0, count, endpoint=False)[:, None] * deltas[k]
-        for k, count in enumerate(counts)
-    ]
-    dense = np.concatenate([*pieces, array[-1:]])
+    counts = np.maximum(np.ceil(steps * scale), 1).astype(np.int64)
+    segment = np.repeat(np.arange(len(counts)), counts)  # each segment's samples, its start first
+    first = np.repeat(np.cumsum(counts) - counts, counts)
+    frac = (np.arange(len(segment)) - first) / counts[segment]
+    dense = np.concatenate([array[segment] + frac[:, None] * deltas[segment], array[-1:]])
     points = link_origins(model, dense, end_effector_link(model))
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
 

@@ -47,8 +47,9 @@ from trajcache.geometry.validation.stamp import certificate_digest
 IntArray = NDArray[np.int64]
 
 _CHUNK = 256
+CERTIFY_SUBDIVISION = 3  # certified samples per resolution step (`sampling.sample_counts`)
 _SPREAD = 9  # samples checked first, spread along the trajectory, when it has
-_SPREAD_ABOVE = 32  # more samples than this (below, certifying them all costs no more)
+_SPREAD_ABOVE = 32  # more resolution steps than this (below, certifying them all costs no more)
 
 
 class ValidationStatus(str, Enum):
@@ -114,7 +115,7 @@ class TrajectoryValidator:
         )
         self.resolution = resolution or Resolution()
         self.certified = certified
-        # Every setting a verdict depends on besides the model, the scene and the states.
+        self.subdivision = CERTIFY_SUBDIVISION if certified else 1
         self.settings_key = settings_key(self.resolution, certified, min_pad, max_depth)
         if not self_collision:  # a verdict on the scene alone
             self.settings_key = (*self.settings_key, "scene only")
@@ -130,10 +131,10 @@ class TrajectoryValidator:
         """Check limits and collisions along the whole trajectory; stops at the first collision."""
         began = time.perf_counter()
         key = check_states(self.model, key_states, name="trajectory state")
-        samples = interpolate(key, self.model, self.resolution)
+        samples = interpolate(key, self.model, self.resolution, self.subdivision)
         result = self._validate_samples(samples)
         if result.sample >= 0 and len(key) >= 2:
-            ends = np.cumsum(sample_counts(key, self.model, self.resolution))
+            ends = np.cumsum(sample_counts(key, self.model, self.resolution, self.subdivision))
             result.segment = min(int(np.searchsorted(ends, result.sample, side="right")),
                                  len(key) - 2)  # fmt: skip
         result.elapsed_ms = (time.perf_counter() - began) * 1e3
@@ -148,7 +149,7 @@ class TrajectoryValidator:
         total = ValidationResult(ValidationStatus.VALID, 0, 0)
         for i in segments:
             result = self._validate_samples(
-                interpolate(key[i : i + 2], self.model, self.resolution)
+                interpolate(key[i : i + 2], self.model, self.resolution, self.subdivision)
             )
             total.samples += result.samples
             total.narrow_checks += result.narrow_checks
@@ -198,7 +199,7 @@ class TrajectoryValidator:
             return _result(ValidationStatus.VALID, samples, self.checker.narrow_checks - before)
         probes = 0
         upto = samples
-        if len(samples) > _SPREAD_ABOVE:
+        if len(samples) > _SPREAD_ABOVE * self.subdivision:
             # A few spread samples first: when one collides, only the samples up to it need
             # certifying (the earliest colliding sample is the finding either way).
             spread = np.unique(np.linspace(0, len(samples) - 1, _SPREAD).round().astype(np.int64))
