@@ -35,6 +35,8 @@ import numpy as np
 
 import mbm_inprocess
 from mbm_problems import DEFAULT_DATA, FAMILIES, load_problems, unpacked
+from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.scene.variant import model_in_scene
 from trajcache.geometry.validation import validator as validation
 from trajcache.geometry.warm import warm
@@ -44,7 +46,9 @@ from trajcache.planning.problem import PlanningProblem
 NOISE = 0.02  # rad per joint, as bench/mbm.py's replays
 
 
-def _validators(variant: object, scene: object, subdivisions: list[int]) -> dict[int, object]:
+def _validators(
+    variant: RobotModel, scene: Scene, subdivisions: list[int]
+) -> dict[int, validation.TrajectoryValidator]:
     out = {}
     for k in subdivisions:
         validator = validation.TrajectoryValidator(variant, scene)
@@ -55,7 +59,7 @@ def _validators(variant: object, scene: object, subdivisions: list[int]) -> dict
 
 def planned_cases(
     args: argparse.Namespace,
-) -> list[tuple[dict[int, object], np.ndarray, np.ndarray]]:
+) -> list[tuple[dict[int, validation.TrajectoryValidator], np.ndarray, np.ndarray]]:
     """(validators by subdivision, planned path, the path with noisy ends) per solved problem."""
     source = mbm_inprocess.model_source(args)
     model = run.model_from_source(source)
@@ -72,6 +76,7 @@ def planned_cases(
         if not result.solved or result.path is None:
             continue
         scene = run.SCENES.get(scene_source.hash)
+        assert scene is not None
         variant = model_in_scene(model, scene, {}, cache=run.VARIANTS)
         path = np.asarray(result.path, dtype=float)
         noisy = path.copy()
@@ -81,11 +86,12 @@ def planned_cases(
     return cases
 
 
-def _validate(validator: object, kind: str, path: np.ndarray, noisy: np.ndarray) -> bool:
+def _validate(
+    validator: validation.TrajectoryValidator, kind: str, path: np.ndarray, noisy: np.ndarray
+) -> bool:
     if kind == "whole":
-        return bool(validator.validate(path).valid)  # type: ignore[attr-defined]
-    ends = [0, len(noisy) - 2]
-    return bool(validator.validate_segments(noisy, ends).valid)  # type: ignore[attr-defined]
+        return validator.validate(path).valid
+    return validator.validate_segments(noisy, [0, len(noisy) - 2]).valid
 
 
 def measure(cases: list, subdivisions: list[int]) -> tuple[dict[str, list[float]], dict[str, int]]:
