@@ -96,8 +96,8 @@ def check_states(model: RobotModel, states: ArrayLike, *, name: str = "state") -
     elif arr.ndim != 2 or arr.shape[1] != model.dof:
         got = arr.shape[-1] if arr.ndim >= 1 else 0
         raise StateError(f"each {name} has {got} values, {expected}")
-    bad = np.argwhere(~np.isfinite(arr))
-    if len(bad):
+    if not np.isfinite(arr).all():
+        bad = np.argwhere(~np.isfinite(arr))
         row, col = (int(v) for v in bad[0])
         where = name if arr.shape[0] == 1 else f"{name} {row}"
         raise StateError(f"{where} value {col} ({names[col]}) is not finite: {arr[row, col]}")
