@@ -3,6 +3,7 @@ is not a terminal (a log, a container build), a progress bar on a terminal."""
 
 from __future__ import annotations
 
+import importlib
 import io
 import os
 import re
@@ -105,6 +106,11 @@ def test_kernels_cached_reads_numba_index_files(
     assert warm_probe_kernel.twice(3) == 6
     assert kernels_cached(probe)
     assert _offload_choice(None, probe) is None  # a warm cache: nothing is started
+    source = tmp_path / "warm_probe_kernel.py"
+    source.write_text(_KERNEL.replace("2 * x", "3 * x"))
+    os.utime(source, ns=(source.stat().st_mtime_ns + 10**9,) * 2)
+    importlib.reload(warm_probe_kernel)
+    assert not kernels_cached(probe)  # its index is there, but stamped with the old source
 
 
 def test_an_offloaded_group_is_compiled_in_a_second_process_then_loaded_here(

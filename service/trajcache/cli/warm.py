@@ -8,9 +8,10 @@ its time. `trajcache serve` and `trajcache worker` warm the same way before they
 A first warm on a machine with two cores or more compiles the longest group (`OFFLOADED`, about
 two thirds of the whole) in a second process while this one compiles the others; this process
 then loads that group from numba's cache. Whether the cache already holds the group is read from
-numba's index files of its largest kernels (`OFFLOAD_PROBES`); when it does, nothing is started
-and the groups load in order here. Two processes writing numba's cache at once is safe: each
-entry is written to a temporary file and renamed.
+numba's index files of its largest kernels (`OFFLOAD_PROBES`), their source stamps included (so
+an upgrade that changed a kernel counts as a first warm); when it does, nothing is started and
+the groups load in order here. Two processes writing numba's cache at once is safe: each entry
+is written to a temporary file and renamed.
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from multiprocessing.process import BaseProcess
-from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -51,14 +51,15 @@ def _import_steps(steps: str = STEPS) -> list[Step]:
 
 
 def kernels_cached(probes: tuple[str, ...]) -> bool:
-    """Whether numba's on-disk cache has an index for every kernel named in `probes`
-    ("module:function", each compiled with `cache=True`); False for any that cannot tell."""
+    """Whether numba's on-disk cache holds a current entry for every kernel named in `probes`
+    ("module:function", each compiled with `cache=True`): an index whose source stamp matches
+    (an index left by older sources is stale); False for any that cannot tell."""
     for probe in probes:
         try:
-            index = Path(_resolve(probe)._cache._cache_file._index_path)  # type: ignore[attr-defined]
-        except (AttributeError, ImportError):
+            index = _resolve(probe)._cache._cache_file._load_index()  # type: ignore[attr-defined]
+        except (AttributeError, ImportError, OSError, EOFError, ValueError):
             return False
-        if not index.is_file():
+        if not index:
             return False
     return True
 
