@@ -3,7 +3,8 @@
 - no module imports itself back through others (no cycles);
 - `geometry/` imports nothing from `db/`, `api/` or `services/`;
 - `cache/` and `planning/` import nothing from `db/` or `api/`;
-- `api/` reaches the database only through `services/`.
+- `api/` reaches the database only through `services/`;
+- `core/` (settings, LRU, request models), the bottom layer, imports no other layer of the package.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ FORBIDDEN = [
     ("cache", ("db", "api")),
     ("planning", ("db", "api")),
     ("api", ("db",)),
+    ("core", ("db", "geometry", "cache", "planning", "timing", "jobs", "services", "api", "cli")),
 ]
 
 

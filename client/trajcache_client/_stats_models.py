@@ -8,7 +8,7 @@ from typing import Literal
 from trajcache_client._models import PlanEvent, Requester, _Answer
 
 GroupBy = Literal["robot", "model", "source"]
-EventStatus = Literal["success", "miss", "failure", "error"]
+EventStatus = Literal["success", "miss", "failure", "error", "refused"]
 EventSource = Literal["cache", "planner", "none"]
 
 
@@ -30,6 +30,7 @@ class Metrics(_Answer):
     planner_calls: int
     misses: int
     failures: int
+    refusals: int  # refused plan requests (a 4xx), not counted in `requests`
     hit_rate: float | None
     time_saved_ms: float
     uncredited_hits: int

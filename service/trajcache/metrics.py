@@ -60,8 +60,8 @@ if os.environ.get(MULTIPROC_ENV):  # each metric below opens its file there
 
 PLAN_REQUESTS = Counter(
     "trajcache_plan_requests",
-    "Plan requests answered, by where the trajectory came from (none: no trajectory), status "
-    "and who asked (robot or seed_job).",
+    "Plan requests answered (or refused: status refused), by where the trajectory came from "
+    "(none: no trajectory), status and who asked (robot or seed_job).",
     ["source", "status", "requester"],
 )
 LOOKUP_SECONDS = Histogram(
@@ -102,6 +102,11 @@ _POOL_COUNTERS = {
     "recycles": POOL_RECYCLES,
     "failures": POOL_FAILED_RUNS,
 }
+
+
+def record_refusal(*, requester: str) -> None:
+    """Count one plan request refused before an answer (`services.plan.refusals`)."""
+    PLAN_REQUESTS.labels(source="none", status="refused", requester=requester).inc()
 
 
 def record_plan(

@@ -59,10 +59,18 @@ def test_the_probe_sees_a_heavy_import() -> None:
         ("seed", "--help"),
         ("demo", "--help"),
         ("prune", "--help"),
+        ("config-table", "--help"),
     ],
     ids=" ".join,
 )
 def test_help_imports_no_heavy_module(args: tuple[str, ...]) -> None:
     code, loaded = _run(*args)
+    assert code == 0
+    assert loaded == []
+
+
+def test_the_settings_table_imports_no_heavy_module() -> None:
+    """`config-table` reads the settings (`core.config`), which import no other layer."""
+    code, loaded = _run("config-table")
     assert code == 0
     assert loaded == []

@@ -64,6 +64,7 @@ class Seeded:
     sources: dict[str, int] = field(default_factory=dict)
     robots: set[str] = field(default_factory=set)
     job: dict[str, Any] = field(default_factory=dict)  # the seed job, once it ended
+    model_id: str = ""  # the robots' model, registered as "xarm7-mobile"
 
 
 def _free_port() -> int:
@@ -116,6 +117,10 @@ def _seed(client: httpx.Client, seeded: Seeded) -> None:
             if robot == "cleaner-1" and source != "none":
                 replayable.append((key, payload, body))
         seeded.robots.add(robot)
+    # A plan refused (422: a goal of one value for a robot of ten): a refusal, not a failure.
+    reply = client.post("/v1/robots/cleaner-2/plan", json={"start": body["start"], "goal": [0.0]})
+    assert reply.status_code == 422, reply.text
+    seeded.model_id = model_id
     _run_seed_job(client, seeded, model_id, replayable)
 
 
@@ -230,6 +235,9 @@ def test_dashboard_shows_the_seeded_runs(page: tuple[Any, list[str]], seeded: Se
     hit_rate = 100 * (seeded.sources["cache"] + job["hits"]) / (seeded.requests + job["total"])
     assert kpis["hit rate"] == f"{hit_rate:.1f} %"
     assert kpis["time saved"] not in ("–", "0.00 ms")
+    assert kpis["refusals"] == "1" and kpis["failures"] == "0"  # apart from failures
+    [refusal] = _rows(tab, "refusals-table")
+    assert refusal[1:3] == ["cleaner-2", "xarm7-mobile"] and refusal[3].startswith("422: goal")
 
     robots = _rows(tab, "robots-table")
     assert sorted(r[0] for r in robots) == sorted(seeded.robots)  # the seed job is not a robot
@@ -247,6 +255,11 @@ def test_dashboard_shows_the_seeded_runs(page: tuple[Any, list[str]], seeded: Se
     ]
     top = _rows(tab, "top-table")
     assert top and all(r[0].startswith("#") for r in top)
+    assert {r[1] for r in top} == {"xarm7-mobile"}  # models by name, the hash on hover
+    hover = tab.eval_on_selector_all("#top-table td.model", "cs => cs.map(c => c.title)")
+    assert set(hover) == {seeded.model_id}
+    refused = {r[0]: r[5] for r in robots}  # each robot's refusals, in a column of their own
+    assert refused == {"cleaner-1": "0", "cleaner-2": "1"}
     events = _rows(tab, "events-table")
     assert len(events) == 15
     asked = {row[1] for row in events}  # the seed job ran last: it is among the latest

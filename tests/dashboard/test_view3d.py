@@ -61,6 +61,7 @@ class Staged:
     event_id: int
     link: str  # the link and the object the event's rejection names
     other: str
+    candidate: int  # the trajectory the event rejected
 
 
 def _rgb(png: bytes) -> np.ndarray:
@@ -137,7 +138,10 @@ def _stage(
     [event] = found
     [pair, *_] = event["rejections"][0]["pairs"]
     assert pair["other"] == "cart", pair
-    return Staged(name, trajectory["trajectory_id"], event["event_id"], pair["link"], "cart")
+    candidate = event["rejections"][0]["trajectory_id"]
+    return Staged(
+        name, trajectory["trajectory_id"], event["event_id"], pair["link"], "cart", candidate
+    )
 
 
 def _reference(client: httpx.Client) -> Staged:
@@ -322,4 +326,66 @@ def test_the_events_table_opens_an_event_in_the_3d_view(
         timeout=WAIT_MS,
     )
     assert tab.get_attribute("#view3d", "data-failure") == "shown"
+    assert not errors, errors
+
+
+def _names_everywhere(tab: Any, base: str, event_id: int, trajectory_id: int) -> None:
+    """Open `#event=<event_id>`: the 3D view, the inspector and the usage history must all name
+    trajectory `trajectory_id`."""
+    tab.goto(f"{base}/dashboard/#event={event_id}")
+    tab.wait_for_function("document.body.dataset.state === 'ready'", timeout=WAIT_MS)
+    tab.wait_for_function(
+        f"document.getElementById('view3d').dataset.loaded === 'event:{event_id}'"
+        f" && document.getElementById('inspect-meta').textContent.startsWith('#{trajectory_id} ')",
+        timeout=WAIT_MS,
+    )
+    assert tab.get_attribute("#view3d", "data-trajectory") == str(trajectory_id)
+    assert f"plan event #{event_id} " in tab.inner_text("#view3d-title")
+    assert f"#{trajectory_id} " in tab.inner_text("#view3d-title") + " "
+    assert tab.input_value("#inspect-id") == str(trajectory_id)
+    assert tab.inner_text("#usage-title") == f"Usage history of trajectory #{trajectory_id}"
+
+
+def test_a_deep_link_to_an_event_shows_its_trajectory_in_view_inspector_and_history(
+    gl_page: tuple[Any, list[str]], staged: tuple[str, list[Staged]]
+) -> None:
+    """Runs last: it adds a robot and a hit to the staged service."""
+    tab, errors = gl_page
+    base, robots = staged
+    panda = robots[1]
+    with httpx.Client(base_url=base, timeout=120) as client:
+        [top] = client.get("/v1/stats/top-trajectories", params={"limit": 1}).json()
+        # what the page shows unasked: another robot's trajectory, not the event's
+        assert top["trajectory_id"] != panda.candidate
+        _names_everywhere(tab, base, panda.event_id, panda.candidate)
+        assert "rejected candidate" in tab.inner_text("#view3d-title")
+        model = tab.locator("#inspect-meta span.model")
+        model_id = client.get(f"/v1/trajectories/{panda.candidate}").json()["model_id"]
+        assert model.get_attribute("title") == model_id  # the hash on hover, the name shown
+        assert model.inner_text() == client.get(f"/v1/robot-models/{model_id}").json()["name"]
+        before = int(tab.get_attribute("body", "data-refreshes") or 0)
+        tab.click("#refresh")  # a refresh keeps the selection
+        tab.wait_for_function(f"Number(document.body.dataset.refreshes) > {before}")
+        assert tab.inner_text("#inspect-meta").startswith(f"#{panda.candidate} ")
+        assert tab.get_attribute("#view3d", "data-loaded") == f"event:{panda.event_id}"
+
+        # A second Panda in the first scene is served the stored path: an event with a hit.
+        scene = client.get("/v1/robots/panda-1/scenes/1").json()
+        _put(client, "/v1/robots/panda-2", {"model_id": model_id})
+        first_scene = {"objects": scene["objects"], "env": scene["env"]}
+        _put(client, "/v1/robots/panda-2/scene", first_scene)
+        states = client.get(f"/v1/trajectories/{panda.candidate}").json()["states"]
+        body = {"start": states[0], "goal": states[-1], "options": {"fallback": False}}
+        answer = _post(client, "/v1/robots/panda-2/plan", json=body)
+        assert answer["trajectory_id"] == panda.candidate, answer
+        wait_until(
+            lambda: client.get("/v1/plan-events", params={"robot_id": "panda-2"}).json()["items"],
+            timeout_s=30,
+        )
+        [hit] = client.get("/v1/plan-events", params={"robot_id": "panda-2"}).json()["items"]
+    _names_everywhere(tab, base, hit["event_id"], panda.candidate)  # the same page: a new hash
+    usage = "#usage-table tbody tr"
+    tab.wait_for_function(f"document.querySelectorAll('{usage}')[0].cells.length > 1")
+    robots = tab.eval_on_selector_all(usage, "rows => rows.map(r => r.cells[1].textContent)")
+    assert robots == ["panda-2"]  # the event itself, in the trajectory's history
     assert not errors, errors

@@ -23,6 +23,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.routing import Route
 
 from trajcache.api.deps import CtxDep
+from trajcache.api.refusals import mark_authorized
 from trajcache.services.catalog.keys import Principal, Role
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import AuthenticationError, PermissionDeniedError
@@ -104,10 +105,14 @@ async def authorize(request: Request, ctx: CtxDep) -> Principal | None:
     worker thread when the database must be asked.
     """
     if ctx.settings.auth_mode == "off":
+        mark_authorized(request)
         return None
     if ctx.keys.fresh(presented_key(request)):
-        return _authorize(request, ctx)
-    return await run_in_threadpool(_authorize, request, ctx)
+        principal = _authorize(request, ctx)
+    else:
+        principal = await run_in_threadpool(_authorize, request, ctx)
+    mark_authorized(request)  # its plan refusals are recorded (`api.refusals`)
+    return principal
 
 
 def _authorize(request: Request, ctx: ServiceContext) -> Principal | None:

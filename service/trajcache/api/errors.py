@@ -22,6 +22,7 @@ from starlette.exceptions import HTTPException
 from starlette.routing import Match, Mount
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from trajcache.api.refusals import recording_refusals
 from trajcache.core.field_errors import readable_errors, validation_message
 from trajcache.geometry.errors import GeometryError
 from trajcache.services.errors import (
@@ -53,12 +54,13 @@ _METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 
 def install_error_handlers(app: FastAPI) -> None:
     """Register the handlers on `app`."""
-    app.add_exception_handler(GeometryError, _geometry_error)
-    app.add_exception_handler(ServiceError, _service_error)
+    # A plan route's 4xx to a caller the key check let through is a refusal (`api.refusals`).
+    app.add_exception_handler(GeometryError, recording_refusals(_geometry_error))
+    app.add_exception_handler(ServiceError, recording_refusals(_service_error))
     app.add_exception_handler(DBAPIError, _database_error)
     app.add_exception_handler(PoolTimeoutError, _pool_timeout)
-    app.add_exception_handler(RequestValidationError, _validation_error)
-    app.add_exception_handler(HTTPException, _http_error)
+    app.add_exception_handler(RequestValidationError, recording_refusals(_validation_error))
+    app.add_exception_handler(HTTPException, recording_refusals(_http_error))
     app.add_exception_handler(Exception, _unexpected_error)
 
 

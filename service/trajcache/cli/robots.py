@@ -3,7 +3,9 @@
 For each robot of the `example-robot-data` package that trajcache supports
 (`trajcache.reference.example_robots`) it writes `<name>.urdf`, `<name>.srdf` (where the robot
 has one) and `<name>-meshes.zip`, whose entries sit at the paths the URDF's `package://` URIs
-resolve to, then prints the curl and Python client lines that register them.
+resolve to, then prints the curl and Python client lines that register them. Both send the key
+in TRAJCACHE_API_KEY (a seeder or admin key), so they work once the service checks keys; with
+the variable unset or empty they send none, which a service without checks accepts.
 """
 
 from __future__ import annotations
@@ -68,12 +70,17 @@ def _fields(robot: ExampleRobot) -> dict[str, str]:
     return fields
 
 
+# The service's key header (`api.auth`), its value left to the shell: double quotes, expanded.
+KEY_HEADER = '-H "X-API-Key: ${TRAJCACHE_API_KEY:-}"'
+
+
 def curl_line(robot: ExampleRobot, paths: dict[str, Path], url: str) -> str:
-    """The curl command that registers the written files (multipart)."""
+    """The curl command that registers the written files (multipart), with the key in
+    TRAJCACHE_API_KEY."""
     parts = [f"{key}=@{path}" for key, path in paths.items()]
     parts += [f"{key}={value}" for key, value in _fields(robot).items()]
     form = " ".join(f"-F {shlex.quote(part)}" for part in parts)
-    return f"curl -s {shlex.quote(url + '/v1/robot-models')} {form}"
+    return f"curl -s {KEY_HEADER} {shlex.quote(url + '/v1/robot-models')} {form}"
 
 
 def client_line(robot: ExampleRobot, paths: dict[str, Path]) -> str:
@@ -118,8 +125,10 @@ def fetch(
         raise fail(exc) from None
     console = Console(soft_wrap=True, highlight=False)
     url = url.rstrip("/")
-    console.print(f"# Python: from pathlib import Path; from trajcache_client import Client; "
-                  f"client = Client({url!r})")  # fmt: skip
+    console.print(f"# Python: import os; from pathlib import Path; from trajcache_client import "
+                  f"Client; client = Client({url!r}, "
+                  'api_key=os.environ.get("TRAJCACHE_API_KEY") or None)')  # fmt: skip
+    console.print("# With API keys on: export TRAJCACHE_API_KEY=<a seeder or admin key>")
     for name in names or list(RobotName):
         robot = ROBOTS[name.value]
         paths = write_robot(robot, out)

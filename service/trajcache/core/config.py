@@ -10,10 +10,8 @@ from typing import Literal, Self
 import platformdirs
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
-from sqlalchemy.engine import make_url
-from sqlalchemy.exc import ArgumentError
 
-from trajcache.planning.problem import PLANNER_NAMES
+from trajcache.core.planners import PLANNER_NAMES
 
 MIB = 1024 * 1024
 MAX_PAGE_SIZE = 1000  # the `limit` maximum the API document states; max_page_size may lower it
@@ -343,6 +341,9 @@ class Settings(BaseSettings):
         """A relative SQLite path names a file in data_dir, not in the current directory."""
         if self.data_dir is None:
             self.data_dir = Path(platformdirs.user_data_dir("trajcache", appauthor=False))
+        from sqlalchemy.engine import make_url  # here: commands that read no database stay light
+        from sqlalchemy.exc import ArgumentError
+
         try:
             url = make_url(self.database_url)
         except ArgumentError:

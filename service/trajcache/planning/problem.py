@@ -11,9 +11,6 @@ import numpy as np
 
 from trajcache.geometry.validation.validator import Resolution
 
-# Planner names a request may ask for: the paper's RRIS, the OMPL planners of ompl_planner and
-# the compiled RRT-Connect of compiled_planner.
-PLANNER_NAMES = ("rrtconnect", "rrt", "bitstar", "bit*", "prm", "kpiece", "rris", "compiled")
 SEED_LIMIT = 2**31 - 2  # seeds are 1 … SEED_LIMIT: valid for OMPL and a 32-bit SQL integer
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from trajcache.api.moveit import MoveItErrorCode, answer_code, native_planner, state_error_code
+from trajcache.core.planners import PLANNER_NAMES
 from trajcache.geometry.errors import CollisionStateError, StateError
-from trajcache.planning.problem import PLANNER_NAMES
 from trajcache.services.plan.flow import PlanAnswer, PlanStatus
 
 C = MoveItErrorCode

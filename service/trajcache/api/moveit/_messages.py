@@ -14,8 +14,8 @@ from typing import Annotated, Any
 
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
+from trajcache.core.planners import PLANNER_NAMES
 from trajcache.core.request_model import RequestModel
-from trajcache.planning.problem import PLANNER_NAMES
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Name = Annotated[str, Field(max_length=200)]

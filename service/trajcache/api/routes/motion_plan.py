@@ -12,9 +12,10 @@ from typing import Any
 
 import pydantic_core
 import yaml
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Request, Response
 from starlette.background import BackgroundTask
 
+from trajcache.api import refusals
 from trajcache.api.answer_extras import answer_extras
 from trajcache.api.bounded import BoundedBodyRoute
 from trajcache.api.deps import CtxDep, RobotIdPath
@@ -110,15 +111,20 @@ _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSO
         }
     ),
 )
-def motion_plan_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> Response:
-    """Answer a MoveIt motion plan request from the cache or the planner."""
+def motion_plan_route(
+    ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath, request: Request
+) -> Response:
+    """Answer a MoveIt motion plan request from the cache or the planner; a refusal (answered
+    in-band) is recorded as the native endpoint's 4xx are (`api.refusals`)."""
     began = time.perf_counter()
     message = parse_motion_plan_request(body.media_type, body.data)
     model, held = robot_model_and_held(ctx=ctx, robot_id=robot_id)
     try:
         query = motion_plan_query(message, model=model, settings=ctx.settings, held=held)
     except MotionPlanError as exc:
-        return _json(refused_body(message=message, code=exc.code, text=str(exc), began=began))
+        refused = refused_body(message=message, code=exc.code, text=str(exc), began=began)
+        reason = f"MoveIt {exc.code.name} ({int(exc.code)}): {exc}"
+        return _json(refused, refusals.record(ctx, request, reason))
     try:
         answer = answer_request(
             ctx=ctx,
@@ -131,7 +137,8 @@ def motion_plan_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> R
         refused = refused_body(
             message=message, code=code, text=str(exc), began=began, warnings=query.warnings
         )
-        return _json(refused)
+        reason = f"MoveIt {code.name} ({int(code)}): {exc}"
+        return _json(refused, refusals.record(ctx, request, reason))
     content = answered_body(message=message, query=query, model=model, answer=answer, began=began)
     # The request's cycle ends (after the response is sent) once its bookkeeping is written.
     background = None

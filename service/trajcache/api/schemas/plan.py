@@ -8,8 +8,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from trajcache.api.answer_extras import JointTrajectory, TimingOptions, TrajectoryQuality
 from trajcache.api.schemas.common import FiniteFloat
+from trajcache.core.planners import PLANNER_NAMES
 from trajcache.core.request_model import RequestModel
-from trajcache.planning.problem import PLANNER_NAMES
 
 
 class PlanOptions(RequestModel):

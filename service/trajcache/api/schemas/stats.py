@@ -21,6 +21,7 @@ _METRICS: dict[str, Any] = {
     "planner_calls": 19,
     "misses": 0,
     "failures": 1,
+    "refusals": 2,
     "hit_rate": 0.9301,
     "time_saved_ms": 17204.0,
     "uncredited_hits": 0,
@@ -47,7 +48,7 @@ _EVENT: dict[str, Any] = {
     "error": None,
     "seed": None,
 }
-EventStatus = Literal["success", "miss", "failure", "error"]
+EventStatus = Literal["success", "miss", "failure", "error", "refused"]
 EventSource = Literal["cache", "planner", "none"]
 
 
@@ -76,6 +77,10 @@ class MetricsOut(BaseModel):
     planner_calls: int = Field(description="Requests that reached the fallback planner.")
     misses: int = Field(description="Requests answered without a path and without planning.")
     failures: int = Field(description="Requests that ended `failure` or `error`.")
+    refusals: int = Field(
+        description="Plan requests refused without an answer (a 4xx of a plan route, e.g. a goal "
+        "in collision; MoveIt's in-band refusals too): not counted in `requests`."
+    )
     hit_rate: float | None = Field(description="hits / requests; null without requests.")
     time_saved_ms: float = Field(
         description="Each hit credited with its model's median planning time in the window."
@@ -173,9 +178,12 @@ class PlanEventOut(BaseModel):
     requester: Requester = Field(
         description="Who asked: a robot, or a seed job (its `robot_id` is `seed-job-<id>`)."
     )
-    model_id: str
+    model_id: str = Field(description="The robot's model (empty: a refusal of an unknown robot).")
     scene_hash: str | None
-    status: str
+    status: str = Field(
+        description="success, miss, failure or error; `refused`: not answered (a 4xx of a plan "
+        "route, or MoveIt's in-band refusal), `error` saying why (never the request body)."
+    )
     source: str | None
     trajectory_id: int | None
     candidates_tried: int

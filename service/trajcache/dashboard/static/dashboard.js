@@ -1,12 +1,17 @@
 // The trajcache admin dashboard: reads /v1/stats, /v1/stats/top-trajectories, /v1/plan-events,
 // /v1/seed-jobs and /v1/trajectories/{id}, and redraws everything on a timer. The 3D view
 // (view3d.js) shows the inspected trajectory, or a plan event picked in the events table.
+//
+// One selection drives the 3D view, the trajectory inspector and the usage history: picking a
+// trajectory shows it in all three; picking a plan event (its 3D link, or `#event=N` in the
+// address) opens it in the 3D view, which reports the trajectory it shows (the event's, or the
+// rejected candidate at fault), and the inspector and the usage history follow that one.
 "use strict";
 
 (() => {
   const KEY_STORAGE = "trajcache.adminKey";
   const $ = (id) => document.getElementById(id);
-  const state = { timer: null, busy: false, again: false, stats: null, refreshes: 0, models: new Map(), inspected: null, viewed: null };
+  const state = { timer: null, busy: false, again: false, stats: null, refreshes: 0, models: new Map(), inspected: null, viewed: null, awaitingView: false };
 
   // --- formatting ---------------------------------------------------------------------------
 
@@ -39,6 +44,7 @@
   // The robot id of a seed job's plan events; its stats group has requester "seed_job".
   const seedJobKey = (jobId) => `seed-job-${jobId}`;
   const SEED_JOBS_LISTED = 20;
+  const REFUSALS_LISTED = 10;
 
   function timeAxis(bucketS) {
     const format = (t) => {
@@ -78,12 +84,30 @@
     return reply.json();
   }
 
-  async function stateNames(modelId) {
+  // A model's name (given at registration, else its robot's) and state names, asked once.
+  async function modelInfo(modelId) {
     if (!state.models.has(modelId)) {
       const model = await api(`/v1/robot-models/${encodeURIComponent(modelId)}`);
-      state.models.set(modelId, model.state_names);
+      state.models.set(modelId, { name: model.name, stateNames: model.state_names });
     }
     return state.models.get(modelId);
+  }
+
+  // Ask for the models not known yet (a refusal of an unknown robot names none).
+  async function knowModels(ids) {
+    const wanted = [...new Set(ids)].filter((id) => id && !state.models.has(id));
+    await Promise.all(wanted.map((id) => modelInfo(id).catch((err) => {
+      if (err instanceof AuthNeeded) throw err;
+    })));
+  }
+
+  // A model by name, its hash on hover.
+  function modelCell(td, modelId) {
+    const known = modelId && state.models.get(modelId);
+    td.textContent = known ? known.name : shortId(modelId);
+    td.title = modelId || "";
+    td.className = "model";
+    return td;
   }
 
   // --- rendering ----------------------------------------------------------------------------
@@ -102,7 +126,7 @@
     const a = document.createElement("a");
     a.className = "traj";
     a.textContent = `#${id}`;
-    a.addEventListener("click", () => inspect(id));
+    a.addEventListener("click", () => pickTrajectory(id).catch((err) => setStatus(String(err.message || err), true)));
     td.appendChild(a);
   }
 
@@ -127,6 +151,7 @@
       ["Hit rate", fmtPct(t.hit_rate), `${fmtInt(t.hits)} served from the cache`],
       ["Planner calls", fmtInt(t.planner_calls), `${fmtInt(t.repaired || 0)} repaired cached paths · planning p50 ${fmtMs(t.plan_ms.p50)}`],
       ["Failures", fmtInt(t.failures), `${fmtInt(t.misses)} misses`],
+      ["Refusals", fmtInt(t.refusals), "refused plans (4xx): not answered, not failures"],
       ["Time saved", fmtMs(t.time_saved_ms), uncredited],
       ["Lookup + validation p50", fmtMs(sum(t.lookup_ms.p50, t.validate_ms.p50)), `validation p95 ${fmtMs(t.validate_ms.p95)}`],
     ];
@@ -186,6 +211,7 @@
         { name: "planner calls", color: P[3], values: stats.series.map((b) => b.planner_calls - b.failures) },
         { name: "failures", color: P[1], values: stats.series.map((b) => b.failures) },
         { name: "misses", color: P[8], values: stats.series.map((b) => b.misses) },
+        { name: "refusals", color: P[5], values: stats.series.map((b) => b.refusals) },
       ],
       { ...opts, yFormat: (v) => fmtInt(v), emptyText: "No requests in this window" },
     );
@@ -216,12 +242,13 @@
       cell(tr, fmtPct(g.hit_rate), "num");
       cell(tr, fmtInt(g.planner_calls), "num");
       cell(tr, fmtInt(g.failures), "num");
+      cell(tr, fmtInt(g.refusals), "num");
       cell(tr, fmtMs(g.validate_ms.p95), "num");
       cell(tr, fmtMs(g.plan_ms.p95), "num");
       cell(tr, fmtMs(g.time_saved_ms), "num");
       return tr;
     });
-    fillTable($("robots-table"), rows, 8, "No robot planned in this window");
+    fillTable($("robots-table"), rows, 9, "No robot planned in this window");
   }
 
   // The newest seed jobs, and any other seed job that planned in the window: state and progress
@@ -260,7 +287,7 @@
     const rows = top.map((t) => {
       const tr = document.createElement("tr");
       trajectoryLink(cell(tr, ""), t.trajectory_id);
-      cell(tr, shortId(t.model_id)).title = t.model_id;
+      modelCell(cell(tr, ""), t.model_id);
       cell(tr, t.source);
       cell(tr, fmtInt(t.hits), "num");
       cell(tr, fmtInt(t.failures), "num");
@@ -303,7 +330,7 @@
     a.title = rejected ? "the rejected candidates, at their first failing sample" : "the trajectory in 3D";
     a.dataset.event = String(e.event_id);
     a.addEventListener("click", () => {
-      show3d(`event:${e.event_id}`);
+      pickEvent(e.event_id);
       $("view3d").scrollIntoView({ block: "nearest" });
     });
     td.appendChild(a);
@@ -318,9 +345,45 @@
     fillTable($("events-table"), page.items.map((e) => eventRow(e, true)), 8, "No plan events yet");
   }
 
+  // Plans refused without an answer (a 4xx of a plan route): who, when, and why.
+  function renderRefusals(page) {
+    const rows = page.items.map((e) => {
+      const tr = document.createElement("tr");
+      cell(tr, fmtTime(e.created_at)).title = fmtDateTime(e.created_at);
+      requesterCell(tr, e);
+      modelCell(cell(tr, ""), e.model_id);
+      cell(tr, e.error || "–", "reason");
+      return tr;
+    });
+    fillTable($("refusals-table"), rows, 4, "No refused plans");
+  }
+
+  // Pick a trajectory: the inspector, the usage history and the 3D view show it.
+  function pickTrajectory(id) {
+    state.awaitingView = false;
+    history.replaceState(null, "", `#trajectory=${id}`);
+    return inspect(id);
+  }
+
+  // Pick a plan event: the 3D view opens it and reports the trajectory it shows (`follow3d`).
+  function pickEvent(eventId) {
+    state.awaitingView = true;
+    history.replaceState(null, "", `#event=${eventId}`);
+    show3d(`event:${eventId}`);
+  }
+
+  // The 3D view shows trajectory `trajectory` (null: none, or it failed): the others follow.
+  function follow3d(trajectory) {
+    state.awaitingView = false;
+    if (trajectory === null || trajectory === undefined) return;
+    state.viewed = trajectory;
+    if (state.inspected !== trajectory) inspect(trajectory).catch((err) => setStatus(String(err.message || err), true));
+  }
+
   async function inspect(id) {
     state.inspected = id;
     $("inspect-id").value = String(id);
+    $("usage-title").textContent = `Usage history of trajectory #${id}`;
     const svg = $("chart-joints");
     let detail;
     try {
@@ -332,7 +395,8 @@
       fillTable($("usage-table"), [], 7, "–");
       return;
     }
-    const names = await stateNames(detail.model_id).catch(() => null);
+    const info = await modelInfo(detail.model_id).catch(() => null);
+    const names = info ? info.stateNames : null;
     const states = detail.states;
     // x: how far along the path each key state is (cumulative state-space distance, 0…1).
     const along = [0];
@@ -351,9 +415,12 @@
       xFormat: (v) => `${Math.round(v * 100)} %`,
       yFormat: (v) => v.toFixed(2),
     });
-    $("inspect-meta").textContent =
+    const meta = $("inspect-meta");
+    meta.textContent =
       `#${detail.trajectory_id} · ${detail.source} · ${states.length} key states · ${fmtInt(detail.hits)} hits, ` +
-      `${fmtInt(detail.failures)} failures · model ${shortId(detail.model_id)} (x: share of the path, y: rad or m)`;
+      `${fmtInt(detail.failures)} failures · model `;
+    meta.appendChild(modelCell(document.createElement("span"), detail.model_id));
+    meta.appendChild(document.createTextNode(" (x: share of the path, y: rad or m)"));
     fillTable($("usage-table"), detail.usage_history.map((e) => eventRow(e, false)), 7, "Not used yet");
     if (state.viewed !== id) { // a newly picked trajectory: the 3D view follows it
       state.viewed = id;
@@ -377,12 +444,14 @@
     clearTimeout(state.timer);
     const window_ = $("window").value;
     try {
-      const [stats, top, events, jobs] = await Promise.all([
+      const [stats, top, events, jobs, refusals] = await Promise.all([
         api(`/v1/stats?window=${encodeURIComponent(window_)}&group_by=robot`),
         api("/v1/stats/top-trajectories?limit=10"),
         api("/v1/plan-events?limit=15"),
         api(`/v1/seed-jobs?limit=${SEED_JOBS_LISTED}`),
+        api(`/v1/plan-events?status=refused&limit=${REFUSALS_LISTED}`),
       ]);
+      await knowModels([...top.map((t) => t.model_id), ...refusals.items.map((e) => e.model_id)]);
       state.stats = stats;
       renderKpis(stats);
       renderCharts(stats);
@@ -390,9 +459,12 @@
       renderSeedJobs(stats, jobs);
       renderTop(top);
       renderEvents(events);
-      const pick = state.inspected || (top.length ? top[0].trajectory_id : null);
+      renderRefusals(refusals);
+      // nothing picked yet: the most used trajectory (unless a picked event's is on its way)
+      const first = state.awaitingView || !top.length ? null : top[0].trajectory_id;
+      const pick = state.inspected || first;
       if (pick !== null) await inspect(pick);
-      else Charts.empty($("chart-joints"), "Pick a trajectory");
+      else Charts.empty($("chart-joints"), state.awaitingView ? "Opening the plan event…" : "Pick a trajectory");
       state.refreshes += 1;
       document.body.dataset.state = "ready";
       document.body.dataset.refreshes = String(state.refreshes);
@@ -427,6 +499,20 @@
     if (every > 0) state.timer = setTimeout(refresh, every * 1000);
   }
 
+  // A deep link: `#event=N` (view3d.js opens it, once loaded) or `#trajectory=N`; true if any.
+  function followHash() {
+    const event = /event=(\d+)/.exec(location.hash);
+    const trajectory = /trajectory=(\d+)/.exec(location.hash);
+    if (event) {
+      state.inspected = null;
+      pickEvent(Number(event[1]));
+    } else if (trajectory) {
+      state.awaitingView = false;
+      state.inspected = Number(trajectory[1]);
+    }
+    return Boolean(event || trajectory);
+  }
+
   function start() {
     $("refresh").addEventListener("click", refresh);
     $("window").addEventListener("change", refresh);
@@ -448,10 +534,13 @@
     $("inspect-form").addEventListener("submit", (ev) => {
       ev.preventDefault();
       const id = parseInt($("inspect-id").value, 10);
-      if (id > 0) inspect(id).catch((err) => setStatus(String(err.message || err), true));
+      if (id > 0) pickTrajectory(id).catch((err) => setStatus(String(err.message || err), true));
     });
-    const wanted = /trajectory=(\d+)/.exec(location.hash);
-    if (wanted) state.inspected = Number(wanted[1]);
+    $("view3d").addEventListener("view3d-shown", (ev) => follow3d(ev.detail.trajectory));
+    window.addEventListener("hashchange", () => {
+      if (followHash()) refresh();
+    });
+    followHash();
     refresh();
   }
 

@@ -8,7 +8,9 @@
 // the world pose of every posed link at every frame (/v1/view/trajectories/{id},
 // /v1/view/plan-events/{id}), computed with the service's own kinematics. No URDF loader and
 // no kinematics here. The dashboard asks for a view by setting `data-show` on #view3d to
-// "trajectory:ID" or "event:ID" (a `#event=ID` in the address opens one too).
+// "trajectory:ID" or "event:ID"; once a view is fetched, #view3d reports the trajectory it shows
+// (`data-trajectory`, and a "view3d-shown" event whose detail names it: for an event, its
+// trajectory or the rejected candidate at fault), so the rest of the page can follow it.
 import { Stage, THREE, materials, primitive, setPose, stlGeometry, triangles } from "./view3d_stage.js";
 
 const KEY_STORAGE = "trajcache.adminKey";
@@ -55,9 +57,7 @@ class View3D {
     $("view3d-candidate").addEventListener("change", (ev) => this.pick(ev.target.value));
     $("view3d-canvas").addEventListener("keydown", (ev) => this.key(ev));
     new MutationObserver(() => this.follow()).observe(root, { attributes: true, attributeFilter: ["data-show"] });
-    const wanted = /event=(\d+)/.exec(location.hash);
-    if (wanted) root.dataset.show = `event:${wanted[1]}`;
-    this.follow();
+    this.follow(); // dashboard.js may have asked before this module loaded (`#event=N`)
   }
 
   follow() {
@@ -71,6 +71,13 @@ class View3D {
   fail(message) {
     this.root.dataset.state = "error";
     $("view3d-info").textContent = message;
+    this.report(null);
+  }
+
+  // Tell the page which trajectory is shown (null: none).
+  report(trajectory) {
+    this.root.dataset.trajectory = trajectory === null ? "" : String(trajectory);
+    this.root.dispatchEvent(new CustomEvent("view3d-shown", { detail: { trajectory } }));
   }
 
   ensureStage() {
@@ -87,18 +94,22 @@ class View3D {
 
   // Show a trajectory or a plan event; `context`: the plan event a trajectory is shown for.
   async open(kind, id, query = "", context = null) {
-    if (!this.ensureStage()) return;
     const ticket = ++this.loading;
     this.pause();
     this.root.dataset.state = "loading";
     $("view3d-info").textContent = `Loading ${kind} ${id}…`;
     const path = kind === "event" ? `/v1/view/plan-events/${id}${query}` : `/v1/view/trajectories/${id}${query}`;
     const view = await fetchApi(path);
-    const model = await this.model(view.model_id);
     if (ticket !== this.loading) return; // a newer request took over
-    this.context = context || view.event;
+    const event = context || view.event;
+    const shown = kind === "trajectory" ? id : view.failure ? view.failure.rejection.trajectory_id : event.trajectory_id;
+    this.report(shown); // even where WebGL is missing, the page follows the selection
+    if (!this.ensureStage()) return;
+    const model = await this.model(view.model_id);
+    if (ticket !== this.loading) return;
+    this.context = event;
     this.build(view, model);
-    this.title(kind, id, view);
+    this.title(kind, id, view, shown);
     if (view.failure) this.showFailure();
     else this.setFrame(0);
     this.root.dataset.loaded = `${kind}:${id}`;
@@ -308,7 +319,7 @@ class View3D {
     $("view3d-play").textContent = "Play";
   }
 
-  title(kind, id, view) {
+  title(kind, id, view, shown) {
     const event = this.context;
     const select = $("view3d-candidate");
     select.textContent = "";
@@ -318,7 +329,8 @@ class View3D {
     select.value = view.failure ? String(view.failure.candidate) : "trajectory";
     $("view3d-failure").hidden = !view.failure;
     const of = event ? `plan event #${event.event_id} of ${event.robot_id} (${event.status})` : "";
-    const what = kind === "event" ? of : `trajectory #${id}${of ? ` for ${of}` : ""}`;
+    const trajectory = `${view.failure ? "rejected candidate" : "trajectory"} #${shown}`;
+    const what = kind === "event" ? `${of} · ${trajectory}` : `trajectory #${id}${of ? ` for ${of}` : ""}`;
     $("view3d-title").textContent = `${what} · ${sceneLabel(view)}`;
     const lines = view.failure ? [describe(view.failure.rejection)] : [`${view.key_states.length} key states, ${view.frames.samples} validation samples`];
     $("view3d-info").textContent = [...lines, ...view.notes].join(" · ");

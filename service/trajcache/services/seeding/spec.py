@@ -42,8 +42,8 @@ from typing import Annotated, Any, Literal, Self
 
 from pydantic import Field, field_validator, model_validator
 
+from trajcache.core.planners import PLANNER_NAMES
 from trajcache.core.request_model import RequestModel
-from trajcache.planning.problem import PLANNER_NAMES
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 MAX_LIST = 100_000  # structural bound; the settings bound scenes and work items further

@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session, defer
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.services.errors import InvalidInputError
 
-STATUSES = ("success", "miss", "failure", "error")
+STATUSES = ("success", "miss", "failure", "error", "refused")  # refused: no answer (4xx)
 SOURCES = ("cache", "planner", "none")  # none: no trajectory was returned
 REQUESTERS = ("robot", "seed_job")  # who asked: a robot, or a seed job
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)

@@ -14,7 +14,9 @@ Groups by robot are keyed by the robot id and the requester together: a seed job
 
 Definitions: a hit is a trajectory served from the cache; a planner call is a request that
 reached the fallback planner (whether it found a path, failed or could not run); failures are
-requests that ended `failure` or `error`; misses ended without planning; `repaired` requests
+requests that ended `failure` or `error`; misses ended without planning; refusals were not
+answered (a 4xx of a plan route, `services.plan.refusals`): they are counted on their own,
+not among the requests, the hit rate or the latencies; `repaired` requests
 were served a cached path whose failing stretch the planner replaced (planner calls too, but not
 in the median planning time: a repair plans a stretch only). Lookup and validation
 percentiles are over all requests, planning percentiles over planner calls.
@@ -73,7 +75,7 @@ QUANTILES = (0.5, 0.95, 0.99)
 # is charted over those ten minutes (15-second buckets), not as one dot in a 24-hour window.
 MIN_SPAN_S = 60
 
-HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED, OTHER = range(7)
+HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED, REFUSED, OTHER = range(8)
 PLANNER_CALLS = (PLANNED, REPAIRED, FAILURE, ERROR)
 _METRICS = histograms.METRICS
 _PLAN = _METRICS.index("plan")
@@ -115,6 +117,7 @@ class Metrics:
     planner_calls: int
     misses: int
     failures: int
+    refusals: int
     hit_rate: float | None
     time_saved_ms: float
     uncredited_hits: int
@@ -234,8 +237,8 @@ def _data_span_s(session: Session, since: datetime, until: datetime, **filters: 
 
 
 def categories(status: npt.NDArray[np.object_], source: npt.NDArray[np.object_]) -> np.ndarray:
-    """Each row's category (HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED, OTHER) from status
-    and source."""
+    """Each row's category (HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED, REFUSED, OTHER) from
+    status and source."""
     success = status == "success"
     return np.select(
         [
@@ -245,8 +248,9 @@ def categories(status: npt.NDArray[np.object_], source: npt.NDArray[np.object_])
             status == "failure",
             status == "error",
             success & (source == "repaired"),
+            status == "refused",
         ],
-        [HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED],
+        [HIT, PLANNED, MISS, FAILURE, ERROR, REPAIRED, REFUSED],
         OTHER,
     ).astype(np.int64)
 
@@ -330,10 +334,11 @@ def _accumulate(
 ) -> _Cells:
     """Add up the rows of each cell."""
     counts = _count(cell * (OTHER + 1) + category, rows.n, cells * (OTHER + 1))
-    per_metric = [np.bincount(cell, weights=w, minlength=cells) for w in rows.sums.T]
+    answered = category != REFUSED  # a refusal's time is in no sum nor percentile
+    per_metric = [np.bincount(cell, weights=w * answered, minlength=cells) for w in rows.sums.T]
     sums = np.stack(per_metric, axis=1).astype(np.float64).reshape(cells, len(_METRICS))
     row, metric, where, count = rows.entries
-    keep = (metric != _PLAN) | np.isin(category[row], PLANNER_CALLS)
+    keep = ((metric != _PLAN) | np.isin(category[row], PLANNER_CALLS)) & answered[row]
     flat = (cell[row[keep]] * len(_METRICS) + metric[keep]) * histograms.NBINS + where[keep]
     hist = _count(flat, count[keep], cells * len(_METRICS) * histograms.NBINS)
     is_hit = category == HIT
@@ -358,7 +363,7 @@ def _metrics(cells: _Cells, medians: npt.NDArray[np.float64]) -> list[Metrics]:
     uncredited = cells.hits[:, ~known].sum(axis=1)
     out = []
     for i, c in enumerate(cells.counts):
-        requests = int(c.sum())
+        requests = int(c.sum() - c[REFUSED])
         latency = [
             Latency(float(sums[i, m]), *(_number(v) for v in pct[i, m]))
             for m in range(len(_METRICS))
@@ -371,6 +376,7 @@ def _metrics(cells: _Cells, medians: npt.NDArray[np.float64]) -> list[Metrics]:
                 planner_calls=int(c[list(PLANNER_CALLS)].sum()),
                 misses=int(c[MISS]),
                 failures=int(c[FAILURE] + c[ERROR]),
+                refusals=int(c[REFUSED]),
                 hit_rate=float(c[HIT] / requests) if requests else None,
                 time_saved_ms=float(saved[i]),
                 uncredited_hits=int(uncredited[i]),

@@ -1,0 +1,58 @@
+"""Plan requests refused before an answer, recorded as plan events with status `refused`.
+
+A refusal is a plan request the service would not answer: a 4xx of a plan route (a goal in
+collision, an unknown robot, a malformed body, no scene under `require_scene`), or the MoveIt
+route's in-band refusal of the same mistakes. Its event keeps the reason (the answer's message,
+cut to the column's 500 characters), never the request body, and no timing but the total: a
+refusal is counted apart from the answered requests (`services.stats.window`). It goes to
+`ctx.records` like every plan event, so it is written in order, off the request path.
+
+Only callers the service let through leave one: the HTTP layer records a refusal only after the
+request passed the API-key check (`api.auth`), so an unauthenticated caller (401), a key without
+the right (403), or a body refused before the caller is known (413, unreadable JSON) writes
+nothing.
+"""
+
+from __future__ import annotations
+
+import sqlalchemy as sa
+
+from trajcache.db.models import Robot
+from trajcache.metrics import record_refusal as count_refusal
+from trajcache.services.context import ServiceContext
+from trajcache.services.plan.attempt import Requester
+from trajcache.services.plan.records import PlanRecord
+
+__all__ = ["REFUSED", "record_refusal"]
+
+REFUSED = "refused"
+_REASON_CHARS = 500  # plan_events.error
+
+
+def record_refusal(*, ctx: ServiceContext, robot_id: str, reason: str, total_ms: float) -> int:
+    """Queue the plan event of a refused request of robot `robot_id`; its record's number.
+
+    The event names the robot's model when the robot exists ("" for an unknown robot)."""
+    with ctx.sessions() as session:
+        model_id = session.scalar(sa.select(Robot.model_id).where(Robot.id == robot_id))
+    event = {
+        "robot_id": robot_id,
+        "requester": Requester.ROBOT.value,
+        "model_id": model_id or "",
+        "status": REFUSED,
+        "candidates_tried": 0,
+        "lookup_ms": 0.0,
+        "validate_ms": 0.0,
+        "plan_ms": 0.0,
+        "total_ms": round(total_ms, 3),
+        "error": _reason(reason),
+    }
+    records = ctx.records
+    seq = records.submit(PlanRecord(records.now(), None, (), event))
+    count_refusal(requester=Requester.ROBOT.value)
+    return seq
+
+
+def _reason(text: str) -> str:
+    text = text.strip() or "refused"
+    return text if len(text) <= _REASON_CHARS else f"{text[: _REASON_CHARS - 1]}…"
