@@ -20,6 +20,7 @@ from trajcache.geometry.scene.variant import VariantCache, model_in_scene, varia
 from trajcache.planning.compiled_planner import NAME as COMPILED
 from trajcache.planning.compiled_planner import plan_compiled
 from trajcache.planning.ompl_planner import plan_ompl
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import (
     ModelSource,
     PlannerStatus,
@@ -82,10 +83,13 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
                 scene,
                 problem.start,
                 problem.goal,
-                budget_s=problem.budget_s,
-                seed_value=problem.seed,
-                resolution=problem.resolution,
-                certified=problem.certified_validation,
+                options=SearchOptions(
+                    budget_s=problem.budget_s,
+                    seed=problem.seed,
+                    shortcut_s=0.0,
+                    resolution=problem.resolution,
+                    certified=problem.certified_validation,
+                ),
             )
         elif name == RRIS:
             result = plan_with_rris(
@@ -93,11 +97,13 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
                 scene,
                 problem.start,
                 problem.goal,
-                budget_s=problem.budget_s,
-                seed=problem.seed,
-                shortcut_s=problem.shortcut_s,
-                resolution=problem.resolution,
-                certified=problem.certified_validation,
+                options=SearchOptions(
+                    budget_s=problem.budget_s,
+                    seed=problem.seed,
+                    shortcut_s=problem.shortcut_s,
+                    resolution=problem.resolution,
+                    certified=problem.certified_validation,
+                ),
             )
         else:
             result = plan_ompl(
@@ -106,11 +112,13 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
                 problem.start,
                 problem.goal,
                 planner=name,
-                budget_s=problem.budget_s,
-                seed=problem.seed,
-                shortcut_s=problem.shortcut_s,
-                resolution=problem.resolution,
-                certified=problem.certified_validation,
+                options=SearchOptions(
+                    budget_s=problem.budget_s,
+                    seed=problem.seed,
+                    shortcut_s=problem.shortcut_s,
+                    resolution=problem.resolution,
+                    certified=problem.certified_validation,
+                ),
             )
     except Exception as exc:  # a worker task must answer, whatever happened
         detail = traceback.format_exception_only(type(exc), exc)[-1].strip()

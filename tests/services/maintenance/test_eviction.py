@@ -17,7 +17,7 @@ from trajcache.db import migrate
 from trajcache.db.models import Trajectory, TrajectoryTombstone
 from trajcache.geometry.model.robot import BaseType
 from trajcache.services.background import start_background
-from trajcache.services.catalog.models import get_model, register_model
+from trajcache.services.catalog.models import ModelRegistration, get_model, register_model
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError, NotFoundError
@@ -51,9 +51,15 @@ def add(ctx: ServiceContext, model_id: str, k: int, **values: Any) -> int:
 @pytest.fixture
 def models(ctx: ServiceContext) -> tuple[str, str]:
     with ctx.session() as session:
-        arm, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+        arm, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         mobile, _ = register_model(
-            session=session, registry=ctx.models, urdf=TWO_JOINT_URDF, base=BaseType.PLANAR
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF, base=BaseType.PLANAR),
         )
     return arm.model_id, mobile.model_id
 
@@ -177,7 +183,9 @@ def test_replicas_pruning_at_once(postgres_url: str) -> None:
     try:
         with replicas[0].session() as session:
             arm, _ = register_model(
-                session=session, registry=replicas[0].models, urdf=TWO_JOINT_URDF
+                session=session,
+                registry=replicas[0].models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
             )
         ids = [
             add(replicas[0], arm.model_id, k, created_at=T0 + timedelta(minutes=k))
@@ -222,7 +230,11 @@ def test_timed_eviction_keeps_the_cap(migrated_url: str) -> None:
     try:
         assert background.eviction is not None
         with ctx.session() as session:
-            arm, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+            arm, _ = register_model(
+                session=session,
+                registry=ctx.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         ids = [add(ctx, arm.model_id, k, created_at=T0 + timedelta(minutes=k)) for k in range(5)]
         assert wait_until(lambda: remaining(ctx) == set(ids[3:]), timeout_s=10)
     finally:

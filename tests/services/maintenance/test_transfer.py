@@ -18,7 +18,12 @@ from tests.robots import MESH_URDF, TWO_JOINT_URDF
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import ModelFile, RobotModel, Trajectory
-from trajcache.services.catalog.models import ModelRegistry, get_model, register_model
+from trajcache.services.catalog.models import (
+    ModelRegistration,
+    ModelRegistry,
+    get_model,
+    register_model,
+)
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import ConflictError, InvalidInputError, NotFoundError
@@ -57,12 +62,15 @@ def fill(ctx: ServiceContext) -> dict[str, Any]:
     """Two models (one with a mesh file) and four trajectories with usage and provenance."""
     stl = bytes(trimesh.creation.box(extents=(0.1, 0.1, 0.2)).export(file_type="stl"))
     with ctx.session() as session:
-        arm, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+        arm, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         lift, _ = register_model(
             session=session,
             registry=ctx.models,
-            urdf=MESH_URDF,
-            files={"meshes/part.stl": stl},
+            registration=ModelRegistration(urdf=MESH_URDF, files={"meshes/part.stl": stl}),
         )
         session.execute(
             sa.update(RobotModel)
@@ -257,7 +265,11 @@ def test_without_model_lines_the_models_must_exist(
     report = run_import(target_ctx, lines)
     assert (report.inserted, report.rejected_count) == (0, 4)
     with target_ctx.session() as session:
-        register_model(session=session, registry=ModelRegistry(), urdf=TWO_JOINT_URDF)
+        register_model(
+            session=session,
+            registry=ModelRegistry(),
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
     report = run_import(target_ctx, lines)
     assert (report.inserted, report.rejected_count) == (3, 1)
     assert filled["lift"][:8] in report.rejected[0].reason
@@ -317,9 +329,12 @@ def test_a_model_with_an_srdf_and_held_joints_keeps_its_id(
 ) -> None:
     with source_ctx.session() as session:
         model, _ = register_model(
-            session=session, registry=ModelRegistry(), urdf=TWO_JOINT_URDF, srdf=SRDF,
-            group="arm", joint_values={"elbow": 0.5},
-        )  # fmt: skip
+            session=session,
+            registry=ModelRegistry(),
+            registration=ModelRegistration(
+                urdf=TWO_JOINT_URDF, srdf=SRDF, group="arm", joint_values={"elbow": 0.5}
+            ),
+        )
         store_trajectory(session=session, model=model, states=[[0.0], [0.4]], source="sim")
     lines = export_lines(source_ctx)
     (record,) = [json.loads(line) for line in lines if json.loads(line)["type"] == "model"]

@@ -16,7 +16,12 @@ from trajcache.db.models import Trajectory
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.space import path_length
 from trajcache.geometry.scene.parse import parse_scene
-from trajcache.services.catalog.models import ModelRegistry, get_model, register_model
+from trajcache.services.catalog.models import (
+    ModelRegistration,
+    ModelRegistry,
+    get_model,
+    register_model,
+)
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.plan.quality import QualityLevel, TimingRequest, answer_details
@@ -42,7 +47,11 @@ def ctx(tmp_path: Path) -> Iterator[ServiceContext]:
 def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
     states = np.array([[0.0, 0.0], [0.5, 0.2], [0.2, 0.6]])
     with ctx.session() as session:
-        model, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+        model, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         with_scene, _ = store_trajectory(
             session=session, model=model, states=states, source="sim", scene=SCENE
         )
@@ -69,9 +78,9 @@ def test_a_fresh_registry_loads_the_configuration_from_the_database(
         model, _ = register_model(
             session=session,
             registry=ctx.models,
-            urdf=TWO_JOINT_URDF,
-            acceleration_limits={"elbow": 2.0},
-            end_effector_link="upper",
+            registration=ModelRegistration(
+                urdf=TWO_JOINT_URDF, acceleration_limits={"elbow": 2.0}, end_effector_link="upper"
+            ),
         )
         loaded = get_model(session=session, registry=ModelRegistry(), model_id=model.model_id)
     for m in (model, loaded):
@@ -84,9 +93,15 @@ def test_answer_quality_uses_the_model_and_scene_of_the_plan_without_reading_the
     ctx: ServiceContext,
 ) -> None:
     with ctx.session() as session:
-        first, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+        first, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         second, _ = register_model(
-            session=session, registry=ctx.models, urdf=OTHER_URDF, end_effector_link="upper"
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=OTHER_URDF, end_effector_link="upper"),
         )
     states = np.array([[0.0, 0.0], [1.0, 0.5]])
     empty = parse_scene({"objects": []})

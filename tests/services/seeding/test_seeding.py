@@ -20,7 +20,7 @@ from trajcache.core.config import Settings
 from trajcache.db.models import PlanEvent, SeedJob, Trajectory, utcnow
 from trajcache.reference.cleaning import cleaning_run
 from trajcache.reference.robot import reference_model
-from trajcache.services.catalog.models import register_model
+from trajcache.services.catalog.models import ModelRegistration, register_model
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import (
@@ -330,7 +330,11 @@ def ctx(migrated_url: str) -> Iterator[ServiceContext]:
 @pytest.fixture
 def model_id(ctx: ServiceContext) -> str:
     with ctx.session() as session:
-        model, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+        model, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
     return model.model_id
 
 
@@ -518,7 +522,11 @@ def test_planned_results_are_stored_as_sim_with_scene_and_env(
     )
     try:
         with context.session() as session:
-            model, _ = register_model(session=session, registry=context.models, urdf=TWO_JOINT_URDF)
+            model, _ = register_model(
+                session=session,
+                registry=context.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         scene = {
             "objects": [
                 {
@@ -587,7 +595,11 @@ def test_misses_go_through_celery_workers_when_configured(
     )
     try:
         with context.session() as session:
-            model, _ = register_model(session=session, registry=context.models, urdf=TWO_JOINT_URDF)
+            model, _ = register_model(
+                session=session,
+                registry=context.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         job_id = queue_of(context, model.model_id)
         scheduler = SeedScheduler(context).start()
         try:
@@ -620,7 +632,11 @@ def test_a_stop_during_retries_leaves_the_item_to_be_run_again(migrated_url: str
     context = ServiceContext.create(Settings(database_url=migrated_url, worker_processes=1))
     try:
         with context.session() as session:
-            model, _ = register_model(session=session, registry=context.models, urdf=TWO_JOINT_URDF)
+            model, _ = register_model(
+                session=session,
+                registry=context.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         pool = context.planner_pool()
         assert pool is not None
         pool.close()  # every miss now ends with status `error`, which is retried

@@ -39,7 +39,12 @@ from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import state_steps
 from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.validation.certify import SegmentCertifier
+from trajcache.geometry.validation.certify import (
+    MAX_DEPTH,
+    MIN_PAD,
+    CertifierOptions,
+    SegmentCertifier,
+)
 from trajcache.geometry.validation.sampling import Resolution, interpolate, sample_counts
 from trajcache.geometry.validation.segments import Finding, SegmentStatus
 from trajcache.geometry.validation.stamp import certificate_digest
@@ -81,9 +86,6 @@ class ValidationResult:
         return self.status is ValidationStatus.VALID
 
 
-MIN_PAD, MAX_DEPTH = 1e-4, 24  # the certifier's defaults
-
-
 def settings_key(
     resolution: Resolution, certified: bool, min_pad: float = MIN_PAD, max_depth: int = MAX_DEPTH
 ) -> tuple[object, ...]:
@@ -101,9 +103,7 @@ class TrajectoryValidator:
         *,
         resolution: Resolution | None = None,
         certified: bool = True,
-        min_pad: float = MIN_PAD,
-        max_depth: int = MAX_DEPTH,
-        compiled: bool = True,
+        certifier: CertifierOptions = CertifierOptions(),
         geometry: GeometryCache | None = None,
         self_collision: bool = True,
     ) -> None:
@@ -115,15 +115,15 @@ class TrajectoryValidator:
         self.resolution = resolution or Resolution()
         self.certified = certified
         # Every setting a verdict depends on besides the model, the scene and the states.
-        self.settings_key = settings_key(self.resolution, certified, min_pad, max_depth)
+        self.settings_key = settings_key(
+            self.resolution, certified, certifier.min_pad, certifier.max_depth
+        )
         if not self_collision:  # a verdict on the scene alone
             self.settings_key = (*self.settings_key, "scene only")
         self.certifier = SegmentCertifier(
             self.checker,
             planar=model.base is BaseType.PLANAR,
-            min_pad=min_pad,
-            max_depth=max_depth,
-            compiled=compiled,
+            options=certifier,
         )
 
     def validate(self, key_states: FloatArray) -> ValidationResult:
