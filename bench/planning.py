@@ -36,11 +36,12 @@ import numpy as np
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.scene.scene import Scene
+from trajcache.planning.motion import MotionChecker
 from trajcache.planning.ompl_planner import plan_ompl
 from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import ModelSource, PlanningProblem, PlanResult, SceneSource
 from trajcache.planning.run import run_planning
-from trajcache.planning.space import MotionChecker, state_space_spec
+from trajcache.planning.space import state_space_spec
 from trajcache.reference.cleaning import CleaningRun, cleaning_run, door_sweep_run
 from trajcache.reference.robot import reference_model, reference_urdf
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.space import (
     BASE_STILL_TOLERANCE,
     base_is_still,
@@ -37,7 +38,7 @@ def test_differences_take_the_short_way_for_the_heading_only() -> None:
 def test_base_is_still_uses_the_strict_tolerance() -> None:
     start = np.array([1.0, 2.0, np.pi - 1e-12, 0.3])
     goal = np.array([1.0, 2.0, -np.pi, 0.9])  # the same heading, one turn apart
-    assert base_is_still(start, goal, planar=True)
+    assert base_is_still(start, goal, BaseType.PLANAR)
     nudged = goal + np.array([0.0, 2 * BASE_STILL_TOLERANCE, 0.0, 0.0])
-    assert not base_is_still(start, nudged, planar=True)
-    assert not base_is_still(start, start, planar=False)
+    assert not base_is_still(start, nudged, BaseType.PLANAR)
+    assert not base_is_still(start, start, BaseType.FIXED)

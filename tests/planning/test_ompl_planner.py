@@ -15,16 +15,12 @@ from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning import ompl_planner
+from trajcache.planning.motion import MotionChecker, coarse_to_fine
 from trajcache.planning.ompl_planner import plan_ompl, planner_names
 from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlannerStatus, PlanResult
-from trajcache.planning.space import (
-    MotionChecker,
-    Query,
-    coarse_to_fine,
-    prepare_query,
-    state_space_spec,
-)
+from trajcache.planning.query import Query, prepare_query
+from trajcache.planning.space import state_space_spec
 from trajcache.reference.restroom import restroom_layout, restroom_scene
 from trajcache.reference.robot import STOWED_ARM, reference_model
 

@@ -32,9 +32,9 @@ from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlannerStatus, PlanResult
+from trajcache.planning.query import Query
 from trajcache.planning.repair import SegmentFn, remembered, repair_path
 from trajcache.planning.shortcut import shortcut_and_certify
-from trajcache.planning.space import Query
 
 # The search of attempt n (from 0) within the deadline: a raw path (N, D) or None.
 SearchFn = Callable[[int, Deadline], Sequence[FloatArray] | FloatArray | None]

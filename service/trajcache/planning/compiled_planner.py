@@ -39,10 +39,11 @@ from trajcache.planning.compiled.search import (
     simplify,
 )
 from trajcache.planning.deadline import Deadline
+from trajcache.planning.motion import SHORTCUT_CLEARANCE_M
 from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlanResult
+from trajcache.planning.query import Query, prepare_query
 from trajcache.planning.rris import rris_search
-from trajcache.planning.space import SHORTCUT_CLEARANCE_M, Query, prepare_query
 
 NAME = "compiled"
 ROUND_ITERATIONS = 256  # iterations between two returns to Python (exact checks, the clock)

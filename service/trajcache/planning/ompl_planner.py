@@ -37,15 +37,12 @@ from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning.attempts import Finisher, plan_until_certified
 from trajcache.planning.deadline import Deadline
+from trajcache.planning.motion import SHORTCUT_CLEARANCE_M
 from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlannerStatus, PlanResult
+from trajcache.planning.query import Query, prepare_query
 from trajcache.planning.rris import rris_search
-from trajcache.planning.space import (
-    SHORTCUT_CLEARANCE_M,
-    Query,
-    StateSpaceSpec,
-    prepare_query,
-)
+from trajcache.planning.space import StateSpaceSpec
 
 PlannerFactory = Callable[[ob.SpaceInformation], ob.Planner]
 PLANNERS: dict[str, PlannerFactory] = {

@@ -35,9 +35,10 @@ from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning.attempts import Finisher, plan_until_certified
 from trajcache.planning.deadline import Deadline
+from trajcache.planning.motion import SHORTCUT_CLEARANCE_M
 from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlanResult
-from trajcache.planning.space import SHORTCUT_CLEARANCE_M, Query, prepare_query
+from trajcache.planning.query import Query, prepare_query
 
 SegmentFn = Callable[[FloatArray, FloatArray], bool]
 SegmentCountFn = Callable[[FloatArray, FloatArray], int]

@@ -15,6 +15,7 @@ from trajcache.db import migrate
 from trajcache.db.models import Trajectory
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.space import path_length
+from trajcache.geometry.path_quality import ee_path_length, min_clearance
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.services.catalog.models import (
     ModelRegistration,
@@ -26,7 +27,6 @@ from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.plan.quality import QualityLevel, TimingRequest, answer_details
 from trajcache.timing import PathShape, TimingMethod
-from trajcache.trajectory_metrics import ee_path_length, min_clearance
 
 OTHER_URDF = two_joint_arm(name="other", elbow_limit=1.4)
 BALL = {"id": "ball", "type": "sphere", "size": [0.05], "pose": {"position": [0.4, 0, 0.2]}}

@@ -37,6 +37,7 @@ from trajcache.api.schemas.models import (
 from trajcache.core.config import Settings
 from trajcache.geometry.collision.shared import GeometryCache
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.path_quality import end_effector_link
 from trajcache.services.catalog.models import (
     ModelRegistration,
     get_model,
@@ -49,7 +50,6 @@ from trajcache.services.catalog.models import (
 )
 from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 from trajcache.timing import kinematic_limits
-from trajcache.trajectory_metrics import end_effector_link
 
 
 def registration_body_limit(settings: Settings) -> tuple[int, str]:

@@ -37,10 +37,10 @@ import sqlalchemy as sa
 from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from trajcache.cache.index import TrajectoryIndex
-from trajcache.cache.metric import FloatArray
 from trajcache.core.lru import LRU
 from trajcache.db.models import Trajectory, TrajectoryTombstone, unpack_states
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray
 
 if TYPE_CHECKING:
     from typing import TypeAlias

@@ -1,4 +1,4 @@
-"""Trajectory metrics: path lengths, clearance to the scene, motion bounds; pure geometry.
+"""A path's quality: path lengths, clearance to the scene, motion bounds; pure geometry.
 
 Cheap metrics (state-space and end-effector path length, tens of microseconds) are computed for
 every answer; clearance (FCL distances) costs milliseconds and is computed when a trajectory is

@@ -15,11 +15,7 @@ from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.space import path_length
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.geometry.scene.parse import parse_scene
-from trajcache.geometry.validation.validator import Resolution, interpolate
-from trajcache.reference.restroom import restroom_scene
-from trajcache.reference.robot import STOWED_ARM, reference_model
-from trajcache.trajectory_metrics import (
+from trajcache.geometry.path_quality import (
     MAX_DISTANCE_QUERIES,
     Quality,
     ee_path_length,
@@ -27,6 +23,10 @@ from trajcache.trajectory_metrics import (
     link_origins,
     min_clearance,
 )
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.validator import Resolution, interpolate
+from trajcache.reference.restroom import restroom_scene
+from trajcache.reference.robot import STOWED_ARM, reference_model
 
 
 @pytest.fixture(scope="module")
