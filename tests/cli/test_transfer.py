@@ -31,7 +31,7 @@ def source_url(tmp_path: Path) -> Iterator[str]:
     url = f"sqlite:///{tmp_path / 'source.db'}"
     migrate.upgrade(url)
     ctx = ServiceContext.create(Settings(database_url=url, worker_backend="none"))
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model, _ = register_model(
             session=session,
             registry=ctx.models,

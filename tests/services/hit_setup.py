@@ -31,7 +31,7 @@ def context(url: str, **settings: Any) -> Iterator[ServiceContext]:
 
 def two_joint(ctx: ServiceContext, *, base: str = "fixed") -> RobotModel:
     """The small two-joint arm (on a planar base if asked), registered."""
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model, _ = register_model(
             session=session,
             registry=ctx.models,
@@ -42,7 +42,7 @@ def two_joint(ctx: ServiceContext, *, base: str = "fixed") -> RobotModel:
 
 def store(ctx: ServiceContext, model: RobotModel, states: list[list[float]]) -> int:
     """Store a trajectory (without quality metrics) and return its id."""
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         trajectory_id, _ = store_trajectory(
             session=session,
             model=model,

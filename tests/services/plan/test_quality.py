@@ -46,7 +46,7 @@ def ctx(tmp_path: Path) -> Iterator[ServiceContext]:
 
 def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
     states = np.array([[0.0, 0.0], [0.5, 0.2], [0.2, 0.6]])
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model, _ = register_model(
             session=session,
             registry=ctx.models,
@@ -74,7 +74,7 @@ def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
 def test_a_fresh_registry_loads_the_configuration_from_the_database(
     ctx: ServiceContext,
 ) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model, _ = register_model(
             session=session,
             registry=ctx.models,
@@ -92,7 +92,7 @@ def test_a_fresh_registry_loads_the_configuration_from_the_database(
 def test_answer_quality_uses_the_model_and_scene_of_the_plan_without_reading_them(
     ctx: ServiceContext,
 ) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         first, _ = register_model(
             session=session,
             registry=ctx.models,

@@ -134,11 +134,6 @@ class IndexStore:
         row = session.connection().execute(rider, params).one_or_none()
         return None if row is None else tuple(row)
 
-    def sync(self, session: Session) -> None:
-        """Read new rows and tombstones now."""
-        with self._lock:
-            self._sync(session)
-
     def states(self, session: Session, ids: Iterable[int]) -> dict[int, FloatArray]:
         """Key states (read-only arrays) of the trajectories `ids` that exist, by id."""
         found, missing = self._states.get_many(ids)
