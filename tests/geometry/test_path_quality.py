@@ -12,7 +12,7 @@ import pytest
 from tests.robots import BRANCHED_URDF
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.kinematics import link_transforms
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.space import path_length
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.path_quality import (
@@ -37,9 +37,9 @@ def branched() -> RobotModel:
 def test_path_length_takes_the_base_angle_the_short_way() -> None:
     states = np.array([[0.0, 0.0, 3.1, 0.0], [3.0, 4.0, -3.1, 0.0]])
     expected = np.linalg.norm([3.0, 4.0, 2 * np.pi - 6.2, 0.0])
-    assert path_length(states, planar=True) == pytest.approx(expected)
-    assert path_length(states, planar=False) == pytest.approx(np.linalg.norm([3, 4, 6.2, 0]))
-    assert path_length(states[:1], planar=True) == 0.0
+    assert path_length(states, base=BaseType.PLANAR) == pytest.approx(expected)
+    assert path_length(states, base=BaseType.FIXED) == pytest.approx(np.linalg.norm([3, 4, 6.2, 0]))
+    assert path_length(states[:1], base=BaseType.PLANAR) == 0.0
 
 
 def test_end_effector_is_the_tip_of_the_longest_chain_or_the_configured_link(

@@ -92,7 +92,7 @@ def ee_path_length(
     array = np.asarray(states, dtype=float)
     if len(array) < 2:
         return 0.0
-    deltas = segment_deltas(array, planar=model.base is BaseType.PLANAR)
+    deltas = segment_deltas(array, base=model.base)
     steps = np.abs(deltas).max(axis=1) / step
     total = float(steps.sum())
     scale = min(1.0, max_samples / total) if total > 0 else 1.0

@@ -51,7 +51,7 @@ class StateSpaceSpec:
 
     def difference(self, a: FloatArray, b: FloatArray) -> FloatArray:
         """b − a with the base angle taking the short way (works on batches too)."""
-        return state_steps(a, b, planar=self.planar)
+        return state_steps(a, b, base=self.model.base)
 
     def distance(self, a: FloatArray, b: FloatArray) -> float:
         """Euclidean distance in state space, base angle wrapped."""
@@ -74,7 +74,7 @@ class StateSpaceSpec:
 
     def path_length(self, path: Sequence[FloatArray] | FloatArray) -> float:
         """Sum of the distances between consecutive states."""
-        return path_length(path, planar=self.planar)
+        return path_length(path, base=self.model.base)
 
     def clip(self, state: FloatArray) -> FloatArray:
         """The state pulled inside the bounds (θ wrapped rather than clipped)."""

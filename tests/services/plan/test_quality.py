@@ -14,6 +14,7 @@ from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import Trajectory
 from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.space import path_length
 from trajcache.geometry.path_quality import ee_path_length, min_clearance
 from trajcache.geometry.scene.parse import parse_scene
@@ -60,7 +61,7 @@ def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
         )
         row = session.get(Trajectory, with_scene)
         assert row is not None
-        assert row.length == pytest.approx(path_length(states, planar=False))
+        assert row.length == pytest.approx(path_length(states, base=BaseType.FIXED))
         assert row.ee_length == pytest.approx(ee_path_length(model, states))
         found = min_clearance(CollisionChecker(model, SCENE), states)
         assert found is not None and row.min_clearance == pytest.approx(found.distance)

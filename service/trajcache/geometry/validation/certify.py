@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from trajcache.geometry.collision.bodies import Posed
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.collision.compiled import scene_open_kernel, self_open_kernel
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import segment_deltas
 from trajcache.geometry.validation.advance import Advancer
@@ -59,8 +60,7 @@ MIN_PAD, MAX_DEPTH = 1e-4, 24  # the certifier's defaults
 
 @dataclass(frozen=True)
 class _Points:
-    """Points of elements at the two ends of segments, at_a → at_b (K, S, 3), with their
-    lever coefficients and the radius (K, S) of the balls around them."""
+    """Points at_a → at_b (K, S, 3) of elements, their lever coefficients and ball radii."""
 
     at_a: FloatArray
     at_b: FloatArray
@@ -85,7 +85,7 @@ class SegmentCertifier:
         self,
         checker: CollisionChecker,
         *,
-        planar: bool,
+        base: BaseType,
         options: CertifierOptions = CertifierOptions(),
     ) -> None:
         self.checker = checker
@@ -93,7 +93,7 @@ class SegmentCertifier:
         self.robot = checker.robot
         self.clearance = checker.clearance
         self.narrow = checker.narrow
-        self.planar = planar
+        self.base = base
         self.advancer = Advancer(checker, min_pad=options.min_pad, max_depth=options.max_depth)
         rg = self.robot
         turning = rg.motion.rotation & rg.motion.ancestors
@@ -130,7 +130,7 @@ class SegmentCertifier:
 
     def _deltas(self, states: FloatArray) -> FloatArray:
         """Differences of consecutive states, the base angle the short way."""
-        return segment_deltas(states, planar=self.planar)
+        return segment_deltas(states, base=self.base)
 
     def settled_by_bounds(self, states: FloatArray) -> bool:
         """True when the compiled levels alone certify every segment of `states` (N ≥ 2); they

@@ -28,7 +28,7 @@ def sample_counts(key_states: FloatArray, model: RobotModel, resolution: Resolut
     """Steps each segment between consecutive key states is cut into (at least 1 each)."""
     key = np.asarray(key_states, dtype=float)
     planar = model.base is BaseType.PLANAR
-    delta = segment_deltas(key, planar=planar)
+    delta = segment_deltas(key, base=model.base)
     off = model.arm_offset
     steps = np.zeros(len(delta))
     if planar:
@@ -44,7 +44,7 @@ def interpolate(key_states: FloatArray, model: RobotModel, resolution: Resolutio
     key = np.asarray(key_states, dtype=float)
     if len(key) < 2:
         return key.copy()
-    delta = segment_deltas(key, planar=model.base is BaseType.PLANAR)
+    delta = segment_deltas(key, base=model.base)
     counts = sample_counts(key, model, resolution)
     if len(counts) == 1:  # one segment, the usual cached motion
         frac = np.arange(counts[0] + 1) / counts[0]

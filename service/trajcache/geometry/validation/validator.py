@@ -35,7 +35,7 @@ from trajcache.core.lru import LRU
 from trajcache.geometry.collision.checker import CollisionChecker, Contact, ContactKind
 from trajcache.geometry.collision.shared import GeometryCache
 from trajcache.geometry.model.kinematics import check_states
-from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import state_steps
 from trajcache.geometry.scene.scene import Scene
@@ -122,7 +122,7 @@ class TrajectoryValidator:
             self.settings_key = (*self.settings_key, "scene only")
         self.certifier = SegmentCertifier(
             self.checker,
-            planar=model.base is BaseType.PLANAR,
+            base=model.base,
             options=certifier,
         )
 
@@ -230,8 +230,7 @@ class TrajectoryValidator:
         """The result for what certification stopped at, `lo` samples into the trajectory."""
         state = chunk[found.segment]
         if found.at > 0.0:
-            planar = self.model.base is BaseType.PLANAR
-            delta = state_steps(state, chunk[found.segment + 1], planar=planar)
+            delta = state_steps(state, chunk[found.segment + 1], base=self.model.base)
             state = state + found.at * delta
         if found.status is SegmentStatus.COLLISION:
             return _result(

@@ -143,7 +143,7 @@ def trajectory_quality(
     if validator is not None:
         clearance = min_clearance(validator.checker, states, resolution=validator.resolution)
     quality = Quality(
-        path_length=path_length(states, planar=model.base is BaseType.PLANAR),
+        path_length=path_length(states, base=model.base),
         ee_path_length=ee_path_length(model, states),
         min_clearance=None if clearance is None else clearance.distance,
         duration_s=duration,
@@ -208,6 +208,4 @@ def answer_details(
 
 def _basic(model: RobotModel, states: FloatArray) -> Quality:
     array = np.asarray(states, dtype=float)
-    return Quality(
-        path_length(array, planar=model.base is BaseType.PLANAR), ee_path_length(model, array)
-    )
+    return Quality(path_length(array, base=model.base), ee_path_length(model, array))
