@@ -36,10 +36,12 @@ import numpy as np
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.scene.scene import Scene
+from trajcache.planning.motion import MotionChecker
 from trajcache.planning.ompl_planner import plan_ompl
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import ModelSource, PlanningProblem, PlanResult, SceneSource
 from trajcache.planning.run import run_planning
-from trajcache.planning.space import MotionChecker, state_space_spec
+from trajcache.planning.space import state_space_spec
 from trajcache.reference.cleaning import CleaningRun, cleaning_run, door_sweep_run
 from trajcache.reference.robot import reference_model, reference_urdf
 
@@ -109,10 +111,10 @@ def run_pairs(
     results = []
     for seed, pair in enumerate(pairs):
         if planner == "naive":
+            options = SearchOptions(budget_s=BUDGET_S, seed=seed)
             result = plan_ompl(
-                model, scenes[pair.scene], pair.start, pair.goal,
-                planner="rrtconnect", budget_s=BUDGET_S, seed=seed, naive=True,
-            )  # fmt: skip
+                model, scenes[pair.scene], pair.start, pair.goal, options, naive=True
+            )
         else:
             problem = PlanningProblem(
                 source, sources[pair.scene], pair.start, pair.goal,

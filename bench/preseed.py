@@ -74,14 +74,14 @@ class Service:
 
 
 def _cache_size(service: Service) -> int:
-    with service.ctx.session() as session:
+    with service.ctx.sessions() as session:
         return int(session.scalar(sa.select(sa.func.count()).select_from(Trajectory)) or 0)
 
 
 def _event_sums(service: Service, robot_id: str) -> dict[str, float]:
     ctx = service.ctx
     ctx.records.flush()
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         row = session.execute(
             sa.select(
                 sa.func.coalesce(sa.func.sum(PlanEvent.lookup_ms + PlanEvent.validate_ms), 0.0),

@@ -38,6 +38,7 @@ from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.path_quality import end_effector_link
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator, ValidationStatus
@@ -45,7 +46,6 @@ from trajcache.main import create_app
 from trajcache.reference.cleaning import cleaning_run
 from trajcache.reference.robot import reference_urdf
 from trajcache.services.plan.rejections import RejectedCandidate, rejection_entries
-from trajcache.trajectory_metrics import end_effector_link
 
 BOX = 0.09  # m, the side of the box put in a stored path's way
 

@@ -34,6 +34,7 @@ import numpy as np
 from harness.service import running_service
 from trajcache.core.config import Settings
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.path_quality import Quality
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.scene.scene import Scene
 from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
@@ -42,7 +43,6 @@ from trajcache.reference.cleaning import CleaningRun, PlanCall, cleaning_run
 from trajcache.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
 from trajcache.services.plan.quality import TimingRequest, time_states, trajectory_quality
 from trajcache.timing import TimingError
-from trajcache.trajectory_metrics import Quality
 from trajcache_client import NO_RETRY, APIError, Client, PlanResult
 
 ROBOT = "bench-reuse"

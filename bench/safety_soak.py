@@ -58,9 +58,11 @@ from soak_geometry import (
 )
 from soak_report import print_table
 from soak_scene import CHANGE_KINDS, SceneChanger, SoakRobot
-from trajcache.cache.adapt import adapt_trajectory, base_is_still
+from trajcache.cache.adapt import adapt_trajectory
 from trajcache.cache.metric import PLANAR_ARM_OFFSET, wrap_angle
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import base_is_still
 from trajcache.geometry.scene.payload import apply_patch, scene_to_payload
 from trajcache.reference.cleaning import PlanCall, cleaning_run
 from trajcache.reference.restroom import restroom_scene
@@ -171,7 +173,7 @@ class Soak:
             reverse = bool(self.rng.random() < 0.25)
             first, last = (stored[-1], stored[0]) if reverse else (stored[0], stored[-1])
             base_noise = self.rng.uniform(-0.01, 0.01, 3)
-            still = base_is_still(first, last, arm_offset=PLANAR_ARM_OFFSET)
+            still = base_is_still(first, last, BaseType.PLANAR)
             start = self._noisy(first[:3], first[3:], base_noise)
             goal = self._noisy(last[:3], last[3:], base_noise if still else None)
             placed = self._obstacle_for(stored, start, goal, reverse)

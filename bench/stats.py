@@ -34,6 +34,7 @@ from trajcache.db.models import PlanEvent, RobotModel, Trajectory, pack_states, 
 from trajcache.db.session import make_engine
 from trajcache.services.stats.event_rows import epoch_seconds
 from trajcache.services.stats.events import (
+    PlanEventFilter,
     list_plan_events,
     top_trajectories,
     trajectory_usage,
@@ -267,10 +268,16 @@ def time_queries(session: Session, repeats: int) -> dict[str, float]:
         lambda: list_plan_events(session=session, limit=100, cursor=cursor), repeats
     )
     figures["events_by_robot"], _ = timed(
-        lambda: list_plan_events(session=session, limit=100, robot_id="robot-007"), repeats
+        lambda: list_plan_events(
+            session=session, limit=100, filters=PlanEventFilter(robot_id="robot-007")
+        ),
+        repeats,
     )
     figures["events_failures"], _ = timed(
-        lambda: list_plan_events(session=session, limit=100, status="failure"), repeats
+        lambda: list_plan_events(
+            session=session, limit=100, filters=PlanEventFilter(status="failure")
+        ),
+        repeats,
     )
     figures["trajectory_usage"], _ = timed(
         lambda: trajectory_usage(session=session, trajectory_id=42), repeats

@@ -36,6 +36,7 @@ from naive_fcl import NaiveChecker, timed
 from trajcache.geometry.collision.checker import COLLIDING, CollisionChecker
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.certify import CertifierOptions
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
 from trajcache.geometry.warm import warm
 from trajcache.reference.cleaning import cleaning_run
@@ -104,7 +105,7 @@ def workload_motions(
                 TrajectoryValidator(model, scene, certified=True),
                 TrajectoryValidator(model, scene, certified=False),
                 NaiveChecker(model, scene),
-                TrajectoryValidator(model, scene, compiled=False),
+                TrajectoryValidator(model, scene, certifier=CertifierOptions(compiled=False)),
             )
         certified, plain, naive, numpy = by_scene[scene.hash]
         key = np.stack([call.start, call.goal])
@@ -133,7 +134,7 @@ def reference_rows(
     free, late = make_trajectories(model, checker, rng, n_traj)
     certified = TrajectoryValidator(model, scene, certified=True)
     plain = TrajectoryValidator(model, scene, certified=False)
-    numpy = TrajectoryValidator(model, scene, compiled=False)
+    numpy = TrajectoryValidator(model, scene, certifier=CertifierOptions(compiled=False))
     rows = []
     for label, trajs in (("collision-free", free), ("collides late", late)):
         samples = [interpolate(k, model, Resolution()) for k in trajs]

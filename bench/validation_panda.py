@@ -44,6 +44,7 @@ from trajcache.geometry.collision.checker import ContactKind
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.certify import CertifierOptions
 from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
@@ -183,7 +184,7 @@ def run_panda(per_family: int, seed: int, repeats: int) -> PandaTally:
         certified.validate(paths[0][1])  # what the first path after a scene change pays
         tally.first_call.append(time.perf_counter() - began)
         plain = TrajectoryValidator(model, scene, certified=False)
-        numpy = TrajectoryValidator(model, scene, compiled=False)
+        numpy = TrajectoryValidator(model, scene, certifier=CertifierOptions(compiled=False))
         checkers = SceneCheckers(
             model,
             certified,

@@ -14,15 +14,14 @@ from dataclasses import dataclass, field
 from typing import Any, cast
 
 import numpy as np
-from numpy.typing import NDArray
 
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.scene.scene import Scene
 from trajcache.reference.cleaning import CleaningRun, PlanCall
 from trajcache.reference.robot import REFERENCE_BASE, REFERENCE_NAME, reference_urdf
 from trajcache_client import APIError, Client, PlanResult
 
-FloatArray = NDArray[np.float64]
 TIMING_KEYS = ("lookup", "validate", "plan", "db", "total")  # always present in a record
 
 

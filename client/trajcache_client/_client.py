@@ -3,44 +3,23 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence
-from pathlib import Path
+from collections.abc import Iterable, Iterator, Mapping
 from types import TracebackType
 from typing import Any, TypeVar
 
 import httpx
 
 from trajcache_client import _admin_operations as admin_ops
-from trajcache_client import _operations as ops
-from trajcache_client._admin_client import AdminMethods
 from trajcache_client._base import DEFAULT_BASE_URL, DEFAULT_RETRY, DEFAULT_TIMEOUT, BaseClient
+from trajcache_client._endpoints import Endpoints, SyncCaller
 from trajcache_client._exceptions import error_for
-from trajcache_client._ik_client import IkMethods
-from trajcache_client._models import (
-    Health,
-    Page,
-    PlanOptions,
-    PlanResult,
-    Robot,
-    RobotKind,
-    RobotModel,
-    RobotModelDetail,
-    RobotModelSummary,
-    Scene,
-    SceneVersion,
-    Trajectory,
-    TrajectoryCreated,
-    TrajectorySummary,
-)
-from trajcache_client._moveit_models import MotionPlanResponse
-from trajcache_client._operations import JointLimits, Operation, StateLike, StateValues
+from trajcache_client._operations import Operation
 from trajcache_client._retry import Retry
-from trajcache_client._view_client import ViewMethods
 
 T = TypeVar("T")
 
 
-class Client(AdminMethods, ViewMethods, IkMethods, BaseClient):
+class Client(Endpoints, SyncCaller, BaseClient):
     """A blocking trajcache client; use it as a context manager or call `close()`.
 
     `transport` replaces the network, e.g. `httpx.MockTransport(handler)` in tests.
@@ -124,173 +103,3 @@ class Client(AdminMethods, ViewMethods, IkMethods, BaseClient):
             raise self._transport_error(op, exc) from exc
         finally:
             response.close()
-
-    # --- robot models -----------------------------------------------------------------------
-
-    def register_model(
-        self,
-        urdf: str,
-        *,
-        srdf: str | None = None,
-        group: str | None = None,
-        joint_values: Mapping[str, float] | str | None = None,
-        base: str = "fixed",
-        joint_names: Sequence[str] | None = None,
-        name: str | None = None,
-        archive: bytes | Path | None = None,
-        archive_name: str = "meshes.zip",
-        acceleration_limits: JointLimits | None = None,
-        jerk_limits: JointLimits | None = None,
-        end_effector_link: str | None = None,
-    ) -> RobotModel:
-        """Register a URDF (with its SRDF and a zip or tar(.gz) mesh archive); same content →
-        same model_id. `joint_values` holds joints outside the planning joints (by name, or an
-        SRDF group_state's name)."""
-        return self.call(
-            ops.register_model(
-                urdf,
-                srdf=srdf,
-                group=group,
-                joint_values=joint_values,
-                base=base,
-                joint_names=joint_names,
-                name=name,
-                archive=archive,
-                archive_name=archive_name,
-                acceleration_limits=acceleration_limits,
-                jerk_limits=jerk_limits,
-                end_effector_link=end_effector_link,
-            )
-        )
-
-    def list_models(self, *, limit: int | None = None, offset: int = 0) -> Page[RobotModelSummary]:
-        """A page of registered models, oldest first."""
-        return self.call(ops.list_models(limit=limit, offset=offset))
-
-    def get_model(self, model_id: str) -> RobotModelDetail:
-        """A model with its joints, links, limits and files."""
-        return self.call(ops.get_model(model_id))
-
-    # --- robots and scenes ------------------------------------------------------------------
-
-    def put_robot(
-        self,
-        robot_id: str,
-        model_id: str,
-        *,
-        kind: RobotKind | None = None,
-        joint_values: Mapping[str, float] | None = None,
-    ) -> Robot:
-        """Create a robot, or re-point it to another model; `joint_values` holds joints
-        otherwise than the model. None keeps what the robot has; `joint_values={}` returns to
-        the model's values."""
-        return self.call(ops.put_robot(robot_id, model_id, kind=kind, joint_values=joint_values))
-
-    def get_robot(self, robot_id: str) -> Robot:
-        """A robot."""
-        return self.call(ops.get_robot(robot_id))
-
-    def put_scene(
-        self,
-        robot_id: str,
-        scene: Mapping[str, Any] | str | bytes,
-        *,
-        media_type: str | None = None,
-    ) -> SceneVersion:
-        """Replace the scene: a mapping (native or MoveIt world) as JSON, text as YAML."""
-        return self.call(ops.put_scene(robot_id, scene, media_type=media_type))
-
-    def patch_scene(
-        self,
-        robot_id: str,
-        *,
-        upsert: Sequence[Mapping[str, Any]] = (),
-        remove: Sequence[str] = (),
-        env: Mapping[str, float | None] | None = None,
-    ) -> SceneVersion:
-        """Add or replace objects by id, remove ids, set env values (None removes one)."""
-        return self.call(ops.patch_scene(robot_id, upsert=upsert, remove=remove, env=env))
-
-    def get_scene(self, robot_id: str) -> Scene:
-        """The robot's current scene, its version and hash."""
-        return self.call(ops.get_scene(robot_id))
-
-    # --- planning ---------------------------------------------------------------------------
-
-    def plan(
-        self,
-        robot_id: str,
-        start: StateLike,
-        goal: StateLike | None,
-        options: PlanOptions | Mapping[str, Any] | None = None,
-        *,
-        goal_pose: Mapping[str, Any] | None = None,
-    ) -> PlanResult:
-        """A validated trajectory from start to goal, from the cache or the planner; each state
-        is values in `state_names` order, a {joint: value} map, or a named state's name."""
-        return self.call(ops.plan(robot_id, start, goal, options, goal_pose=goal_pose))
-
-    def motion_plan(self, robot_id: str, request: Mapping[str, Any] | str) -> MotionPlanResponse:
-        """Plan with MoveIt's messages: a MotionPlanRequest (a mapping as JSON, text as YAML) →
-        its MotionPlanResponse, whose `error_code` says whether it succeeded."""
-        return self.call(ops.motion_plan(robot_id, request))
-
-    # --- trajectories -----------------------------------------------------------------------
-
-    def store_trajectory(
-        self,
-        model_id: str,
-        states: Iterable[StateValues],
-        *,
-        source: str = "real",
-        robot_id: str | None = None,
-        scene_hash: str | None = None,
-        env: Mapping[str, float] | None = None,
-        planning_time_ms: float | None = None,
-    ) -> TrajectoryCreated:
-        """Contribute a trajectory; an identical one is not stored twice."""
-        return self.call(
-            ops.store_trajectory(
-                model_id,
-                states,
-                source=source,
-                robot_id=robot_id,
-                scene_hash=scene_hash,
-                env=env,
-                planning_time_ms=planning_time_ms,
-            )
-        )
-
-    def list_trajectories(
-        self,
-        *,
-        model_id: str | None = None,
-        source: str | None = None,
-        robot_id: str | None = None,
-        limit: int | None = None,
-        offset: int = 0,
-    ) -> Page[TrajectorySummary]:
-        """A page of stored trajectories (without states), filtered."""
-        return self.call(
-            ops.list_trajectories(
-                model_id=model_id, source=source, robot_id=robot_id, limit=limit, offset=offset
-            )
-        )
-
-    def get_trajectory(self, trajectory_id: int) -> Trajectory:
-        """A stored trajectory with its key states."""
-        return self.call(ops.get_trajectory(trajectory_id))
-
-    def delete_trajectory(self, trajectory_id: int) -> None:
-        """Delete a stored trajectory."""
-        self.call(ops.delete_trajectory(trajectory_id))
-
-    # --- health -----------------------------------------------------------------------------
-
-    def health(self) -> Health:
-        """Liveness: the service process answers."""
-        return self.call(ops.health())
-
-    def ready(self) -> Health:
-        """Readiness: the database answers (UnavailableError otherwise)."""
-        return self.call(ops.ready())

@@ -1,7 +1,7 @@
 """One function per endpoint: the request to send and how to read its answer.
 
 `Client` and `AsyncClient` call these, so an endpoint is described once; adding one is a
-function here and a one-line method on each client.
+function here and one line in `_endpoints.Endpoints`, which makes it a method of both.
 """
 
 from __future__ import annotations

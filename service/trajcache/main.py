@@ -13,12 +13,12 @@ from starlette.concurrency import run_in_threadpool
 from trajcache import __version__
 from trajcache.api.docs import install_docs
 from trajcache.api.errors import UnexpectedErrorMiddleware, install_error_handlers
+from trajcache.api.prometheus import install_metrics
 from trajcache.api.router import api_router
 from trajcache.api.routes import health
 from trajcache.core.config import Settings, get_settings
 from trajcache.dashboard import mount_dashboard
 from trajcache.db import migrate as db_migrate
-from trajcache.metrics import install_metrics
 from trajcache.planning.warm import warm
 from trajcache.services.background import start_background
 from trajcache.services.context import ServiceContext

@@ -98,7 +98,7 @@ def test_two_replicas_prune_at_once(database_url: str) -> None:
         assert listed(a) == listed(b) == ids[8:]
         for client in (a, b):  # each replica's index dropped the evicted ones
             ctx = ctx_of(client)
-            with ctx.session() as session:
+            with ctx.sessions() as session:
                 from trajcache.services.catalog.models import get_model
 
                 model = get_model(session=session, registry=ctx.models, model_id=model_id)
@@ -225,7 +225,7 @@ def test_import_body_is_bounded(client_factory: ClientFactory) -> None:
 def test_admin_routes_are_admin_only(client_factory: ClientFactory, role: str, status: int) -> None:
     client = client_factory(**QUIET, auth_mode="on", auth_cache_ttl_s=0)
     ctx = ctx_of(client)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         _, secret = create_key(session=session, name="k", role=role)
     headers = {"Authorization": f"Bearer {secret}"}
     response = client.post("/v1/admin/prune", json={"cap": 5}, headers=headers)

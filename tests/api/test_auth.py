@@ -16,7 +16,7 @@ from trajcache.services.catalog.keys import Role, create_key, revoke_key
 
 def _key(client: TestClient, role: str, robots: list[str] | None = None) -> str:
     ctx = ctx_of(client)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         _, secret = create_key(session=session, name=f"{role} key", role=role, robot_ids=robots)
     ctx.keys.clear()
     return secret
@@ -61,7 +61,7 @@ def test_no_key_wrong_key_and_revoked_key_are_401(
     assert ok.status_code == 200, ok.text
 
     ctx = ctx_of(client)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         revoke_key(session=session, key=keys["robot"].split("_")[1])
     revoked = client.get("/v1/robots/r1/scene", headers=_h(keys["robot"]))
     assert "AUTH_MODE" not in assert_detail(revoked, 401, "revoked", "README.md#api-keys")
@@ -161,7 +161,7 @@ def test_auto_mode_stays_on_after_the_last_key_is_revoked(client_factory: Client
     secret = _key(client, "admin")
     assert client.get("/v1/stats", headers=_h(secret)).status_code == 200
     ctx = ctx_of(client)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         revoke_key(session=session, key=secret.split("_")[1])
     ctx.keys.clear()
     assert_detail(client.get("/v1/stats"), 401, "API key is required")
@@ -176,7 +176,7 @@ def test_revoking_a_revoked_key_is_a_conflict(client_factory: ClientFactory) -> 
     client = client_factory()
     secret = _key(client, "seeder")
     prefix = secret.split("_")[1]
-    with ctx_of(client).session() as session:
+    with ctx_of(client).sessions() as session:
         first = revoke_key(session=session, key=prefix)
         assert first.revoked_at is not None
         with pytest.raises(ConflictError, match=rf"#{first.id} \({prefix}, 'seeder key'\) was"):

@@ -55,7 +55,7 @@ def _plan(client: TestClient, **options: Any) -> Any:
 def _assert_safe(client: TestClient, states: list[list[float]]) -> None:
     """The answered path passes the certified validator in the robot's current scene."""
     ctx = ctx_of(client)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         robot, scene, _ = current_scene(session=session, scenes=ctx.scenes, robot_id="r1")
         model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
     path = np.asarray(states)
@@ -64,7 +64,7 @@ def _assert_safe(client: TestClient, states: list[list[float]]) -> None:
 
 
 def _events(client: TestClient) -> list[PlanEvent]:
-    with ctx_of(client).session() as session:
+    with ctx_of(client).sessions() as session:
         return list(session.execute(sa.select(PlanEvent).order_by(PlanEvent.id)).scalars())
 
 
@@ -338,7 +338,7 @@ def test_a_timing_failure_is_recorded_on_the_trajectory(
     assert body["status"] == "success"
     stored = client.get(f"/v1/trajectories/{body['trajectory_id']}").json()
     assert stored["duration_s"] is None and stored["length"] == pytest.approx(1.0)
-    with ctx_of(client).session() as session:
+    with ctx_of(client).sessions() as session:
         from trajcache.db.models import Trajectory
 
         details = session.get(Trajectory, body["trajectory_id"]).quality

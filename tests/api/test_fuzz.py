@@ -168,7 +168,7 @@ def live_app(database_url: str) -> Iterator[LiveApp]:
     serving = _serve(settings)
     base_url, ctx = next(serving)
     try:
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             _, secret = create_key(session=session, name="fuzz admin", role="admin")
         headers = {"Authorization": f"Bearer {secret}"}
         path_values = _prepare(base_url, headers)

@@ -24,8 +24,8 @@ from tests.jobs.test_pool import make_local_pool, make_problem
 from tests.robots import TWO_JOINT_URDF
 from tests.waiting import wait_until
 from trajcache.core.config import Settings
+from trajcache.core.prometheus_dir import MULTIPROC_ENV, prepare_multiprocess_dir
 from trajcache.main import create_app
-from trajcache.metrics_dir import MULTIPROC_ENV, prepare_multiprocess_dir
 
 PATH = [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]]
 GRAFANA = Path(__file__).resolve().parents[2] / "docker" / "grafana-dashboard.json"
@@ -212,7 +212,7 @@ def test_metrics_stay_open_when_keys_are_required(client_factory: ClientFactory)
 RECORDER = """
 import os
 import sys
-from trajcache.metrics import POOL_QUEUE_DEPTH, record_plan
+from trajcache.services.prometheus import POOL_QUEUE_DEPTH, record_plan
 
 hits, depth = int(sys.argv[1]), int(sys.argv[2])
 timings = {"lookup": 0.5, "validate": 4.0, "plan": 0.0, "total": 6.0}

@@ -134,7 +134,7 @@ def test_model_loads_back_from_the_database(client_factory: ClientFactory) -> No
     ctx = ctx_of(second)
     assert body["model_id"] not in ctx.models
 
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         loaded = get_model(session=session, registry=ctx.models, model_id=body["model_id"])
     assert loaded.model_id == body["model_id"]
     assert loaded.allowed_pairs == original.allowed_pairs

@@ -75,7 +75,7 @@ def test_blocked_candidate_is_rejected_and_its_failure_recorded(
     assert body["status"] == "miss" and body["candidates_tried"] == 1
     assert body["rejected"][0]["trajectory_id"] == stored
     assert "blocker" in body["rejected"][0]["reason"]
-    with ctx_of(app_client).session() as session:
+    with ctx_of(app_client).sessions() as session:
         row = session.get(Trajectory, stored)
         assert row is not None and row.failures == 1 and row.hits == 0
 
@@ -111,7 +111,7 @@ def test_every_plan_call_records_an_event(
     _store(app_client, model_id, PATH)
     _plan(app_client, [0.0, 0.0], [1.0, 0.0])
     _plan(app_client, [0.0, 0.5], [1.0, 0.0])
-    with ctx_of(app_client).session() as session:
+    with ctx_of(app_client).sessions() as session:
         events = session.execute(sa.select(PlanEvent).order_by(PlanEvent.id)).scalars().all()
     assert [(e.status, e.source) for e in events] == [("success", "cache"), ("miss", None)]
     assert events[0].robot_id == "robot-1" and events[0].candidates_tried == 1
@@ -147,7 +147,7 @@ def test_concurrent_plans_and_writes_keep_the_index_consistent(
         t.join()
     assert not errors, errors[:3]
     ctx = ctx_of(app_client)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         rows = set(session.execute(sa.select(Trajectory.id)).scalars())
         model = ctx.models.get(model_id)
         assert model is not None

@@ -49,7 +49,7 @@ def test_the_bookkeeping_of_a_hit_is_written_when_the_request_completes(
     stored = reply.json()["trajectory_id"]
     for i in range(3):
         assert _plan(app_client, [0.01 * i, 0.0], [1.0, 0.0]).json()["source"] == "cache"
-        with ctx_of(app_client).session() as session:  # no flush: the cycle waited for it
+        with ctx_of(app_client).sessions() as session:  # no flush: the cycle waited for it
             row = session.get(Trajectory, stored)
             assert row is not None and row.hits == i + 1
             count = session.scalar(sa.select(sa.func.count()).select_from(PlanEvent))

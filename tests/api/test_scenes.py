@@ -220,11 +220,11 @@ def test_identical_concurrent_first_puts_make_one_version(
 def test_current_scene_is_one_query_when_cached(app_client: TestClient, robot_id: str) -> None:
     put = app_client.put(f"/v1/robots/{robot_id}/scene", json={"objects": [TABLE]}).json()
     ctx = ctx_of(app_client)
-    with ctx.session() as session, count_statements(ctx.engine) as statements:
+    with ctx.sessions() as session, count_statements(ctx.engine) as statements:
         robot, scene, version = current_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
     assert (robot.id, scene.hash, version) == (robot_id, put["hash"], 1)
     assert len(statements) == 1, statements
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         again = current_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)[1]
     assert again is scene  # parsed once, then served from the SceneCache
 
@@ -240,7 +240,7 @@ def test_scene_is_parsed_from_the_database_on_a_cold_cache(
     second = client_factory()
     ctx = ctx_of(second)
     assert len(ctx.scenes) == 0
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         _, scene, version = current_scene(session=session, scenes=ctx.scenes, robot_id="r")
     assert (scene.hash, version) == (put["hash"], 1)
     assert [o.id for o in scene.objects] == ["table"]
@@ -255,7 +255,7 @@ def test_concurrent_patches_all_apply(app_client: TestClient, robot_id: str) -> 
 
     def add(i: int) -> None:
         try:
-            with ctx.session() as session:
+            with ctx.sessions() as session:
                 obj = {"id": f"o{i}", "type": "sphere", "size": [0.1]}
                 results.append(
                     patch_scene(
@@ -286,7 +286,7 @@ def test_scene_versions_are_stored(app_client: TestClient, robot_id: str) -> Non
               for i in range(3)]  # fmt: skip
     from trajcache.db.models import SceneVersion
 
-    with ctx_of(app_client).session() as session:
+    with ctx_of(app_client).sessions() as session:
         rows = session.execute(
             sa.select(SceneVersion.version, SceneVersion.hash, SceneVersion.payload)
             .where(SceneVersion.robot_id == robot_id)

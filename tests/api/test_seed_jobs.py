@@ -66,7 +66,7 @@ def finished(job: dict[str, Any]) -> bool:
 def plan_events(client: TestClient, job_id: int) -> int:
     ctx = ctx_of(client)
     ctx.records.flush()
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         count = session.scalar(
             sa.select(sa.func.count()).where(PlanEvent.robot_id == f"seed-job-{job_id}")
         )
@@ -229,7 +229,7 @@ def test_a_restarted_service_resumes_where_it_stopped(database_url: str) -> None
     # A graceful stop waits for the requests in flight and hands the job back.
     with TestClient(create_app(settings)) as second:
         ctx = ctx_of(second)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             row = session.get(SeedJob, job["job_id"])
             assert row is not None
         handed_back = row.done
@@ -249,7 +249,7 @@ def test_the_handed_back_state_is_queued_without_a_lease(database_url: str) -> N
         wait_for_job(client, job["job_id"], lambda j: j["done"] > 0)
         ctx = ctx_of(client)
         client.app.state.background.seeds.stop()  # type: ignore[attr-defined]
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             row = session.get(SeedJob, job["job_id"])
             assert row is not None
             assert (row.state, row.lease_owner, row.lease_expires_at) == ("queued", None, None)
@@ -320,7 +320,7 @@ def test_a_running_job_whose_lease_ran_out_is_shown_stale(database_url: str) -> 
         )
         now = utcnow()
         for lease_ends, stale in ((now + timedelta(minutes=1), False), (now, True)):
-            with ctx_of(client).session() as session:  # a replica that holds the job, or held it
+            with ctx_of(client).sessions() as session:  # a replica that holds the job, or held it
                 session.execute(
                     sa.update(SeedJob)
                     .where(SeedJob.id == job_id)

@@ -118,7 +118,7 @@ def test_long_windows_read_rollups_and_count_time_saved(
         )
         for h, source, plan_ms in EARLIER
     ]
-    with ctx_of(app_client).session() as session:
+    with ctx_of(app_client).sessions() as session:
         session.add_all(rows)
         session.commit()
     body = app_client.get("/v1/stats", params={"window": "7d"}).json()
@@ -161,7 +161,7 @@ def test_a_seed_job_and_a_robot_of_the_same_name_stay_apart(
     now = datetime.now(UTC)
     # (minutes ago, requester): this hour's events and events of hours already rolled up
     written = [(m, "seed_job") for m in (2, 3, 4, 190, 200)] + [(m, "robot") for m in (5, 210)]
-    with ctx_of(app_client).session() as session:
+    with ctx_of(app_client).sessions() as session:
         session.add_all(
             PlanEvent(
                 created_at=now - timedelta(minutes=m),
@@ -314,7 +314,7 @@ def test_top_trajectories_by_hits(app_client: TestClient, fleet: dict[str, Any])
 
 def test_statistics_are_for_admin_keys_only(client_factory: ClientFactory) -> None:
     client = client_factory(auth_mode="on")
-    with ctx_of(client).session() as session:
+    with ctx_of(client).sessions() as session:
         _, admin = create_key(session=session, name="ops", role="admin")
         _, seeder = create_key(session=session, name="farm", role="seeder")
     assert client.get("/v1/stats").status_code == 401

@@ -115,7 +115,7 @@ def test_delete_leaves_a_tombstone(app_client: TestClient, model_id: str) -> Non
     assert response.content == b""
     assert_detail(app_client.get(f"/v1/trajectories/{trajectory_id}"), 404, str(trajectory_id))
     assert_detail(app_client.delete(f"/v1/trajectories/{trajectory_id}"), 404)
-    with ctx_of(app_client).session() as session:
+    with ctx_of(app_client).sessions() as session:
         assert session.get(Trajectory, trajectory_id) is None
         tombstones = session.execute(
             sa.select(TrajectoryTombstone.trajectory_id, TrajectoryTombstone.model_id)

@@ -200,7 +200,7 @@ def test_the_view_is_for_admin_keys_only(client_factory: ClientFactory) -> None:
     client = client_factory(auth_mode="on", auth_cache_ttl_s=0)
     ctx = ctx_of(client)
     secrets = {}
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         for role in ("admin", "seeder", "robot"):
             robots = ["r1"] if role == "robot" else None
             secrets[role] = create_key(session=session, name=role, role=role, robot_ids=robots)[1]

@@ -7,10 +7,10 @@ import pytest
 
 from reuse_quality import Hit, _same_path, plan_fresh, ratios
 from trajcache.core.config import Settings
+from trajcache.geometry.path_quality import Quality
 from trajcache.planning.problem import ModelSource
 from trajcache.reference.cleaning import cleaning_run
 from trajcache.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
-from trajcache.trajectory_metrics import Quality
 
 
 def _hit(cached: dict[str, float | None], fresh: Quality | None) -> Hit:

@@ -16,6 +16,7 @@ from naive_fcl import NaiveChecker, PairChecker
 from trajcache.geometry.collision.checker import Contact, ContactKind
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.certify import CertifierOptions
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
     ValidationResult,
@@ -52,7 +53,7 @@ def _checkers(panda: tuple[RobotModel, MeshChecker], certified: Any) -> SceneChe
     dense.set_scene([SLAB])
     scene = parse_scene({"objects": [SLAB]})
     plain = TrajectoryValidator(model, scene, certified=False)
-    numpy = TrajectoryValidator(model, scene, compiled=False)
+    numpy = TrajectoryValidator(model, scene, certifier=CertifierOptions(compiled=False))
     naive, pairs = NaiveChecker(model, scene), PairChecker(model, scene)
     return SceneCheckers(model, certified, plain, numpy, naive, pairs, dense)
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trajcache.cache.adapt import adapt_trajectory, base_is_still
+from trajcache.cache.adapt import adapt_trajectory
+from trajcache.cache.metric import base_type
+from trajcache.geometry.model.space import base_is_still
 
 
 def trajectory(rng: np.random.Generator, n: int = 6, dim: int = 6) -> np.ndarray:
@@ -48,9 +50,9 @@ def test_base_moving_by_more_than_tolerance_is_not_reanchored() -> None:
 def test_base_is_still_wraps_heading_and_ignores_fixed_base() -> None:
     s = np.array([1.0, 1.0, np.pi - 1e-12, 0.0])
     g = np.array([1.0, 1.0, -np.pi + 1e-12, 1.0])
-    assert base_is_still(s, g, arm_offset=3)
-    assert not base_is_still(s, g + np.array([0, 2e-9, 0, 0]), arm_offset=3)
-    assert not base_is_still(np.zeros(3), np.zeros(3), arm_offset=0)
+    assert base_is_still(s, g, base_type(3))
+    assert not base_is_still(s, g + np.array([0, 2e-9, 0, 0]), base_type(3))
+    assert not base_is_still(np.zeros(3), np.zeros(3), base_type(0))
 
 
 def test_reverse_plays_the_cached_path_backwards() -> None:

@@ -19,6 +19,7 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import Scene, SceneObject
+from trajcache.geometry.validation.certify import CertifierOptions
 from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
@@ -152,7 +153,7 @@ def test_the_scope_is_the_validators_model_scene_and_settings_key(swing: RobotMo
         base,
         MemoScope.of(TrajectoryValidator(swing, scene, resolution=Resolution(joint_rad=0.01))),
         MemoScope.of(TrajectoryValidator(swing, scene, certified=False)),
-        MemoScope.of(TrajectoryValidator(swing, scene, min_pad=1e-3)),
+        MemoScope.of(TrajectoryValidator(swing, scene, certifier=CertifierOptions(min_pad=1e-3))),
         MemoScope.of(TrajectoryValidator(other, scene)),
         MemoScope.of(TrajectoryValidator(swing, plates(-1.0, 1.15))),
     }

@@ -13,7 +13,7 @@ import yourdfpy
 from typer.testing import CliRunner
 
 from trajcache.cli import app
-from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
+from trajcache.geometry.scene.parse import load_scene_text, parse_scene
 from trajcache.reference.restroom import restroom_scene
 from trajcache.reference.robot import reference_urdf
 
@@ -55,7 +55,7 @@ def test_scene_yaml_and_moveit_formats(tmp_path: Path) -> None:
     assert {o["header"]["frame_id"] for o in objects} == {"world"}
     assert len(objects) == len(expected.objects)
     # MoveIt carries no env values; the geometry is the same
-    from_text = parse_scene_text(out.read_text())
+    from_text = parse_scene(load_scene_text(out.read_text()))
     assert [o.id for o in from_text.objects] == [o.id for o in expected.objects]
     assert from_text.env == {}
     assert parse_scene({**message, "env": expected.env}).hash == expected.hash

@@ -20,7 +20,7 @@ from trajcache.cli.transfer import parse_duration
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import Trajectory, TrajectoryTombstone, utcnow
-from trajcache.services.catalog.models import register_model
+from trajcache.services.catalog.models import ModelRegistration, register_model
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 
@@ -31,8 +31,12 @@ def source_url(tmp_path: Path) -> Iterator[str]:
     url = f"sqlite:///{tmp_path / 'source.db'}"
     migrate.upgrade(url)
     ctx = ServiceContext.create(Settings(database_url=url, worker_backend="none"))
-    with ctx.session() as session:
-        model, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+    with ctx.sessions() as session:
+        model, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         for k in range(5):
             new_id, _ = store_trajectory(
                 session=session,

@@ -35,13 +35,13 @@ from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.path_quality import end_effector_link
 from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator, ValidationStatus
 from trajcache.reference.cleaning import cleaning_run
 from trajcache.reference.example_robots import ROBOTS
 from trajcache.reference.robot import reference_urdf
-from trajcache.trajectory_metrics import end_effector_link
 
 pytestmark = pytest.mark.slow
 

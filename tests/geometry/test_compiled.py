@@ -17,6 +17,7 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.geometry.validation.certify import CertifierOptions
 from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
@@ -189,7 +190,7 @@ def test_certified_never_accepts_what_a_denser_check_rejects_on_the_panda(
     for _ in range(16):
         scene, start = _near_scene(panda, rng)
         compiled = TrajectoryValidator(panda, scene)
-        reference = TrajectoryValidator(panda, scene, compiled=False)
+        reference = TrajectoryValidator(panda, scene, certifier=CertifierOptions(compiled=False))
         for _ in range(3):
             goal = np.clip(start + rng.normal(0.0, 0.4, panda.dof), panda.lower, panda.upper)
             key = np.stack([start, goal])

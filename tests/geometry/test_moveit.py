@@ -14,7 +14,7 @@ import yaml
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import ShapeKind
 from trajcache.geometry.scene.moveit import scene_to_moveit
-from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
+from trajcache.geometry.scene.parse import load_scene_text, parse_scene
 from trajcache.geometry.scene.payload import scene_to_payload
 
 S2 = math.sqrt(0.5)
@@ -103,8 +103,8 @@ def test_accepted_wrappings_and_formats_agree() -> None:
     expected = parse_scene(full).hash
     assert parse_scene({"world": full["world"]}).hash == expected
     assert parse_scene({"collision_objects": full["world"]["collision_objects"]}).hash == expected
-    assert parse_scene_text(json.dumps(full)).hash == expected
-    assert parse_scene_text(yaml.safe_dump(full)).hash == expected
+    assert parse_scene(load_scene_text(json.dumps(full))).hash == expected
+    assert parse_scene(load_scene_text(yaml.safe_dump(full))).hash == expected
 
 
 def test_same_geometry_as_native_gives_same_hash() -> None:

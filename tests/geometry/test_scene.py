@@ -12,7 +12,7 @@ import yaml
 
 from trajcache.geometry.errors import SceneError
 from trajcache.geometry.model.shapes import ShapeKind
-from trajcache.geometry.scene.parse import parse_scene, parse_scene_text
+from trajcache.geometry.scene.parse import load_scene_text, parse_scene
 from trajcache.geometry.scene.payload import apply_patch, scene_to_payload
 from trajcache.geometry.scene.scene import matrix_to_quaternion
 
@@ -67,8 +67,8 @@ def test_hash_ignores_order_and_form() -> None:
     reordered = {"env": dict(reversed(payload["env"].items())), "objects": payload["objects"][::-1]}
     base = parse_scene(payload).hash
     assert parse_scene(reordered).hash == base
-    assert parse_scene_text(json.dumps(payload)).hash == base
-    assert parse_scene_text(yaml.safe_dump(payload)).hash == base
+    assert parse_scene(load_scene_text(json.dumps(payload))).hash == base
+    assert parse_scene(load_scene_text(yaml.safe_dump(payload))).hash == base
     flipped = json.loads(json.dumps(payload))  # q and -q are the same rotation
     flipped["objects"][0]["pose"]["orientation"] = [0, 0, -S2, -S2]
     assert parse_scene(flipped).hash == base
@@ -145,13 +145,13 @@ def test_nan_message_names_object_and_field() -> None:
 def test_text_parsing_rejects_yaml_aliases_and_garbage() -> None:
     bomb = "a: &a [1, 1, 1]\nb: &b [*a, *a, *a]\nobjects: [*b]\n"
     with pytest.raises(SceneError, match="alias"):
-        parse_scene_text(bomb)
+        parse_scene(load_scene_text(bomb))
     with pytest.raises(SceneError):
-        parse_scene_text("objects: [unclosed")
+        parse_scene(load_scene_text("objects: [unclosed"))
     with pytest.raises(SceneError, match="mapping"):
-        parse_scene_text("[1, 2, 3]")
+        parse_scene(load_scene_text("[1, 2, 3]"))
     with pytest.raises(SceneError, match="finite"):
-        parse_scene_text('{"objects": [{"id": "a", "type": "sphere", "size": [NaN]}]}')
+        parse_scene(load_scene_text('{"objects": [{"id": "a", "type": "sphere", "size": [NaN]}]}'))
 
 
 def test_empty_scene_is_valid() -> None:

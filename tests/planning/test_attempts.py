@@ -26,6 +26,7 @@ from trajcache.geometry.validation.validator import (
 from trajcache.planning import attempts, ompl_planner, rris
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.ompl_planner import plan_ompl
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlannerStatus, PlanResult
 from trajcache.planning.rris import plan_with_rris
 
@@ -77,7 +78,9 @@ def test_a_path_that_fails_certification_is_repaired(
 ) -> None:
     use(monkeypatch, in_fog)
     model = load_robot_model(TWO_ROD_URDF, base="fixed")
-    result = planner(model, empty, START, GOAL, budget_s=NEVER_BINDS_S, seed=0)
+    result = planner(
+        model, empty, START, GOAL, options=SearchOptions(budget_s=NEVER_BINDS_S, seed=0)
+    )
     assert result.status is PlannerStatus.SOLVED, result.message
     assert result.path is not None and np.allclose(result.path[[0, -1]], [START, GOAL])
     assert not in_fog(interpolate(result.path, model, TrajectoryValidator(model, empty).resolution))
@@ -98,7 +101,7 @@ def test_no_certifiable_path_spends_the_budget_and_says_so(
 
     for module in (ompl_planner, rris):
         monkeypatch.setattr(module, "Deadline", recorded)
-    result = planner(model, empty, START, GOAL, budget_s=0.8, seed=0)
+    result = planner(model, empty, START, GOAL, options=SearchOptions(budget_s=0.8, seed=0))
     assert result.status is PlannerStatus.UNCERTIFIED and result.path is None
     assert result.message.startswith("no certifiable path within the budget")
     assert "closer than can be certified (fog)" in result.message
@@ -111,7 +114,7 @@ def test_an_endpoint_no_motion_can_leave_certified_fails_at_once(
 ) -> None:
     use(monkeypatch, lambda samples: bool(np.allclose(samples, GOAL)))  # only a stay at GOAL
     model = load_robot_model(TWO_ROD_URDF, base="fixed")
-    result = planner(model, empty, START, GOAL, budget_s=5.0, seed=0)
+    result = planner(model, empty, START, GOAL, options=SearchOptions(budget_s=5.0, seed=0))
     assert "attempts" not in result.stats  # refused before any search began
     assert result.status is PlannerStatus.INVALID_GOAL
     assert result.message.startswith("no motion to the goal can be certified")
@@ -122,6 +125,6 @@ def test_without_any_path_it_is_a_timeout(planner: Callable[..., PlanResult]) ->
     post = np.eye(4)
     post[:3, 3] = (0.25, 0.0, 0.5)  # on the upper arm's way: no elbow angle gets past
     scene = make_scene([SceneObject("post", Shape(ShapeKind.BOX, (0.1, 0.1, 1.0)), post)])
-    result = planner(model, scene, START, GOAL, budget_s=0.3, seed=0)
+    result = planner(model, scene, START, GOAL, options=SearchOptions(budget_s=0.3, seed=0))
     assert result.status is PlannerStatus.TIMEOUT, result.message
     assert result.stats["paths_found"] == 0

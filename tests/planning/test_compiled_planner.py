@@ -19,6 +19,7 @@ from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning.compiled_planner import plan_compiled
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlannerStatus
 from trajcache.reference.example_robots import ROBOTS
 
@@ -119,7 +120,13 @@ def test_the_compiled_planner_finds_a_certified_path_around_a_wall() -> None:
     start, goal = np.array([-1.2, 0.3]), np.array([1.2, 0.3])
     direct = CollisionChecker(model, scene).check(np.linspace(start, goal, 40), stop_at_first=True)
     assert direct.first_collision >= 0  # the straight way is blocked
-    result = plan_compiled(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed_value=1)
+    result = plan_compiled(
+        model,
+        scene,
+        start,
+        goal,
+        options=SearchOptions(budget_s=NEVER_BINDS_S, seed=1, shortcut_s=0.0),
+    )
     assert result.status is PlannerStatus.SOLVED, result.message
     assert result.path is not None
     np.testing.assert_allclose(result.path[0], start)

@@ -15,15 +15,12 @@ from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning import ompl_planner
+from trajcache.planning.motion import MotionChecker, coarse_to_fine
 from trajcache.planning.ompl_planner import plan_ompl, planner_names
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlannerStatus, PlanResult
-from trajcache.planning.space import (
-    MotionChecker,
-    Query,
-    coarse_to_fine,
-    prepare_query,
-    state_space_spec,
-)
+from trajcache.planning.query import Query, prepare_query
+from trajcache.planning.space import state_space_spec
 from trajcache.reference.restroom import restroom_layout, restroom_scene
 from trajcache.reference.robot import STOWED_ARM, reference_model
 
@@ -63,7 +60,9 @@ def test_arm_motion_around_an_obstacle_is_certified(model: RobotModel, scene: Sc
     query = prepare_query(model, scene, start, goal)
     assert isinstance(query, Query) and query.base_still
     assert not query.checker.segment_free(start, goal)  # the straight motion collides
-    result = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=1)
+    result = plan_ompl(
+        model, scene, start, goal, options=SearchOptions(budget_s=NEVER_BINDS_S, seed=1)
+    )
     assert_certified(model, scene, result)
     assert result.path is not None and len(result.path) >= 3
     assert np.allclose(result.path[0], start) and np.allclose(result.path[-1], goal)
@@ -84,7 +83,9 @@ def test_base_drives_around_a_pillar(model: RobotModel) -> None:
     query = prepare_query(model, scene, start, goal)
     assert isinstance(query, Query) and not query.base_still
     assert not query.checker.segment_free(start, goal)
-    result = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=3)
+    result = plan_ompl(
+        model, scene, start, goal, options=SearchOptions(budget_s=NEVER_BINDS_S, seed=3)
+    )
     assert_certified(model, scene, result)
     assert result.path is not None
     assert np.abs(result.path[:, 1] - 1.3).max() > 0.2  # it left the straight line
@@ -98,7 +99,9 @@ def test_fixed_base_arm_folds_past_a_post() -> None:
     start, goal = np.array([-1.0, 0.0]), np.array([1.0, 0.0])
     query = prepare_query(model, scene, start, goal)
     assert isinstance(query, Query) and not query.checker.segment_free(start, goal)
-    result = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=0)
+    result = plan_ompl(
+        model, scene, start, goal, options=SearchOptions(budget_s=NEVER_BINDS_S, seed=0)
+    )
     assert_certified(model, scene, result)
     assert result.path is not None
     assert np.abs(result.path[:, 1]).max() > 0.5  # the elbow folded to pass the post
@@ -106,7 +109,9 @@ def test_fixed_base_arm_folds_past_a_post() -> None:
 
 def test_unknown_planner_is_an_error_naming_the_valid_ones(model: RobotModel, scene: Scene) -> None:
     start, goal = arm_query()
-    result = plan_ompl(model, scene, start, goal, planner="astar", budget_s=1.0, seed=0)
+    result = plan_ompl(
+        model, scene, start, goal, planner="astar", options=SearchOptions(budget_s=1.0, seed=0)
+    )
     assert result.status is PlannerStatus.ERROR and result.path is None
     for name in ("rrtconnect", "rrt", "bitstar", "prm", "kpiece"):
         assert name in result.message
@@ -119,14 +124,16 @@ def test_endpoints_in_collision_are_rejected_without_planning(
     start, goal = arm_query()
     in_wall = start.copy()
     in_wall[:2] = (0.05, 1.0)  # the base overlaps the west wall
-    result = plan_ompl(model, scene, in_wall, goal, budget_s=2.0, seed=0)
+    result = plan_ompl(model, scene, in_wall, goal, options=SearchOptions(budget_s=2.0, seed=0))
     assert result.status is PlannerStatus.INVALID_START
     assert "wall_west" in result.message
-    result = plan_ompl(model, scene, start, in_wall, budget_s=2.0, seed=0)
+    result = plan_ompl(model, scene, start, in_wall, options=SearchOptions(budget_s=2.0, seed=0))
     assert result.status is PlannerStatus.INVALID_GOAL
     out_of_limits = goal.copy()
     out_of_limits[4] = 3.0  # joint2 upper limit is 2.0944
-    result = plan_ompl(model, scene, start, out_of_limits, budget_s=2.0, seed=0)
+    result = plan_ompl(
+        model, scene, start, out_of_limits, options=SearchOptions(budget_s=2.0, seed=0)
+    )
     assert result.status is PlannerStatus.INVALID_GOAL and "joint2" in result.message
 
 
@@ -146,14 +153,16 @@ def test_tiny_budget_on_an_impossible_problem_times_out_quickly(
         "timedPlannerTerminationCondition",
         lambda seconds: given.append(seconds) or timed(seconds),
     )
-    result = plan_ompl(model, scene, start, inside, budget_s=budget, seed=0)
+    result = plan_ompl(model, scene, start, inside, options=SearchOptions(budget_s=budget, seed=0))
     assert result.status is PlannerStatus.TIMEOUT and result.path is None
     assert given and all(0.0 < seconds <= budget for seconds in given)  # OMPL got the budget
 
 
 def test_naive_baseline_solves_the_same_query(model: RobotModel, scene: Scene) -> None:
     start, goal = arm_query()
-    result = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=1, naive=True)
+    result = plan_ompl(
+        model, scene, start, goal, naive=True, options=SearchOptions(budget_s=NEVER_BINDS_S, seed=1)
+    )
     assert_certified(model, scene, result)
     # one call per state, except the endpoint check (start and goal in one call)
     assert result.stats["check_calls"] == result.stats["checks"] - 1
@@ -162,8 +171,12 @@ def test_naive_baseline_solves_the_same_query(model: RobotModel, scene: Scene) -
 def test_same_seed_gives_the_same_path(model: RobotModel, scene: Scene) -> None:
     start, goal = arm_query()
     # a budget that never binds, even on a loaded machine: a cut-short shortcut phase differs
-    first = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=5)
-    second = plan_ompl(model, scene, start, goal, budget_s=NEVER_BINDS_S, seed=5)
+    first = plan_ompl(
+        model, scene, start, goal, options=SearchOptions(budget_s=NEVER_BINDS_S, seed=5)
+    )
+    second = plan_ompl(
+        model, scene, start, goal, options=SearchOptions(budget_s=NEVER_BINDS_S, seed=5)
+    )
     assert first.path is not None and second.path is not None
     assert first.path.shape == second.path.shape and np.allclose(first.path, second.path)
 
@@ -173,13 +186,25 @@ def test_other_planners_run_in_both_kinds_of_space(
     model: RobotModel, scene: Scene, planner: str
 ) -> None:
     start, goal = arm_query()
-    result = plan_ompl(model, scene, start, goal, planner=planner, budget_s=NEVER_BINDS_S, seed=2)
+    result = plan_ompl(
+        model,
+        scene,
+        start,
+        goal,
+        planner=planner,
+        options=SearchOptions(budget_s=NEVER_BINDS_S, seed=2),
+    )
     assert_certified(model, scene, result)
     stowed = list(STOWED_ARM)
     drive_from = np.array(station("stall_3") + stowed)
     drive_to = np.array([3.4, 1.6, -math.pi / 2, *stowed])  # base turns and moves
     result = plan_ompl(
-        model, scene, drive_from, drive_to, planner=planner, budget_s=NEVER_BINDS_S, seed=2
+        model,
+        scene,
+        drive_from,
+        drive_to,
+        planner=planner,
+        options=SearchOptions(budget_s=NEVER_BINDS_S, seed=2),
     )
     assert_certified(model, scene, result)
 

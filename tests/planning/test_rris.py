@@ -10,7 +10,7 @@ import pytest
 
 from tests.waiting import NEVER_BINDS_S, FakeClock
 from trajcache.planning.deadline import Deadline
-from trajcache.planning.rris import plan_rris
+from trajcache.planning.rris import RrisGeometry, RrisOptions, plan_rris
 
 STEP = 0.02  # sampling step of the 2-D segment checks
 LOW, HIGH = np.zeros(2), np.full(2, 10.0)
@@ -63,15 +63,19 @@ def plan(
     clock: FakeClock | None = None,
     **kw: object,
 ) -> list | None:
+    option_names = set(RrisOptions.__dataclass_fields__)
     return plan_rris(
         np.array([1.0, 1.0]),
         np.array([9.0, 1.0]),
-        segment_free_fn=geometry.segment_free,
-        segment_collisions_fn=geometry.segment_collisions,
-        sample_fn=geometry.sample,
+        RrisGeometry(
+            segment_free_fn=geometry.segment_free,
+            segment_collisions_fn=geometry.segment_collisions,
+            sample_fn=geometry.sample,
+            **{k: v for k, v in kw.items() if k not in option_names},  # type: ignore[arg-type]
+        ),
         budget=Deadline(budget_s) if clock is None else Deadline(budget_s, clock=clock),
         rng=np.random.default_rng(seed),
-        **kw,  # type: ignore[arg-type]
+        options=RrisOptions(**{k: v for k, v in kw.items() if k in option_names}),  # type: ignore[arg-type]
     )
 
 
@@ -100,9 +104,11 @@ def test_free_straight_segment_is_returned_as_is() -> None:
     path = plan_rris(
         start,
         goal,
-        segment_free_fn=geometry.segment_free,
-        segment_collisions_fn=geometry.segment_collisions,
-        sample_fn=geometry.sample,
+        RrisGeometry(
+            segment_free_fn=geometry.segment_free,
+            segment_collisions_fn=geometry.segment_collisions,
+            sample_fn=geometry.sample,
+        ),
         budget=Deadline(1.0),
         rng=np.random.default_rng(0),
     )

@@ -22,8 +22,8 @@ from trajcache.planning.problem import (
     PlanResult,
     SceneSource,
 )
+from trajcache.planning.query import prepare_query
 from trajcache.planning.run import run_planning
-from trajcache.planning.space import prepare_query
 from trajcache.reference.restroom import restroom_layout, restroom_scene
 from trajcache.reference.robot import reference_model, reference_urdf
 

@@ -13,7 +13,7 @@ from tests.robots import TWO_JOINT_URDF
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.services.catalog.models import register_model
+from trajcache.services.catalog.models import ModelRegistration, register_model
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 
@@ -31,16 +31,18 @@ def context(url: str, **settings: Any) -> Iterator[ServiceContext]:
 
 def two_joint(ctx: ServiceContext, *, base: str = "fixed") -> RobotModel:
     """The small two-joint arm (on a planar base if asked), registered."""
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model, _ = register_model(
-            session=session, registry=ctx.models, urdf=TWO_JOINT_URDF, base=base
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF, base=base),
         )
     return model
 
 
 def store(ctx: ServiceContext, model: RobotModel, states: list[list[float]]) -> int:
     """Store a trajectory (without quality metrics) and return its id."""
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         trajectory_id, _ = store_trajectory(
             session=session,
             model=model,

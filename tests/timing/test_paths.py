@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.path_quality import motion_bound
 from trajcache.timing._paths import (
     PolylinePath,
     SplinePath,
@@ -15,7 +16,6 @@ from trajcache.timing._paths import (
     is_straight,
     path_positions,
 )
-from trajcache.trajectory_metrics import motion_bound
 
 
 def test_polyline_is_exact_with_right_hand_derivatives() -> None:

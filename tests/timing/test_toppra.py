@@ -9,6 +9,7 @@ import pytest
 
 from tests.timing.conftest import arm_move
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.path_quality import motion_bound
 from trajcache.timing import (
     KinematicLimits,
     PathShape,
@@ -17,7 +18,6 @@ from trajcache.timing import (
     TimingMethod,
     time_trajectory,
 )
-from trajcache.trajectory_metrics import motion_bound
 
 TOL = 1e-6
 

@@ -17,23 +17,11 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from trajcache.cache.metric import (
-    PLANAR_ARM_OFFSET,
-    THETA,
-    TWO_PI,
-    FloatArray,
-    check_arm_offset,
-)
-from trajcache.geometry.model import space as state_space
-from trajcache.geometry.model.space import BASE_STILL_TOLERANCE
+from trajcache.cache.metric import PLANAR_ARM_OFFSET, THETA, TWO_PI, base_type, check_arm_offset
+from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import BASE_STILL_TOLERANCE, base_is_still
 
-__all__ = ["BASE_STILL_TOLERANCE", "adapt_trajectory", "base_is_still"]
-
-
-def base_is_still(start: npt.ArrayLike, goal: npt.ArrayLike, *, arm_offset: int) -> bool:
-    """Whether a request keeps its base in place (always False for a fixed base); the tolerance
-    is `BASE_STILL_TOLERANCE`."""
-    return state_space.base_is_still(start, goal, planar=arm_offset == PLANAR_ARM_OFFSET)
+__all__ = ["BASE_STILL_TOLERANCE", "adapt_trajectory"]
 
 
 def _nearest_turn(theta: float, reference: float) -> float:
@@ -62,7 +50,7 @@ def adapt_trajectory(
     check_arm_offset(arm_offset, dim)
     if reverse:
         path = path[::-1].copy()
-    if base_is_still(s, g, arm_offset=arm_offset):
+    if base_is_still(s, g, base_type(arm_offset)):
         path[1:-1, :PLANAR_ARM_OFFSET] = s[:PLANAR_ARM_OFFSET]
     path[0] = s
     path[-1] = g

@@ -39,10 +39,10 @@ from trajcache.cache.metric import (
     PLANAR_ARM_OFFSET,
     THETA,
     TWO_PI,
-    FloatArray,
     check_arm_offset,
     state_distance,
 )
+from trajcache.geometry.model.shapes import FloatArray
 
 __all__ = ["Match", "TrajectoryIndex"]
 

@@ -9,13 +9,26 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from trajcache.geometry.model.robot import BaseType
+from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import THETA, TWO_PI, wrap_angle
-
-FloatArray = npt.NDArray[np.float64]
 
 PLANAR_ARM_OFFSET = 3
 
-__all__ = ["THETA", "TWO_PI", "FloatArray", "check_arm_offset", "state_distance", "wrap_angle"]
+__all__ = [
+    "THETA",
+    "TWO_PI",
+    "base_type",
+    "check_arm_offset",
+    "state_distance",
+    "wrap_angle",
+]
+
+
+def base_type(arm_offset: int) -> BaseType:
+    """The kind of base whose states have their arm from `arm_offset` (0 or 3) on."""
+    check_arm_offset(arm_offset)
+    return BaseType.PLANAR if arm_offset == PLANAR_ARM_OFFSET else BaseType.FIXED
 
 
 def check_arm_offset(arm_offset: int, dim: int | None = None) -> None:

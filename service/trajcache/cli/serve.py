@@ -96,7 +96,7 @@ def serve(
     """Run the HTTP service (settings from TRAJCACHE_* environment variables)."""
     import uvicorn
 
-    from trajcache.metrics_dir import prepare_multiprocess_dir
+    from trajcache.core.prometheus_dir import prepare_multiprocess_dir
 
     settings = load_settings(database_url)
     host = host or settings.host

@@ -32,9 +32,9 @@ from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning.deadline import Deadline
 from trajcache.planning.problem import PlannerStatus, PlanResult
+from trajcache.planning.query import Query
 from trajcache.planning.repair import SegmentFn, remembered, repair_path
 from trajcache.planning.shortcut import shortcut_and_certify
-from trajcache.planning.space import Query
 
 # The search of attempt n (from 0) within the deadline: a raw path (N, D) or None.
 SearchFn = Callable[[int, Deadline], Sequence[FloatArray] | FloatArray | None]
@@ -44,40 +44,21 @@ REPAIR_S = 1.0  # one path's repair; past that a new search is the better bet
 _SUMMED = ("shortcut_ms", "validate_ms")  # per-attempt timings that add up
 
 
-def plan_until_certified(
-    query: Query,
-    *,
-    search_fn: SearchFn,
-    detour_fn: DetourFn,
-    shortcut_segment_fn: SegmentFn,
-    validator: TrajectoryValidator,
-    deadline: Deadline,
-    rng: np.random.Generator,
-    shortcut_s: float,
-    stats: dict[str, float],
-    none_found: str,
-    repair_s: float | None = None,
-) -> PlanResult:
+def plan_until_certified(finisher: Finisher, *, search_fn: SearchFn, none_found: str) -> PlanResult:
     """Search, finish and repair paths until one is certified or the budget is spent.
 
-    `shortcut_segment_fn` checks the shortcuts' segments; `none_found` is the TIMEOUT message;
-    `repair_s` bounds one path's repair (a planner whose searches are fast does better to search
-    again; default `REPAIR_S`). Every attempt's counts and times go into `stats`.
+    `finisher` holds the query, its validator and what finishing a path takes; `none_found`
+    is the TIMEOUT message. Every attempt's counts and times go into `finisher.stats`.
     """
+    query, validator, deadline, stats = (
+        finisher.query,
+        finisher.validator,
+        finisher.deadline,
+        finisher.stats,
+    )
     stuck = _stuck_endpoint(query, validator)
     if stuck is not None:
         return PlanResult(stuck[0], message=stuck[1], stats=stats)
-    finisher = _Finisher(
-        query=query,
-        validator=validator,
-        segment_fn=shortcut_segment_fn,
-        detour_fn=detour_fn,
-        deadline=deadline,
-        rng=rng,
-        shortcut_s=shortcut_s,
-        stats=stats,
-        repair_s=REPAIR_S if repair_s is None else repair_s,
-    )
     found, reason = 0, ""
     for key in ("attempts", "paths_found", "repairs", "repair_ms", *_SUMMED):
         stats.setdefault(key, 0.0)
@@ -107,11 +88,12 @@ def plan_until_certified(
 
 
 @dataclass
-class _Finisher:
+class Finisher:
     """Turns a found path into a certified one: shortcut and certify it, else repair it.
 
     `segment_fn` checks the shortcuts' segments; `certify` remembers its verdicts across
-    attempts; counts and times go into `stats`.
+    attempts; counts and times go into `stats`. `repair_s` bounds one path's repair (a
+    planner whose searches are fast does better to search again).
     """
 
     query: Query
@@ -122,7 +104,7 @@ class _Finisher:
     rng: np.random.Generator
     shortcut_s: float
     stats: dict[str, float]
-    repair_s: float
+    repair_s: float | None = None  # None: `REPAIR_S`, read when a repair starts
     certify: SegmentFn = field(init=False)
 
     def __post_init__(self) -> None:
@@ -150,7 +132,7 @@ class _Finisher:
     def repair(self, path: Sequence[FloatArray]) -> FloatArray | None:
         """`path` with certified detours for its failing segments, within `repair_s`; or None."""
         began = time.perf_counter()
-        budget = self.deadline.sub(self.repair_s)
+        budget = self.deadline.sub(REPAIR_S if self.repair_s is None else self.repair_s)
         repair = repair_path(
             path,
             certify_fn=self.certify,

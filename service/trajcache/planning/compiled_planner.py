@@ -25,8 +25,8 @@ from trajcache.geometry.collision.sphere_tables import SphereTables, sphere_tabl
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
-from trajcache.planning.attempts import plan_until_certified
+from trajcache.geometry.validation.validator import TrajectoryValidator
+from trajcache.planning.attempts import Finisher, plan_until_certified
 from trajcache.planning.compiled.search import (
     FREE,
     FULL,
@@ -39,9 +39,11 @@ from trajcache.planning.compiled.search import (
     simplify,
 )
 from trajcache.planning.deadline import Deadline
+from trajcache.planning.motion import SHORTCUT_CLEARANCE_M
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlanResult
+from trajcache.planning.query import Query, prepare_query
 from trajcache.planning.rris import rris_search
-from trajcache.planning.space import SHORTCUT_CLEARANCE_M, Query, prepare_query
 
 NAME = "compiled"
 ROUND_ITERATIONS = 256  # iterations between two returns to Python (exact checks, the clock)
@@ -146,22 +148,19 @@ def plan_compiled(
     scene: Scene,
     start: Sequence[float] | FloatArray,
     goal: Sequence[float] | FloatArray,
-    *,
-    budget_s: float,
-    seed_value: int,
-    shortcut_s: float = 0.0,
-    resolution: Resolution | None = None,
-    certified: bool = True,
+    options: SearchOptions,
 ) -> PlanResult:
-    """Plan start → goal with the compiled planner; SOLVED paths passed certified validation."""
+    """Plan start → goal with the compiled planner; SOLVED paths passed the validator that
+    `options` set up."""
+    budget_s, resolution, certified = options.budget_s, options.resolution, options.certified
     deadline = Deadline(budget_s)
     began = time.perf_counter()
     prepared = prepare_query(problem_model, scene, start, goal, resolution=resolution)
     if isinstance(prepared, PlanResult):
         return prepared
     query = prepared
-    rng = np.random.default_rng(seed_value)
-    seed(int(seed_value) % (2**32))
+    rng = np.random.default_rng(options.seed)
+    seed(int(options.seed) % (2**32))
     validator = TrajectoryValidator(
         problem_model, scene, resolution=resolution, certified=certified
     )
@@ -181,18 +180,19 @@ def plan_compiled(
             return None
         return search.run(deadline)
 
-    result = plan_until_certified(
-        query,
-        search_fn=search_fn,
-        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
-        shortcut_segment_fn=lambda a, b: query.checker.segment_free(a, b, SHORTCUT_CLEARANCE_M),
+    finisher = Finisher(
+        query=query,
         validator=validator,
+        segment_fn=lambda a, b: query.checker.segment_free(a, b, SHORTCUT_CLEARANCE_M),
+        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
         deadline=deadline,
         rng=rng,
-        shortcut_s=shortcut_s,
+        shortcut_s=options.shortcut_s,
         stats=stats,
-        none_found="no path found within the time budget",
         repair_s=REPAIR_S,
+    )
+    result = plan_until_certified(
+        finisher, search_fn=search_fn, none_found="no path found within the time budget"
     )
     stats.update(query.checker.stats())
     counts = search.work[7]

@@ -34,17 +34,15 @@ from trajcache.geometry.collision.checker import FREE
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
-from trajcache.planning.attempts import plan_until_certified
+from trajcache.geometry.validation.validator import TrajectoryValidator
+from trajcache.planning.attempts import Finisher, plan_until_certified
 from trajcache.planning.deadline import Deadline
+from trajcache.planning.motion import SHORTCUT_CLEARANCE_M
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlannerStatus, PlanResult
+from trajcache.planning.query import Query, prepare_query
 from trajcache.planning.rris import rris_search
-from trajcache.planning.space import (
-    SHORTCUT_CLEARANCE_M,
-    Query,
-    StateSpaceSpec,
-    prepare_query,
-)
+from trajcache.planning.space import StateSpaceSpec
 
 PlannerFactory = Callable[[ob.SpaceInformation], ob.Planner]
 PLANNERS: dict[str, PlannerFactory] = {
@@ -228,18 +226,15 @@ def plan_ompl(
     scene: Scene,
     start: Sequence[float] | FloatArray,
     goal: Sequence[float] | FloatArray,
+    options: SearchOptions,
     *,
     planner: str = "rrtconnect",
-    budget_s: float,
-    seed: int,
     naive: bool = False,
-    shortcut_s: float = 0.25,
-    resolution: Resolution | None = None,
-    certified: bool = True,
 ) -> PlanResult:
     """Plan start → goal with an OMPL planner; SOLVED paths passed the validator that
-    `resolution` and `certified` set up (motion checks sample at that resolution too)."""
-    deadline = Deadline(budget_s)
+    `options` set up (`naive`: check motions by sampling alone, without the certifier)."""
+    resolution, certified = options.resolution, options.certified
+    deadline = Deadline(options.budget_s)
     name = planner.strip().lower()
     if name not in PLANNERS:
         valid = ", ".join(sorted(PLANNERS))
@@ -249,8 +244,8 @@ def plan_ompl(
     if isinstance(prepared, PlanResult):
         return prepared
     query = prepared
-    seed_ompl(seed)
-    rng = np.random.default_rng(seed)
+    seed_ompl(options.seed)
+    rng = np.random.default_rng(options.seed)
     validator = TrajectoryValidator(
         problem_model, scene, resolution=resolution, certified=certified
     )
@@ -265,17 +260,18 @@ def plan_ompl(
             return None
         return _solve(query, name, naive, certified, deadline)
 
-    result = plan_until_certified(
-        query,
-        search_fn=search,
-        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
-        shortcut_segment_fn=_segment_fn(query, naive, certified, SHORTCUT_CLEARANCE_M),
+    finisher = Finisher(
+        query=query,
         validator=validator,
+        segment_fn=_segment_fn(query, naive, certified, SHORTCUT_CLEARANCE_M),
+        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
         deadline=deadline,
         rng=rng,
-        shortcut_s=shortcut_s,
+        shortcut_s=options.shortcut_s,
         stats=stats,
-        none_found="no path found within the time budget",
+    )
+    result = plan_until_certified(
+        finisher, search_fn=search, none_found="no path found within the time budget"
     )
     stats.update(query.checker.stats())
     stats["total_ms"] = (time.perf_counter() - began) * 1e3

@@ -32,11 +32,13 @@ from numpy.typing import NDArray
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator
-from trajcache.planning.attempts import plan_until_certified
+from trajcache.geometry.validation.validator import TrajectoryValidator
+from trajcache.planning.attempts import Finisher, plan_until_certified
 from trajcache.planning.deadline import Deadline
+from trajcache.planning.motion import SHORTCUT_CLEARANCE_M
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlanResult
-from trajcache.planning.space import SHORTCUT_CLEARANCE_M, Query, prepare_query
+from trajcache.planning.query import Query, prepare_query
 
 SegmentFn = Callable[[FloatArray, FloatArray], bool]
 SegmentCountFn = Callable[[FloatArray, FloatArray], int]
@@ -143,56 +145,73 @@ class _Search:
         return count == 0 and (self.counts_exact or self.segment_free(a, b))
 
 
-def plan_rris(
-    start: FloatArray,
-    goal: FloatArray,
-    *,
-    segment_free_fn: SegmentFn,
-    segment_collisions_fn: SegmentCountFn,
-    sample_fn: SampleFn,
-    budget: Deadline,
-    rng: np.random.Generator,
-    sample_near_fn: SampleNearFn | None = None,
-    interpolate_fn: InterpolateFn = _linear,
-    distance_fn: DistanceFn = _euclidean,
-    states_free_fn: StatesFreeFn | None = None,
-    segments_collisions_fn: SegmentsCountFn | None = None,
-    counts_exact: bool = True,
-    max_depth: int = 6,
-    samples_per_split: int = 8,
-    uniform_share: float = 0.25,
-    spread: float = 0.3,
-    spread_growth: float = 1.6,
-    min_radius: float = 0.05,
-    restarts: int = 1000,
-) -> list[FloatArray] | None:
-    """Waypoints start … goal with free straight segments between them, or None.
+@dataclass(frozen=True)
+class RrisGeometry:
+    """The space and the checks RRIS searches with, as callables.
 
     The batched variants `states_free_fn` and `segments_collisions_fn` are used when given;
     without them candidates are checked one by one (`segment_collisions_fn(m, m)` checks m).
     `counts_exact=False` says the counts only look at some samples (a cheaper score): a half
     with a zero count is then confirmed with `segment_free_fn` before it is kept.
     """
+
+    segment_free_fn: SegmentFn
+    segment_collisions_fn: SegmentCountFn
+    sample_fn: SampleFn
+    sample_near_fn: SampleNearFn | None = None
+    interpolate_fn: InterpolateFn = _linear
+    distance_fn: DistanceFn = _euclidean
+    states_free_fn: StatesFreeFn | None = None
+    segments_collisions_fn: SegmentsCountFn | None = None
+    counts_exact: bool = True
+
+
+@dataclass(frozen=True)
+class RrisOptions:
+    """How RRIS splits and restarts (see the module's docstring)."""
+
+    max_depth: int = 6
+    samples_per_split: int = 8
+    uniform_share: float = 0.25
+    spread: float = 0.3
+    spread_growth: float = 1.6
+    min_radius: float = 0.05
+    restarts: int = 1000
+
+
+def plan_rris(
+    start: FloatArray,
+    goal: FloatArray,
+    geometry: RrisGeometry,
+    *,
+    budget: Deadline,
+    rng: np.random.Generator,
+    options: RrisOptions = RrisOptions(),
+) -> list[FloatArray] | None:
+    """Waypoints start … goal with free straight segments between them, or None."""
     a, b = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
-    if segment_free_fn(a, b):
+    g = geometry
+    if g.segment_free_fn(a, b):
         return [a, b]
     search = _Search(
-        segment_free=segment_free_fn,
-        segment_counts=segments_collisions_fn or partial(_counts_each, segment_collisions_fn),
-        counts_exact=counts_exact or segments_collisions_fn is None,
-        states_free=states_free_fn or partial(_free_each, segment_collisions_fn),
-        sample=sample_fn,
-        sample_near=sample_near_fn or _gaussian_near,
-        interpolate=interpolate_fn,
-        distance=distance_fn,
+        segment_free=g.segment_free_fn,
+        segment_counts=g.segments_collisions_fn or partial(_counts_each, g.segment_collisions_fn),
+        counts_exact=g.counts_exact or g.segments_collisions_fn is None,
+        states_free=g.states_free_fn or partial(_free_each, g.segment_collisions_fn),
+        sample=g.sample_fn,
+        sample_near=g.sample_near_fn or _gaussian_near,
+        interpolate=g.interpolate_fn,
+        distance=g.distance_fn,
         budget=budget,
         rng=rng,
-        max_depth=max_depth,
-        samples=max(1, samples_per_split),
-        uniform_share=uniform_share,
-        min_radius=min_radius,
+        max_depth=options.max_depth,
+        samples=max(1, options.samples_per_split),
+        uniform_share=options.uniform_share,
+        min_radius=options.min_radius,
     )
-    return search.restart(a, b, spread=spread, growth=spread_growth, restarts=restarts)
+    return search.restart(
+        a, b, spread=options.spread, growth=options.spread_growth, restarts=options.restarts
+    )
 
 
 def plan_with_rris(
@@ -200,26 +219,22 @@ def plan_with_rris(
     scene: Scene,
     start: Sequence[float] | FloatArray,
     goal: Sequence[float] | FloatArray,
-    *,
-    budget_s: float,
-    seed: int,
-    shortcut_s: float = 0.25,
-    resolution: Resolution | None = None,
-    certified: bool = True,
+    options: SearchOptions,
 ) -> PlanResult:
     """Plan with RRIS for a robot in a scene; SOLVED paths passed the validator that
-    `resolution` and `certified` set up (motion checks sample at that resolution too).
+    `options.resolution` and `options.certified` set up.
 
     A path that fails certification is repaired, or searched for again, while the budget lasts
     (`attempts.plan_until_certified`).
     """
+    budget_s, resolution, certified = options.budget_s, options.resolution, options.certified
     deadline = Deadline(budget_s)
     began = time.perf_counter()
     prepared = prepare_query(model, scene, start, goal, resolution=resolution)
     if isinstance(prepared, PlanResult):
         return prepared
     query = prepared
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(options.seed)
     validator = TrajectoryValidator(model, scene, resolution=resolution, certified=certified)
     endpoints_ms = (time.perf_counter() - began) * 1e3
     stats = {"plan_ms": endpoints_ms, "endpoints_ms": endpoints_ms}
@@ -229,19 +244,20 @@ def plan_with_rris(
         stats["straight"] = float(path is not None and len(path) == 2)
         return path
 
-    result = plan_until_certified(
-        query,
-        search_fn=search,
-        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
-        shortcut_segment_fn=query.checker.segment_certified
+    finisher = Finisher(
+        query=query,
+        validator=validator,
+        segment_fn=query.checker.segment_certified
         if certified
         else partial(query.checker.segment_free, clearance=SHORTCUT_CLEARANCE_M),
-        validator=validator,
+        detour_fn=lambda q, d, certify: rris_search(q, d, rng, segment_free_fn=certify),
         deadline=deadline,
         rng=rng,
-        shortcut_s=shortcut_s,
+        shortcut_s=options.shortcut_s,
         stats=stats,
-        none_found=f"RRIS found no path within {budget_s:.3g} s",
+    )
+    result = plan_until_certified(
+        finisher, search_fn=search, none_found=f"RRIS found no path within {budget_s:.3g} s"
     )
     stats.update(query.checker.stats())
     stats["total_ms"] = (time.perf_counter() - began) * 1e3
@@ -258,14 +274,10 @@ def rris_search(
     """RRIS on a prepared query, with the batched checks of its MotionChecker; a half is kept
     when `segment_free_fn` passes it (by default the checker's sample check)."""
     spec, checker = query.spec, query.checker
-    return plan_rris(
-        query.start,
-        query.goal,
+    geometry = RrisGeometry(
         segment_free_fn=segment_free_fn or checker.segment_free,
         segment_collisions_fn=checker.segment_collisions,
         sample_fn=spec.sample,
-        budget=deadline,
-        rng=rng,
         sample_near_fn=spec.sample_near,
         interpolate_fn=spec.interpolate,
         distance_fn=spec.distance,
@@ -273,3 +285,4 @@ def rris_search(
         segments_collisions_fn=partial(checker.segments_collisions, stride=SCORE_STRIDE),
         counts_exact=segment_free_fn is None and SCORE_STRIDE == 1,  # else confirm halves
     )
+    return plan_rris(query.start, query.goal, geometry, budget=deadline, rng=rng)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 import traceback
+from dataclasses import replace
 
 from trajcache.core.lru import LRU
 from trajcache.geometry.model.robot import RobotModel
@@ -20,6 +21,7 @@ from trajcache.geometry.scene.variant import VariantCache, model_in_scene, varia
 from trajcache.planning.compiled_planner import NAME as COMPILED
 from trajcache.planning.compiled_planner import plan_compiled
 from trajcache.planning.ompl_planner import plan_ompl
+from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import (
     ModelSource,
     PlannerStatus,
@@ -76,42 +78,21 @@ def run_planning(problem: PlanningProblem) -> PlanResult:
         )
         setup_ms = (time.perf_counter() - began) * 1e3
         name = problem.planner.strip().lower()
-        if name == COMPILED:
-            result = plan_compiled(
-                model,
-                scene,
-                problem.start,
-                problem.goal,
-                budget_s=problem.budget_s,
-                seed_value=problem.seed,
-                resolution=problem.resolution,
-                certified=problem.certified_validation,
-            )
+        options = SearchOptions(
+            budget_s=problem.budget_s,
+            seed=problem.seed,
+            shortcut_s=problem.shortcut_s,
+            resolution=problem.resolution,
+            certified=problem.certified_validation,
+        )
+        ends = (problem.start, problem.goal)
+        if name == COMPILED:  # the compiled search simplifies its paths itself
+            compiled = replace(options, shortcut_s=0.0)
+            result = plan_compiled(model, scene, *ends, compiled)
         elif name == RRIS:
-            result = plan_with_rris(
-                model,
-                scene,
-                problem.start,
-                problem.goal,
-                budget_s=problem.budget_s,
-                seed=problem.seed,
-                shortcut_s=problem.shortcut_s,
-                resolution=problem.resolution,
-                certified=problem.certified_validation,
-            )
+            result = plan_with_rris(model, scene, *ends, options)
         else:
-            result = plan_ompl(
-                model,
-                scene,
-                problem.start,
-                problem.goal,
-                planner=name,
-                budget_s=problem.budget_s,
-                seed=problem.seed,
-                shortcut_s=problem.shortcut_s,
-                resolution=problem.resolution,
-                certified=problem.certified_validation,
-            )
+            result = plan_ompl(model, scene, *ends, options, planner=name)
     except Exception as exc:  # a worker task must answer, whatever happened
         detail = traceback.format_exception_only(type(exc), exc)[-1].strip()
         result = PlanResult(PlannerStatus.ERROR, message=f"planning failed: {detail}")

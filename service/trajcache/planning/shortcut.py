@@ -29,6 +29,8 @@ InterpolateFn = Callable[[FloatArray, FloatArray, float], FloatArray]
 ValidateFn = Callable[[FloatArray], tuple[bool, str]]
 
 _SAME = 1e-9  # two states closer than this are the same waypoint
+MIN_GAIN = 0.01  # a shortcut must save at least this share of the path's length
+PATIENCE = 20  # random tries in a row without a shortcut before the random phase stops
 
 
 def _linear(a: FloatArray, b: FloatArray, t: float) -> FloatArray:
@@ -68,19 +70,17 @@ def shortcut(
     rng: np.random.Generator,
     max_iters: int = 100,
     interpolate_fn: InterpolateFn = _linear,
-    min_gain: float = 0.01,
-    patience: int = 20,
 ) -> list[FloatArray]:
     """A path with the same end points, never longer, whose new segments were all checked.
 
-    A shortcut is only tried when it would save at least `min_gain` of the current length;
-    the random phase stops after `patience` tries in a row without a shortcut.
+    A shortcut is only tried when it would save at least `MIN_GAIN` of the current length;
+    the random phase stops after `PATIENCE` tries in a row without a shortcut.
     """
     deadline = Deadline(budget_s)
     points = remove_redundant(path, segment_free_fn=segment_free_fn, deadline=deadline)
     idle = 0
     for _ in range(max_iters):
-        if len(points) < 3 or deadline.expired() or idle >= patience:
+        if len(points) < 3 or deadline.expired() or idle >= PATIENCE:
             break
         idle += 1
         lengths = np.array([distance_fn(points[i], points[i + 1]) for i in range(len(points) - 1)])
@@ -92,7 +92,7 @@ def shortcut(
             continue
         p1 = interpolate_fn(points[i], points[i + 1], (s1 - cumulative[i]) / lengths[i])
         p2 = interpolate_fn(points[j], points[j + 1], (s2 - cumulative[j]) / lengths[j])
-        if distance_fn(p1, p2) > (s2 - s1) - min_gain * cumulative[-1]:
+        if distance_fn(p1, p2) > (s2 - s1) - MIN_GAIN * cumulative[-1]:
             continue
         if not segment_free_fn(p1, p2):
             continue

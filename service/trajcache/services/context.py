@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import sqlalchemy as sa
@@ -80,12 +78,6 @@ class ServiceContext:
             records=PlanRecorder(engine),
             ranking=RankingRules.from_settings(settings),
         )
-
-    @contextmanager
-    def session(self) -> Iterator[Session]:
-        """A session that is closed (uncommitted work rolled back) on exit."""
-        with self.sessions() as session:
-            yield session
 
     def clear_caches(self) -> None:
         """Empty every in-memory cache (the database stays the source of truth)."""

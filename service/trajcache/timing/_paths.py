@@ -7,7 +7,6 @@ validated trajectory; the spline passes through every key state and may bow out 
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -189,8 +188,3 @@ def is_straight(points: FloatArray) -> bool:
     return bool(np.all(np.linalg.norm(off, axis=1) <= 1e-9 * max(1.0, norm))) and bool(
         np.all(np.diff(along) >= 0)
     )
-
-
-def interval_count(total: float, per_unit: float, low: int, high: int) -> int:
-    """A gridpoint count proportional to the path length, within [low, high]."""
-    return int(min(high, max(low, math.ceil(total * per_unit))))

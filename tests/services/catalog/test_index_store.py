@@ -21,7 +21,7 @@ from trajcache.services.context import ServiceContext
 
 
 def robot(ctx: ServiceContext, model: RobotModel, robot_id: str = "r1") -> str:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         put_robot(session=session, robot_id=robot_id, model_id=model.model_id)
     return robot_id
 
@@ -32,14 +32,14 @@ def test_a_sync_is_one_query_and_sees_rows_and_deletions_of_another_replica(
     with context(database_url) as a, context(database_url) as b:
         model = two_joint(a)
         kept = store(a, model, [[0.0, 0.0], [1.0, 0.5]])
-        with b.session() as session:
+        with b.sessions() as session:
             index = b.indexes.index(session, model)
         assert kept in index
         gone = store(a, model, [[0.2, 0.0], [1.0, 0.5]])
         fresh = store(a, model, [[0.4, 0.0], [1.0, 0.5]])
-        with a.session() as session:
+        with a.sessions() as session:
             delete_trajectory(session=session, trajectory_id=gone)
-        with b.session() as session, count_statements(b.engine) as statements:
+        with b.sessions() as session, count_statements(b.engine) as statements:
             index = b.indexes.index(session, model)
         assert len(statements) == 1, statements
         assert fresh in index and kept in index and gone not in index
@@ -51,28 +51,28 @@ def test_a_rider_reads_its_row_with_the_sync_and_the_index_then_needs_no_query(
     with context(database_url) as a, context(database_url) as b:
         model = two_joint(a)
         rid = robot(a, model)
-        with b.session() as session:
+        with b.sessions() as session:
             b.indexes.index(session, model)  # b has loaded the model's index
         fresh = store(a, model, [[0.4, 0.0], [1.0, 0.5]])  # committed before b's request
         before = b.indexes.syncs
         arrived = time.monotonic()
-        with b.session() as session, count_statements(b.engine) as statements:
+        with b.sessions() as session, count_statements(b.engine) as statements:
             row = b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived)
             index = b.indexes.index(session, model, arrived=arrived)
         assert len(statements) == 1, statements
         assert b.indexes.syncs == before + 1
         assert row is not None and row[0] == model.model_id
         assert fresh in index
-        with b.session() as session:
+        with b.sessions() as session:
             ghost = {"robot_id": "ghost"}
             assert (
                 b.indexes.read_with_sync(session, ROBOT_SCENE, ghost, arrived=time.monotonic())
                 is None
             )
-        with b.session() as session:  # a later request syncs again (interval 0)
+        with b.sessions() as session:  # a later request syncs again (interval 0)
             b.indexes.index(session, model)
         assert b.indexes.syncs == before + 3
-        with b.session() as session:  # so does a later one in a reused session
+        with b.sessions() as session:  # so does a later one in a reused session
             arrived = time.monotonic()
             b.indexes.read_with_sync(session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived)
             b.indexes.index(session, model, arrived=arrived)
@@ -85,10 +85,10 @@ def test_a_rider_alone_is_read_when_no_sync_is_due(database_url: str) -> None:
     with context(database_url, index_sync_interval_s=60.0) as ctx:
         model = two_joint(ctx)
         rid = robot(ctx, model)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             ctx.indexes.index(session, model)
         before = ctx.indexes.syncs
-        with ctx.session() as session, count_statements(ctx.engine) as statements:
+        with ctx.sessions() as session, count_statements(ctx.engine) as statements:
             arrived = time.monotonic()
             row = ctx.indexes.read_with_sync(
                 session, ROBOT_SCENE, {"robot_id": rid}, arrived=arrived
@@ -102,13 +102,13 @@ def test_a_rider_alone_is_read_when_no_sync_is_due(database_url: str) -> None:
 def test_every_call_syncs_at_interval_zero_and_not_within_the_interval(database_url: str) -> None:
     with context(database_url) as ctx:
         model = two_joint(ctx)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             ctx.indexes.index(session, model)
             before = ctx.indexes.syncs
             ctx.indexes.index(session, model)
             ctx.indexes.index(session, model)
         assert ctx.indexes.syncs == before + 2
-    with context(database_url, index_sync_interval_s=60.0) as ctx, ctx.session() as session:
+    with context(database_url, index_sync_interval_s=60.0) as ctx, ctx.sessions() as session:
         ctx.indexes.index(session, model)
         before = ctx.indexes.syncs
         ctx.indexes.index(session, model)
@@ -118,14 +118,14 @@ def test_every_call_syncs_at_interval_zero_and_not_within_the_interval(database_
 def test_requests_that_arrive_during_a_sync_share_the_next_one(tmp_path: Path) -> None:
     with context(f"sqlite:///{tmp_path / 'coalesce.db'}") as ctx:
         model = two_joint(ctx)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             ctx.indexes.index(session, model)
         before = ctx.indexes.syncs
         asked = threading.Barrier(7)
         done: list[int] = []
 
         def request() -> None:
-            with ctx.session() as session:
+            with ctx.sessions() as session:
                 asked.wait()
                 index = ctx.indexes.index(session, model)
                 done.append(len(index))
@@ -142,7 +142,7 @@ def test_requests_that_arrive_during_a_sync_share_the_next_one(tmp_path: Path) -
             t.join()
         assert ctx.indexes.syncs == before + 1  # one sync served all six
         assert done == [1] * 6  # the shared sync began after the commit: all six see the row
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             assert stored in ctx.indexes.index(session, model)
 
 
@@ -151,7 +151,7 @@ def test_a_row_committed_after_a_higher_id_is_still_picked_up(postgres_url: str)
     """PostgreSQL hands out ids before commit: a lower id can become visible later (a gap)."""
     with context(postgres_url) as ctx:
         model = two_joint(ctx)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             ctx.indexes.index(session, model)
         slow = ctx.sessions()
         row = Trajectory(model_id=model.model_id, source="sim")
@@ -160,12 +160,12 @@ def test_a_row_committed_after_a_higher_id_is_still_picked_up(postgres_url: str)
         slow.flush()  # id taken, not committed
         later = store(ctx, model, [[0.6, 0.0], [1.0, 0.5]])
         assert later > row.id
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             index = ctx.indexes.index(session, model)
         assert later in index and row.id not in index
         slow.commit()
         slow.close()
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             assert row.id in ctx.indexes.index(session, model)
 
 
@@ -174,7 +174,7 @@ def test_key_states_are_loaded_once_and_dropped_with_their_tombstone(database_ur
         model = two_joint(ctx)
         states = [[0.0, 0.0], [0.5, 0.2], [1.0, 0.5]]
         first = store(ctx, model, states)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             ctx.indexes.index(session, model)
             with count_statements(ctx.engine) as statements:
                 loaded = ctx.indexes.states(session, [first, 999_999])
@@ -184,9 +184,9 @@ def test_key_states_are_loaded_once_and_dropped_with_their_tombstone(database_ur
             with count_statements(ctx.engine) as statements:
                 again = ctx.indexes.states(session, [first])
             assert statements == [] and again[first] is loaded[first]
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             delete_trajectory(session=session, trajectory_id=first)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             ctx.indexes.index(session, model)  # reads the tombstone
             assert ctx.indexes.states(session, [first]) == {}
             assert session.scalar(sa.select(sa.func.count()).select_from(Trajectory)) == 0

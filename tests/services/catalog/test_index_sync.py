@@ -26,7 +26,7 @@ def replicas(database_url: str) -> Iterator[tuple[TestClient, TestClient]]:
 def index_of(client: TestClient, model_id: str) -> TrajectoryIndex:
     """The replica's index of `model_id` after its next sync."""
     ctx: ServiceContext = client.app.state.ctx  # type: ignore[attr-defined]
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model = get_model(session=session, registry=ctx.models, model_id=model_id)
         return ctx.indexes.index(session, model)
 

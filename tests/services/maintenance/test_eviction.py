@@ -17,7 +17,7 @@ from trajcache.db import migrate
 from trajcache.db.models import Trajectory, TrajectoryTombstone
 from trajcache.geometry.model.robot import BaseType
 from trajcache.services.background import start_background
-from trajcache.services.catalog.models import get_model, register_model
+from trajcache.services.catalog.models import ModelRegistration, get_model, register_model
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError, NotFoundError
@@ -35,7 +35,7 @@ def ctx(migrated_url: str) -> Iterator[ServiceContext]:
 
 def add(ctx: ServiceContext, model_id: str, k: int, **values: Any) -> int:
     """Trajectory k of the model, with the given usage columns."""
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model = get_model(session=session, registry=ctx.models, model_id=model_id)
         new_id, _ = store_trajectory(
             session=session,
@@ -50,10 +50,16 @@ def add(ctx: ServiceContext, model_id: str, k: int, **values: Any) -> int:
 
 @pytest.fixture
 def models(ctx: ServiceContext) -> tuple[str, str]:
-    with ctx.session() as session:
-        arm, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+    with ctx.sessions() as session:
+        arm, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         mobile, _ = register_model(
-            session=session, registry=ctx.models, urdf=TWO_JOINT_URDF, base=BaseType.PLANAR
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF, base=BaseType.PLANAR),
         )
     return arm.model_id, mobile.model_id
 
@@ -82,17 +88,17 @@ def names(report: PruneReport, ids: dict[str, int]) -> set[str]:
 
 
 def remaining(ctx: ServiceContext) -> set[int]:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return set(session.scalars(sa.select(Trajectory.id)))
 
 
 def tombstones(ctx: ServiceContext) -> list[int]:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return sorted(session.scalars(sa.select(TrajectoryTombstone.trajectory_id)))
 
 
 def test_lru_deletes_the_least_recently_used(ctx: ServiceContext, usage: dict[str, int]) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         report = prune(session=session, cap=3, policy="lru", dry_run=False)
     # recency = last use, or creation for a never-used one: day 0, 2, 3 go; 7, 8, 9 stay
     assert names(report, usage) == {"old_unused", "mid_many_hits", "used_day_3"}
@@ -103,23 +109,23 @@ def test_lru_deletes_the_least_recently_used(ctx: ServiceContext, usage: dict[st
 
 
 def test_least_hit_deletes_the_fewest_hits(ctx: ServiceContext, usage: dict[str, int]) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         report = prune(session=session, cap=3, policy="least_hit", dry_run=False)
     # hits 0, 0, 1 go (the two unused ones by recency: both lose to hits ≥ 1 anyway)
     assert names(report, usage) == {"old_unused", "new_unused", "old_used_recently"}
 
 
 def test_least_hit_breaks_ties_by_recency(ctx: ServiceContext, usage: dict[str, int]) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         report = prune(session=session, cap=4, policy="least_hit", dry_run=True)
     assert names(report, usage) == {"old_unused", "new_unused"}
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         report = prune(session=session, cap=5, policy="least_hit", dry_run=True)
     assert names(report, usage) == {"old_unused"}  # the older of the two never-hit ones
 
 
 def test_dry_run_deletes_nothing(ctx: ServiceContext, usage: dict[str, int]) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         report = prune(session=session, cap=1, policy="lru", dry_run=True)
     assert report.dry_run and report.deleted == 5 + 1
     assert remaining(ctx) == set(usage.values())
@@ -131,17 +137,17 @@ def test_deletes_leave_tombstones_once_and_replicas_drop_them(
 ) -> None:
     other = ServiceContext.create(Settings(database_url=migrated_url, worker_backend="none"))
     try:
-        with other.session() as session:
+        with other.sessions() as session:
             model = get_model(session=session, registry=other.models, model_id=models[0])
             assert len(other.indexes.index(session, model)) == 6
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             report = prune(session=session, cap=2, policy="lru", dry_run=False)
         deleted = sorted(i for m in report.models for i in m.ids)
         assert len(deleted) == 4 + 0 and tombstones(ctx) == deleted
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             again = prune(session=session, cap=2, policy="lru", dry_run=False)
         assert again.deleted == 0 and tombstones(ctx) == deleted  # idempotent
-        with other.session() as session:
+        with other.sessions() as session:
             index = other.indexes.index(session, model)
             assert len(index) == 2
             assert not any(i in index for i in deleted)
@@ -153,7 +159,7 @@ def test_one_model_and_bad_input(
     ctx: ServiceContext, usage: dict[str, int], models: tuple[str, str]
 ) -> None:
     arm, mobile = models
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         report = prune(session=session, cap=1, policy="lru", model_id=mobile, dry_run=False)
         assert [m.model_id for m in report.models] == [mobile]
         assert names(report, usage) == {"mobile_a"}  # same creation time: the lower id goes
@@ -175,9 +181,11 @@ def test_replicas_pruning_at_once(postgres_url: str) -> None:
         for _ in range(4)
     ]
     try:
-        with replicas[0].session() as session:
+        with replicas[0].sessions() as session:
             arm, _ = register_model(
-                session=session, registry=replicas[0].models, urdf=TWO_JOINT_URDF
+                session=session,
+                registry=replicas[0].models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
             )
         ids = [
             add(replicas[0], arm.model_id, k, created_at=T0 + timedelta(minutes=k))
@@ -189,7 +197,7 @@ def test_replicas_pruning_at_once(postgres_url: str) -> None:
 
         def run(ctx: ServiceContext) -> None:
             try:
-                with ctx.session() as session:
+                with ctx.sessions() as session:
                     barrier.wait()
                     reports.append(prune(session=session, cap=10, policy="lru", dry_run=False))
             except BaseException as exc:
@@ -221,8 +229,12 @@ def test_timed_eviction_keeps_the_cap(migrated_url: str) -> None:
     background = start_background(ctx)
     try:
         assert background.eviction is not None
-        with ctx.session() as session:
-            arm, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+        with ctx.sessions() as session:
+            arm, _ = register_model(
+                session=session,
+                registry=ctx.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         ids = [add(ctx, arm.model_id, k, created_at=T0 + timedelta(minutes=k)) for k in range(5)]
         assert wait_until(lambda: remaining(ctx) == set(ids[3:]), timeout_s=10)
     finally:

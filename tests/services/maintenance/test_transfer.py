@@ -18,7 +18,12 @@ from tests.robots import MESH_URDF, TWO_JOINT_URDF
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import ModelFile, RobotModel, Trajectory
-from trajcache.services.catalog.models import ModelRegistry, get_model, register_model
+from trajcache.services.catalog.models import (
+    ModelRegistration,
+    ModelRegistry,
+    get_model,
+    register_model,
+)
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import ConflictError, InvalidInputError, NotFoundError
@@ -56,13 +61,16 @@ def target_ctx(database_url: str) -> Iterator[ServiceContext]:
 def fill(ctx: ServiceContext) -> dict[str, Any]:
     """Two models (one with a mesh file) and four trajectories with usage and provenance."""
     stl = bytes(trimesh.creation.box(extents=(0.1, 0.1, 0.2)).export(file_type="stl"))
-    with ctx.session() as session:
-        arm, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+    with ctx.sessions() as session:
+        arm, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         lift, _ = register_model(
             session=session,
             registry=ctx.models,
-            urdf=MESH_URDF,
-            files={"meshes/part.stl": stl},
+            registration=ModelRegistration(urdf=MESH_URDF, files={"meshes/part.stl": stl}),
         )
         session.execute(
             sa.update(RobotModel)
@@ -103,21 +111,21 @@ def fill(ctx: ServiceContext) -> dict[str, Any]:
 
 
 def export_lines(ctx: ServiceContext, filt: ExportFilter | None = None, **kw: Any) -> list[str]:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return [
             dumps(r) for r in export_records(session=session, filt=filt or ExportFilter(), **kw)
         ]
 
 
 def run_import(ctx: ServiceContext, lines: list[str], **kw: Any) -> Any:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return import_lines(
             session=session, registry=ModelRegistry(), settings=ctx.settings, lines=lines, **kw
         )
 
 
 def rows(ctx: ServiceContext) -> list[Trajectory]:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return list(session.scalars(sa.select(Trajectory).order_by(Trajectory.content_hash)))
 
 
@@ -161,7 +169,7 @@ def test_round_trip_keeps_models_provenance_and_usage(
         for name in fields:
             assert getattr(new, name) == getattr(old, name), name
         assert new.states == old.states
-    with target_ctx.session() as session:
+    with target_ctx.sessions() as session:
         arm = session.get(RobotModel, filled["arm"])
         assert arm is not None and arm.jerk_limits == {"shoulder": 9.0, "elbow": 8.0}
         files = session.scalars(
@@ -241,9 +249,9 @@ def test_a_line_that_is_not_json_imports_nothing(
     with pytest.raises(ImportFormatError, match=f"line {len(cut)}: not JSON"):
         run_import(target_ctx, cut)
     assert rows(target_ctx) == []
-    with target_ctx.session() as session:  # the model line's registration was rolled back too
+    with target_ctx.sessions() as session:  # the model line's registration was rolled back too
         assert session.scalar(sa.select(sa.func.count()).select_from(RobotModel)) == 0
-    with target_ctx.session() as session, pytest.raises(NotFoundError):
+    with target_ctx.sessions() as session, pytest.raises(NotFoundError):
         model_id = json.loads(lines[1])["model_id"]
         get_model(session=session, registry=target_ctx.models, model_id=model_id)
 
@@ -256,8 +264,12 @@ def test_without_model_lines_the_models_must_exist(
     assert all(json.loads(line)["type"] != "model" for line in lines)
     report = run_import(target_ctx, lines)
     assert (report.inserted, report.rejected_count) == (0, 4)
-    with target_ctx.session() as session:
-        register_model(session=session, registry=ModelRegistry(), urdf=TWO_JOINT_URDF)
+    with target_ctx.sessions() as session:
+        register_model(
+            session=session,
+            registry=ModelRegistry(),
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
     report = run_import(target_ctx, lines)
     assert (report.inserted, report.rejected_count) == (3, 1)
     assert filled["lift"][:8] in report.rejected[0].reason
@@ -267,7 +279,7 @@ def test_source_override(source_ctx: ServiceContext, target_ctx: ServiceContext)
     fill(source_ctx)
     run_import(target_ctx, export_lines(source_ctx), source="import")
     assert {t.source for t in rows(target_ctx)} == {"import"}
-    with target_ctx.session() as session, pytest.raises(InvalidInputError, match="source"):
+    with target_ctx.sessions() as session, pytest.raises(InvalidInputError, match="source"):
         import_lines(
             session=session,
             registry=ModelRegistry(),
@@ -298,7 +310,7 @@ def test_export_filters(source_ctx: ServiceContext) -> None:
     old = exported(created_before=LONG_AGO + timedelta(days=1))
     assert [r["hits"] for r in old] == [7]
     assert len(exported(created_after=LONG_AGO + timedelta(days=1))) == 3
-    with source_ctx.session() as session:
+    with source_ctx.sessions() as session:
         assert count_exported(session, ExportFilter(sources=("sim",))) == 2
         with pytest.raises(NotFoundError):
             list(export_records(session=session, filt=ExportFilter(model_ids=("nope",))))
@@ -315,17 +327,20 @@ SRDF = """<robot name="two_joint">
 def test_a_model_with_an_srdf_and_held_joints_keeps_its_id(
     source_ctx: ServiceContext, target_ctx: ServiceContext
 ) -> None:
-    with source_ctx.session() as session:
+    with source_ctx.sessions() as session:
         model, _ = register_model(
-            session=session, registry=ModelRegistry(), urdf=TWO_JOINT_URDF, srdf=SRDF,
-            group="arm", joint_values={"elbow": 0.5},
-        )  # fmt: skip
+            session=session,
+            registry=ModelRegistry(),
+            registration=ModelRegistration(
+                urdf=TWO_JOINT_URDF, srdf=SRDF, group="arm", joint_values={"elbow": 0.5}
+            ),
+        )
         store_trajectory(session=session, model=model, states=[[0.0], [0.4]], source="sim")
     lines = export_lines(source_ctx)
     (record,) = [json.loads(line) for line in lines if json.loads(line)["type"] == "model"]
     assert (record["srdf"], record["joint_values"]) == (SRDF, {"elbow": 0.5})
     run_import(target_ctx, lines)
-    with target_ctx.session() as session:
+    with target_ctx.sessions() as session:
         imported = get_model(session=session, registry=ModelRegistry(), model_id=model.model_id)
     assert imported.held_values == {"elbow": 0.5}
     assert "srdf" in imported.pair_reasons.values()
@@ -347,5 +362,5 @@ def test_a_concurrent_writer_is_a_conflict_and_nothing_is_imported(
         run_import(target_ctx, lines)
     monkeypatch.undo()
     assert rows(target_ctx) == []
-    with target_ctx.session() as session:
+    with target_ctx.sessions() as session:
         assert session.scalar(sa.select(sa.func.count()).select_from(RobotModel)) == 0

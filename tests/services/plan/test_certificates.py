@@ -62,14 +62,14 @@ def ctx(url: str) -> Iterator[ServiceContext]:
 def robot(ctx: ServiceContext, objects: list[dict[str, Any]]) -> int:
     """Robot r1 in a scene of `objects`, with the arm's path stored; its id."""
     model = two_joint(ctx)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         put_robot(session=session, robot_id="r1", model_id=model.model_id)
     scene(ctx, objects)
     return store(ctx, model, ARM_PATH)
 
 
 def scene(ctx: ServiceContext, objects: list[dict[str, Any]]) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         parsed = parse_scene({"objects": objects})
         put_scene(session=session, scenes=ctx.scenes, robot_id="r1", scene=parsed)
 
@@ -87,7 +87,7 @@ def ask(ctx: ServiceContext, start: float = 0.02, goal: float = 0.98) -> PlanAns
 
 def certificates(ctx: ServiceContext) -> list[TrajectoryCertificate]:
     assert ctx.records.flush(timeout=10)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         rows = list(session.scalars(sa.select(TrajectoryCertificate)))
         session.expunge_all()
     return rows
@@ -104,7 +104,7 @@ def test_a_valid_verdict_leaves_a_certificate_of_the_scenes_objects(ctx: Service
 
 
 def answer_model(ctx: ServiceContext) -> str:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return str(session.scalars(sa.select(Trajectory.model_id)).one())
 
 
@@ -186,7 +186,7 @@ def test_certificates_go_with_their_trajectory(ctx: ServiceContext) -> None:
     trajectory_id = robot(ctx, AWAY)
     ask(ctx)
     assert certificates(ctx)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         session.execute(sa.delete(Trajectory).where(Trajectory.id == trajectory_id))
         session.commit()
     assert certificates(ctx) == []
@@ -222,7 +222,7 @@ def test_an_export_carries_no_certificate(ctx: ServiceContext) -> None:
     robot(ctx, AWAY)
     ask(ctx)
     (row,) = certificates(ctx)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         text = "".join(dumps(r) for r in export_records(session=session, filt=ExportFilter()))
     assert row.path not in text and row.stamp not in text
     assert not any(digest in text for digest in row.objects)

@@ -80,7 +80,7 @@ def setup_robot(
 ) -> int:
     """Robot r1 (the two-joint arm) in a scene of `objects`, and one cached trajectory."""
     model = two_joint(ctx)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         put_robot(session=session, robot_id="r1", model_id=model.model_id)
         if objects:
             put_scene(
@@ -114,7 +114,7 @@ def use_planner(ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch, planner: o
 def written(ctx: ServiceContext, trajectory_id: int) -> tuple[Trajectory, list[PlanEvent]]:
     """The trajectory's row and every plan event, once the writer has caught up."""
     assert ctx.records.flush(timeout=10)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         row = session.get(Trajectory, trajectory_id)
         assert row is not None
         events = list(session.scalars(sa.select(PlanEvent).order_by(PlanEvent.id)))
@@ -268,7 +268,7 @@ def test_an_unavailable_planner_is_a_503_whose_event_is_written_first(
     use_planner(ctx, monkeypatch, FakePlanner(result))
     with pytest.raises(UnavailableError, match="worker backend unavailable"):
         ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         assert session.scalars(sa.select(PlanEvent.status)).all() == ["error"]
         row = session.get(Trajectory, stored)
         assert row is not None and row.failures == 1

@@ -26,14 +26,14 @@ ARM_PATH = [[0.0, 0.0], [0.3, 0.2], [0.7, 0.2], [1.0, 0.0]]
 
 
 def robot(ctx: ServiceContext, model: RobotModel, robot_id: str = "r1") -> str:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         put_robot(session=session, robot_id=robot_id, model_id=model.model_id)
     return robot_id
 
 
 def set_scene(ctx: ServiceContext, robot_id: str, objects: list[dict[str, Any]]) -> str:
     scene = parse_scene({"objects": objects})
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         _, scene_hash = put_scene(
             session=session, scenes=ctx.scenes, robot_id=robot_id, scene=scene
         )
@@ -82,7 +82,7 @@ def test_a_warm_hit_reads_the_database_once_and_writes_off_the_request_path(
         assert "robots" in statements[0] and "trajectory_tombstones" in statements[0]
         assert answer.record is not None
         assert ctx.records.wait(answer.record, timeout=10)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             row = session.get(Trajectory, stored)
             assert row is not None and row.hits == 2 and row.last_used_at is not None
             assert session.scalar(sa.select(sa.func.count()).select_from(PlanEvent)) == 2
@@ -96,7 +96,7 @@ def test_plan_events_are_durable_when_the_service_stops(database_url: str) -> No
         ctx.records.linger_s = 30.0  # nothing is written before the service stops
         for i in range(20):
             assert ask(ctx, [0.001 * i, 0.0], [1.0, 0.0]).source is PlanSource.CACHE
-    with context(database_url) as after, after.session() as session:
+    with context(database_url) as after, after.sessions() as session:
         events = session.execute(sa.select(PlanEvent).order_by(PlanEvent.id)).scalars().all()
         assert len(events) == 20
         assert all((e.status, e.source, e.trajectory_id) == ("success", "cache", stored)
@@ -213,7 +213,7 @@ def test_concurrent_hits_all_answer_and_all_are_recorded(database_url: str) -> N
             t.join()
         assert not errors
         assert ctx.records.flush(timeout=10)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             row = session.get(Trajectory, stored)
             assert row is not None and row.hits == 80
             assert session.scalar(sa.select(sa.func.count()).select_from(PlanEvent)) == 80
@@ -223,22 +223,22 @@ def test_robot_scene_is_one_query_once_the_scene_is_parsed(database_url: str) ->
     with context(database_url) as ctx:
         model = two_joint(ctx)
         rid = robot(ctx, model)
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             bare = robot_scene(session=session, scenes=ctx.scenes, robot_id=rid)
         assert (bare.model_id, bare.version, bare.scene.hash) == (
             model.model_id, 0, make_scene([], {}).hash
         )  # fmt: skip
         scene_hash = set_scene(ctx, rid, [box("table", [0.5, 0.0, 0.0], 0.2)])
         ctx.scenes = type(ctx.scenes)()  # a replica that has not parsed this version yet
-        with ctx.session() as session, count_statements(ctx.engine) as cold:
+        with ctx.sessions() as session, count_statements(ctx.engine) as cold:
             first = robot_scene(session=session, scenes=ctx.scenes, robot_id=rid)
-        with ctx.session() as session, count_statements(ctx.engine) as warm:
+        with ctx.sessions() as session, count_statements(ctx.engine) as warm:
             again = robot_scene(session=session, scenes=ctx.scenes, robot_id=rid)
         assert (first.version, first.scene.hash) == (1, scene_hash)
         assert [o.id for o in first.scene.objects] == ["table"]
         assert again.scene is first.scene
         assert (len(cold), len(warm)) == (2, 1)
-        with ctx.session() as session, pytest.raises(NotFoundError, match="'ghost'"):
+        with ctx.sessions() as session, pytest.raises(NotFoundError, match="'ghost'"):
             robot_scene(session=session, scenes=ctx.scenes, robot_id="ghost")
 
 

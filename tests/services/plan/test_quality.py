@@ -14,14 +14,20 @@ from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import Trajectory
 from trajcache.geometry.collision.checker import CollisionChecker
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.space import path_length
+from trajcache.geometry.path_quality import ee_path_length, min_clearance
 from trajcache.geometry.scene.parse import parse_scene
-from trajcache.services.catalog.models import ModelRegistry, get_model, register_model
+from trajcache.services.catalog.models import (
+    ModelRegistration,
+    ModelRegistry,
+    get_model,
+    register_model,
+)
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.plan.quality import QualityLevel, TimingRequest, answer_details
 from trajcache.timing import PathShape, TimingMethod
-from trajcache.trajectory_metrics import ee_path_length, min_clearance
 
 OTHER_URDF = two_joint_arm(name="other", elbow_limit=1.4)
 BALL = {"id": "ball", "type": "sphere", "size": [0.05], "pose": {"position": [0.4, 0, 0.2]}}
@@ -41,8 +47,12 @@ def ctx(tmp_path: Path) -> Iterator[ServiceContext]:
 
 def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
     states = np.array([[0.0, 0.0], [0.5, 0.2], [0.2, 0.6]])
-    with ctx.session() as session:
-        model, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+    with ctx.sessions() as session:
+        model, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         with_scene, _ = store_trajectory(
             session=session, model=model, states=states, source="sim", scene=SCENE
         )
@@ -51,7 +61,7 @@ def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
         )
         row = session.get(Trajectory, with_scene)
         assert row is not None
-        assert row.length == pytest.approx(path_length(states, planar=False))
+        assert row.length == pytest.approx(path_length(states, base=BaseType.FIXED))
         assert row.ee_length == pytest.approx(ee_path_length(model, states))
         found = min_clearance(CollisionChecker(model, SCENE), states)
         assert found is not None and row.min_clearance == pytest.approx(found.distance)
@@ -65,13 +75,13 @@ def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
 def test_a_fresh_registry_loads_the_configuration_from_the_database(
     ctx: ServiceContext,
 ) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model, _ = register_model(
             session=session,
             registry=ctx.models,
-            urdf=TWO_JOINT_URDF,
-            acceleration_limits={"elbow": 2.0},
-            end_effector_link="upper",
+            registration=ModelRegistration(
+                urdf=TWO_JOINT_URDF, acceleration_limits={"elbow": 2.0}, end_effector_link="upper"
+            ),
         )
         loaded = get_model(session=session, registry=ModelRegistry(), model_id=model.model_id)
     for m in (model, loaded):
@@ -83,10 +93,16 @@ def test_a_fresh_registry_loads_the_configuration_from_the_database(
 def test_answer_quality_uses_the_model_and_scene_of_the_plan_without_reading_them(
     ctx: ServiceContext,
 ) -> None:
-    with ctx.session() as session:
-        first, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+    with ctx.sessions() as session:
+        first, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
         second, _ = register_model(
-            session=session, registry=ctx.models, urdf=OTHER_URDF, end_effector_link="upper"
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=OTHER_URDF, end_effector_link="upper"),
         )
     states = np.array([[0.0, 0.0], [1.0, 0.5]])
     empty = parse_scene({"objects": []})

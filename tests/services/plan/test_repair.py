@@ -54,7 +54,7 @@ def ctx(tmp_path: Path) -> Iterator[ServiceContext]:
 
 def cached(ctx: ServiceContext, objects: list[dict[str, Any]], path: list[list[float]]) -> int:
     model = two_joint(ctx)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         put_robot(session=session, robot_id="r1", model_id=model.model_id)
         put_scene(
             session=session, scenes=ctx.scenes, robot_id="r1",
@@ -96,7 +96,7 @@ def test_the_failing_stretch_is_planned_and_the_rest_kept(
     scene = parse_scene({"objects": [forearm_box()]})
     assert TrajectoryValidator(two_joint(ctx), scene).validate(answer.states).valid
     assert ctx.records.flush(timeout=10)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         row = session.get(Trajectory, answer.trajectory_id)
         assert row is not None and row.parent_id == parent
         sources = session.scalars(sa.select(PlanEvent.source)).all()

@@ -20,7 +20,7 @@ from trajcache.core.config import Settings
 from trajcache.db.models import PlanEvent, SeedJob, Trajectory, utcnow
 from trajcache.reference.cleaning import cleaning_run
 from trajcache.reference.robot import reference_model
-from trajcache.services.catalog.models import register_model
+from trajcache.services.catalog.models import ModelRegistration, register_model
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import (
@@ -329,8 +329,12 @@ def ctx(migrated_url: str) -> Iterator[ServiceContext]:
 
 @pytest.fixture
 def model_id(ctx: ServiceContext) -> str:
-    with ctx.session() as session:
-        model, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+    with ctx.sessions() as session:
+        model, _ = register_model(
+            session=session,
+            registry=ctx.models,
+            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+        )
     return model.model_id
 
 
@@ -347,12 +351,12 @@ def arm_job(model_id: str, goals: list[list[float]], **fields: Any) -> SeedJobSp
 
 
 def queue(ctx: ServiceContext, job: SeedJobSpec) -> int:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return create_job(session=session, ctx=ctx, spec=job).id
 
 
 def row(ctx: ServiceContext, job_id: int) -> SeedJob:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return get_job(session=session, job_id=job_id)
 
 
@@ -367,7 +371,7 @@ def wait_for(ctx: ServiceContext, job_id: int, timeout_s: float = 60.0) -> SeedJ
 
 def events(ctx: ServiceContext, job_id: int) -> int:
     ctx.records.flush()  # plan bookkeeping is written off the request path
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return int(
             session.scalar(
                 sa.select(sa.func.count()).where(PlanEvent.robot_id == f"seed-job-{job_id}")
@@ -391,7 +395,7 @@ def test_claims_have_one_winner_until_the_lease_runs_out(
     ctx: ServiceContext, model_id: str
 ) -> None:
     job_id = queue(ctx, arm_job(model_id, [[0.5, 0.5]]))
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         assert claimable_jobs(session=session, limit=10) == [job_id]
         assert claim_job(session=session, job_id=job_id, owner="a", lease_s=30)
         assert not claim_job(session=session, job_id=job_id, owner="b", lease_s=30)
@@ -411,7 +415,7 @@ def test_concurrent_claims_of_one_job(ctx: ServiceContext, model_id: str) -> Non
     barrier = threading.Barrier(6)
 
     def claim(owner: str) -> None:
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             barrier.wait()
             if claim_job(session=session, job_id=job_id, owner=owner, lease_s=30):
                 wins.append(owner)
@@ -427,7 +431,7 @@ def test_concurrent_claims_of_one_job(ctx: ServiceContext, model_id: str) -> Non
 
 def test_cancel_is_idempotent_and_finished_jobs_refuse(ctx: ServiceContext, model_id: str) -> None:
     job_id = queue(ctx, arm_job(model_id, [[0.5, 0.5]]))
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         assert cancel_job(session=session, job_id=job_id).state == "cancelled"
         assert cancel_job(session=session, job_id=job_id).state == "cancelled"
         assert not claim_job(session=session, job_id=job_id, owner="a", lease_s=30)
@@ -445,7 +449,7 @@ def test_cancel_is_idempotent_and_finished_jobs_refuse(ctx: ServiceContext, mode
 
 
 def test_a_job_runs_hits_and_misses(ctx: ServiceContext, model_id: str) -> None:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         from trajcache.services.catalog.models import get_model
 
         model = get_model(session=session, registry=ctx.models, model_id=model_id)
@@ -470,7 +474,7 @@ def test_a_job_orphaned_by_a_crash_resumes_from_its_progress(
 ) -> None:
     goals = [[0.1 * k, -0.05 * k] for k in range(10)]
     job_id = queue(ctx, arm_job(model_id, goals))
-    with ctx.session() as session:  # a replica claimed it, did 4 items, and died
+    with ctx.sessions() as session:  # a replica claimed it, did 4 items, and died
         assert claim_job(session=session, job_id=job_id, owner="dead", lease_s=30)
         session.execute(
             sa.update(SeedJob)
@@ -489,7 +493,7 @@ def test_a_job_orphaned_by_a_crash_resumes_from_its_progress(
 
 def test_a_live_lease_is_not_taken_over(ctx: ServiceContext, model_id: str) -> None:
     job_id = queue(ctx, arm_job(model_id, [[0.5, 0.5]]))
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         assert claim_job(session=session, job_id=job_id, owner="alive", lease_s=30)
     scheduler = SeedScheduler(ctx)
     assert scheduler.poll() == []
@@ -498,7 +502,7 @@ def test_a_live_lease_is_not_taken_over(ctx: ServiceContext, model_id: str) -> N
 
 def test_a_stored_job_that_no_longer_expands_fails(ctx: ServiceContext, model_id: str) -> None:
     job_id = queue(ctx, arm_job(model_id, [[0.5, 0.5]]))
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         session.execute(sa.update(SeedJob).where(SeedJob.id == job_id).values(total=7))
         session.commit()
     scheduler = SeedScheduler(ctx).start()
@@ -517,8 +521,12 @@ def test_planned_results_are_stored_as_sim_with_scene_and_env(
         Settings(database_url=migrated_url, worker_processes=1, seed_heartbeat_s=0.1, **SOLVABLE)
     )
     try:
-        with context.session() as session:
-            model, _ = register_model(session=session, registry=context.models, urdf=TWO_JOINT_URDF)
+        with context.sessions() as session:
+            model, _ = register_model(
+                session=session,
+                registry=context.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         scene = {
             "objects": [
                 {
@@ -546,7 +554,7 @@ def test_planned_results_are_stored_as_sim_with_scene_and_env(
         finally:
             scheduler.stop()
         assert (job.state, job.planned, job.stored, job.failed) == ("completed", 1, 1, 0), job
-        with context.session() as session:
+        with context.sessions() as session:
             stored = session.scalars(sa.select(Trajectory)).all()
         assert [(t.source, t.env) for t in stored] == [("sim", {"door": 0.25})]
         from trajcache.geometry.scene.parse import parse_scene
@@ -586,8 +594,12 @@ def test_misses_go_through_celery_workers_when_configured(
         )
     )
     try:
-        with context.session() as session:
-            model, _ = register_model(session=session, registry=context.models, urdf=TWO_JOINT_URDF)
+        with context.sessions() as session:
+            model, _ = register_model(
+                session=session,
+                registry=context.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         job_id = queue_of(context, model.model_id)
         scheduler = SeedScheduler(context).start()
         try:
@@ -619,8 +631,12 @@ def queue_of(ctx: ServiceContext, model_id: str) -> int:
 def test_a_stop_during_retries_leaves_the_item_to_be_run_again(migrated_url: str) -> None:
     context = ServiceContext.create(Settings(database_url=migrated_url, worker_processes=1))
     try:
-        with context.session() as session:
-            model, _ = register_model(session=session, registry=context.models, urdf=TWO_JOINT_URDF)
+        with context.sessions() as session:
+            model, _ = register_model(
+                session=session,
+                registry=context.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         pool = context.planner_pool()
         assert pool is not None
         pool.close()  # every miss now ends with status `error`, which is retried
@@ -631,7 +647,7 @@ def test_a_stop_during_retries_leaves_the_item_to_be_run_again(migrated_url: str
                 "queries": [{"start": [0, 0], "goal": [1, 1]}],
             }
         )
-        with context.session() as session:
+        with context.sessions() as session:
             work = expand(job, model=model, settings=context.settings)
         run = JobRun(context, 1, "me", on_exit=lambda _i: None)
         attempts: list[Outcome] = []

@@ -18,6 +18,7 @@ from trajcache.db.models import PlanEvent, PlanEventRollup
 from trajcache.db.session import make_engine
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.stats import histograms
+from trajcache.services.stats.event_rows import EventFilter
 from trajcache.services.stats.rollups import floor_hour, refresh_rollups
 from trajcache.services.stats.window import bucket_seconds, parse_window, plan_stats
 
@@ -290,14 +291,20 @@ def test_filters_and_an_empty_window(sessions: sessionmaker[Session]) -> None:
     events = make_events(now, 300, hours=10, seed=3)
     with sessions() as session:
         store(session, events)
-        only = plan_stats(session=session, window_s=86400, robot_id="r1", now=now)
+        only = plan_stats(
+            session=session, window_s=86400, now=now, filters=EventFilter(robot_id="r1")
+        )
         assert only.totals.requests == sum(e.robot == "r1" for e in events)
         assert [(g.key, g.requester) for g in only.groups] == [("r1", "robot"), ("r1", "seed_job")]
         for requester in ("robot", "seed_job"):
-            mine = plan_stats(session=session, window_s=86400, requester=requester, now=now)
+            mine = plan_stats(
+                session=session, window_s=86400, now=now, filters=EventFilter(requester=requester)
+            )
             assert mine.totals.requests == sum(e.requester == requester for e in events)
         with pytest.raises(InvalidInputError, match=r"query\.requester"):
-            plan_stats(session=session, window_s=86400, requester="drone", now=now)
+            plan_stats(
+                session=session, window_s=86400, now=now, filters=EventFilter(requester="drone")
+            )
         later = now + timedelta(days=2)
         empty = plan_stats(session=session, window_s=3600, now=later)
     assert empty.totals.requests == 0 and empty.totals.hit_rate is None

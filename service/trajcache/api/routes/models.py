@@ -37,7 +37,9 @@ from trajcache.api.schemas.models import (
 from trajcache.core.config import Settings
 from trajcache.geometry.collision.shared import GeometryCache
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.path_quality import end_effector_link
 from trajcache.services.catalog.models import (
+    ModelRegistration,
     get_model,
     get_model_row,
     list_model_files,
@@ -48,7 +50,6 @@ from trajcache.services.catalog.models import (
 )
 from trajcache.services.errors import InvalidInputError, PayloadTooLargeError
 from trajcache.timing import kinematic_limits
-from trajcache.trajectory_metrics import end_effector_link
 
 
 def registration_body_limit(settings: Settings) -> tuple[int, str]:
@@ -288,18 +289,20 @@ def register_model_route(
     model, created = register_model(
         session=session,
         registry=ctx.models,
-        urdf=fields.urdf,
-        files=files,
-        base=fields.base,
-        joint_names=fields.joint_names,
-        group=fields.group,
-        srdf=fields.srdf,
-        joint_values=fields.joint_values,
-        name=fields.name,
-        acceleration_limits=fields.acceleration_limits,
-        jerk_limits=fields.jerk_limits,
-        end_effector_link=fields.end_effector_link,
         max_urdf_bytes=s.max_urdf_bytes,
+        registration=ModelRegistration(
+            urdf=fields.urdf,
+            files=files,
+            base=fields.base,
+            joint_names=fields.joint_names,
+            group=fields.group,
+            srdf=fields.srdf,
+            joint_values=fields.joint_values,
+            name=fields.name,
+            acceleration_limits=fields.acceleration_limits,
+            jerk_limits=fields.jerk_limits,
+            end_effector_link=fields.end_effector_link,
+        ),
     )
     if not created:
         response.status_code = 200

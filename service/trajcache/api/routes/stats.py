@@ -7,6 +7,7 @@ from datetime import UTC, datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Query
+from pydantic import BaseModel, Field
 
 from trajcache.api.deps import PageSizeDep, SessionDep, SettingsDep, checked_page_size
 from trajcache.api.responses import COMMON, errors
@@ -25,7 +26,8 @@ from trajcache.api.schemas.stats import (
     StatsOut,
     TopTrajectoryOut,
 )
-from trajcache.services.stats.events import list_plan_events, top_trajectories
+from trajcache.services.stats.event_rows import EventFilter
+from trajcache.services.stats.events import PlanEventFilter, list_plan_events, top_trajectories
 from trajcache.services.stats.histograms import MAX_RELATIVE_ERROR
 from trajcache.services.stats.window import WINDOW_PATTERN, parse_window, plan_stats
 
@@ -36,6 +38,40 @@ ModelFilter = Annotated[str | None, Query(max_length=64, description="Only this 
 RequesterFilter = Annotated[
     Requester | None, Query(description="Only the requests of robots, or of seed jobs.")
 ]
+_ISO = "ISO 8601; UTC when no offset."
+
+
+class StatsQuery(BaseModel):
+    """The query of GET /v1/stats: the window, the grouping and the filters."""
+
+    window: str = Field(
+        "24h",
+        max_length=16,
+        description="Length of the window: 30m, 24h, 7d (1m to 366d).",
+        json_schema_extra={"pattern": WINDOW_PATTERN},  # parse_window checks it (and more)
+    )
+    group_by: GroupBy = Field("robot", description="Break the totals down by this.")
+    robot_id: str | None = Field(None, max_length=128, description="Only this robot.")
+    model_id: str | None = Field(None, max_length=64, description="Only this model.")
+    requester: Requester | None = Field(
+        None, description="Only the requests of robots, or of seed jobs."
+    )
+
+
+class PlanEventQuery(BaseModel):
+    """The query of GET /v1/plan-events besides its page size: a cursor and the filters."""
+
+    cursor: str | None = Field(None, max_length=64, description="next_cursor of a page.")
+    robot_id: str | None = Field(None, max_length=128, description="Only this robot.")
+    model_id: str | None = Field(None, max_length=64, description="Only this model.")
+    status: EventStatus | None = None
+    source: EventSource | None = Field(None, description="`none`: no trajectory was returned.")
+    requester: Requester | None = Field(
+        None, description="Only the requests of robots, or of seed jobs."
+    )
+    trajectory_id: int | None = Field(None, ge=1, le=2**63 - 1)
+    since: IsoDateTime | None = Field(None, description=_ISO)
+    until: IsoDateTime | None = Field(None, description=_ISO)
 
 
 @router.get(
@@ -53,29 +89,16 @@ RequesterFilter = Annotated[
     "hits of a model without any are credited nothing and counted in `uncredited_hits`.",
     responses=errors({422: ("Bad window or group", "query.window: '2w' is not a window like …")}),
 )
-def stats_route(
-    session: SessionDep,
-    window: Annotated[
-        str,
-        Query(
-            max_length=16,
-            description="Length of the window: 30m, 24h, 7d (1m to 366d).",
-            json_schema_extra={"pattern": WINDOW_PATTERN},  # parse_window checks it (and more)
-        ),
-    ] = "24h",
-    group_by: Annotated[GroupBy, Query(description="Break the totals down by this.")] = "robot",
-    robot_id: RobotFilter = None,
-    model_id: ModelFilter = None,
-    requester: RequesterFilter = None,
-) -> StatsOut:
+def stats_route(session: SessionDep, query: Annotated[StatsQuery, Query()]) -> StatsOut:
     """Statistics of the plan requests of the last `window`."""
+    window, group_by = query.window, query.group_by
     stats = plan_stats(
         session=session,
         window_s=parse_window(window),
         group_by=group_by,
-        robot_id=robot_id,
-        model_id=model_id,
-        requester=requester,
+        filters=EventFilter(
+            robot_id=query.robot_id, model_id=query.model_id, requester=query.requester
+        ),
     )
     return StatsOut(
         window=window.strip(),
@@ -128,33 +151,23 @@ def top_trajectories_route(
 def plan_events_route(
     session: SessionDep,
     limit: PageSizeDep,
-    cursor: Annotated[
-        str | None, Query(max_length=64, description="next_cursor of a page.")
-    ] = None,
-    robot_id: RobotFilter = None,
-    model_id: ModelFilter = None,
-    status: EventStatus | None = None,
-    source: Annotated[
-        EventSource | None, Query(description="`none`: no trajectory was returned.")
-    ] = None,
-    requester: RequesterFilter = None,
-    trajectory_id: Annotated[int | None, Query(ge=1, le=2**63 - 1)] = None,
-    since: Annotated[IsoDateTime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
-    until: Annotated[IsoDateTime | None, Query(description="ISO 8601; UTC when no offset.")] = None,
+    query: Annotated[PlanEventQuery, Query()],
 ) -> PlanEventPageOut:
     """A page of plan events matching the filters."""
     page = list_plan_events(
         session=session,
         limit=limit,
-        cursor=cursor,
-        robot_id=robot_id,
-        model_id=model_id,
-        status=status,
-        source=source,
-        requester=requester,
-        trajectory_id=trajectory_id,
-        since=_utc(since),
-        until=_utc(until),
+        cursor=query.cursor,
+        filters=PlanEventFilter(
+            robot_id=query.robot_id,
+            model_id=query.model_id,
+            requester=query.requester,
+            status=query.status,
+            source=query.source,
+            trajectory_id=query.trajectory_id,
+            since=_utc(query.since),
+            until=_utc(query.until),
+        ),
     )
     return PlanEventPageOut(
         items=[PlanEventOut.model_validate(e) for e in page.items],

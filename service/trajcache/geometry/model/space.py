@@ -3,8 +3,8 @@ and whether the base stays still.
 
 A state is (x, y, θ, q1 … qn) for a planar base, (q1 … qn) for a fixed one. θ is an angle (SO(2)):
 differences wrap it into [−π, π), so they take the short way round. The planners
-(`planning/space.py`), the cache (`cache/metric.py`, `cache/adapt.py`), validation and the quality
-measures all call these functions instead of writing the wrap again.
+(`planning/space.py`, `planning/motion.py`), the cache (`cache/metric.py`, `cache/adapt.py`),
+validation and the quality measures all call these functions instead of writing the wrap again.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 
 TWO_PI = 2.0 * math.pi
@@ -32,32 +33,32 @@ def wrap_angle(a: npt.ArrayLike) -> FloatArray:
     return np.where(wrapped >= np.pi, wrapped - TWO_PI, wrapped)
 
 
-def state_steps(starts: npt.ArrayLike, ends: npt.ArrayLike, *, planar: bool) -> FloatArray:
+def state_steps(starts: npt.ArrayLike, ends: npt.ArrayLike, *, base: BaseType) -> FloatArray:
     """ends − starts (states, or batches of them), the base angle taking the short way."""
     delta = np.asarray(ends, dtype=float) - np.asarray(starts, dtype=float)
-    if planar:
+    if base is BaseType.PLANAR:
         delta[..., THETA] = wrap_angle(delta[..., THETA])
     return delta
 
 
-def segment_deltas(states: npt.ArrayLike, *, planar: bool) -> FloatArray:
+def segment_deltas(states: npt.ArrayLike, *, base: BaseType) -> FloatArray:
     """Differences (N − 1, D) between consecutive states, the base angle taking the short way."""
     array = np.asarray(states, dtype=float)
-    return state_steps(array[:-1], array[1:], planar=planar)
+    return state_steps(array[:-1], array[1:], base=base)
 
 
-def path_length(states: npt.ArrayLike, *, planar: bool) -> float:
+def path_length(states: npt.ArrayLike, *, base: BaseType) -> float:
     """State-space length: Σ of Euclidean segment lengths, the base angle taking the short way."""
     array = np.asarray(states, dtype=float)
     if len(array) < 2:
         return 0.0
-    return float(np.linalg.norm(segment_deltas(array, planar=planar), axis=1).sum())
+    return float(np.linalg.norm(segment_deltas(array, base=base), axis=1).sum())
 
 
-def base_is_still(start: npt.ArrayLike, goal: npt.ArrayLike, *, planar: bool) -> bool:
+def base_is_still(start: npt.ArrayLike, goal: npt.ArrayLike, base: BaseType) -> bool:
     """True when a planar base has the same pose (within `BASE_STILL_TOLERANCE`) at both ends;
     always False for a fixed base."""
-    if not planar:
+    if base is not BaseType.PLANAR:
         return False
-    delta = np.abs(state_steps(np.asarray(start)[:3], np.asarray(goal)[:3], planar=True))
+    delta = np.abs(state_steps(np.asarray(start)[:3], np.asarray(goal)[:3], base=base))
     return bool(np.all(delta <= BASE_STILL_TOLERANCE))

@@ -47,11 +47,6 @@ class SphereTree:
     children: IntArray  # (N,)
     reach: FloatArray  # (N,) leaves: how far the centre may be from the shape (0 inside)
 
-    @property
-    def leaves(self) -> int:
-        """How many leaf balls."""
-        return int(np.count_nonzero(self.first_child < 0))
-
 
 _TREES: weakref.WeakKeyDictionary[Shape, dict[float, SphereTree]] = weakref.WeakKeyDictionary()
 

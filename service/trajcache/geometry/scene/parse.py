@@ -42,11 +42,6 @@ class _NoAliasLoader(yaml.SafeLoader):
         return super().compose_node(parent, index)
 
 
-def parse_scene_text(text: str) -> Scene:
-    """Parse a scene from JSON or YAML text."""
-    return parse_scene(load_scene_text(text))
-
-
 def load_scene_text(text: str) -> Mapping[str, Any]:
     """The scene document in JSON or YAML text, not yet parsed."""
     if len(text) > MAX_SCENE_TEXT_BYTES:

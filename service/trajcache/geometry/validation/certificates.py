@@ -46,7 +46,6 @@ from trajcache.geometry.validation.stamp import certifier_digest
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
     ValidationResult,
-    ValidationStatus,
 )
 
 __all__ = [
@@ -166,8 +165,3 @@ def validate_with_certificate(
                 f"{truth.message}"
             )
     return result, use
-
-
-def is_valid(result: ValidationResult) -> bool:
-    """Whether a verdict may be certified (only valid ones are)."""
-    return result.status is ValidationStatus.VALID

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from trajcache.geometry.collision.bodies import Posed
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.collision.compiled import scene_open_kernel, self_open_kernel
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import segment_deltas
 from trajcache.geometry.validation.advance import Advancer
@@ -54,6 +55,29 @@ class _CoverLevel:
     slabs_fn: Callable[[IntArray, BoolArray], FloatArray]
 
 
+MIN_PAD, MAX_DEPTH = 1e-4, 24  # the certifier's defaults
+
+
+@dataclass(frozen=True)
+class _Points:
+    """Points at_a → at_b (K, S, 3) of elements, their lever coefficients and ball radii."""
+
+    at_a: FloatArray
+    at_b: FloatArray
+    coef: FloatArray
+    radius: FloatArray
+
+
+@dataclass(frozen=True)
+class CertifierOptions:
+    """How the certifier works: the smallest pad and deepest split of its advancer, and its
+    compiled kernels or (`compiled=False`) the numpy levels of `clearance.py`."""
+
+    min_pad: float = MIN_PAD
+    max_depth: int = MAX_DEPTH
+    compiled: bool = True
+
+
 class SegmentCertifier:
     """Certifies the segments between consecutive samples of one model in one scene."""
 
@@ -61,18 +85,16 @@ class SegmentCertifier:
         self,
         checker: CollisionChecker,
         *,
-        planar: bool,
-        min_pad: float,
-        max_depth: int,
-        compiled: bool = True,
+        base: BaseType,
+        options: CertifierOptions = CertifierOptions(),
     ) -> None:
         self.checker = checker
-        self.compiled = compiled
+        self.compiled = options.compiled
         self.robot = checker.robot
         self.clearance = checker.clearance
         self.narrow = checker.narrow
-        self.planar = planar
-        self.advancer = Advancer(checker, min_pad=min_pad, max_depth=max_depth)
+        self.base = base
+        self.advancer = Advancer(checker, min_pad=options.min_pad, max_depth=options.max_depth)
         rg = self.robot
         turning = rg.motion.rotation & rg.motion.ancestors
         self._turn = turning[rg.element_link].T.astype(float)  # (D, E)
@@ -108,7 +130,7 @@ class SegmentCertifier:
 
     def _deltas(self, states: FloatArray) -> FloatArray:
         """Differences of consecutive states, the base angle the short way."""
-        return segment_deltas(states, planar=self.planar)
+        return segment_deltas(states, base=self.base)
 
     def settled_by_bounds(self, states: FloatArray) -> bool:
         """True when the compiled levels alone certify every segment of `states` (N ≥ 2); they
@@ -192,17 +214,13 @@ class SegmentCertifier:
             masks = [pair_mask, pair_mask]
         whole = np.zeros(len(seg))
         for element, mask in zip(elements, masks, strict=True):
-            _, w = self._point_motion(
-                posed,
-                step,
-                seg,
+            points = _Points(
                 posed.centres[seg, element][:, None],
                 posed.centres[seg + 1, element][:, None],
-                element,
                 rg.centre_coef[element][:, None],
                 rg.radius[element][:, None],
-                mask,
             )
+            _, w = self._point_motion(posed, step, seg, element, points, mask)
             whole += w[:, 0]
         return whole
 
@@ -307,33 +325,27 @@ class SegmentCertifier:
         """Per cover ball (K, S): the motion of its centre, and of any of its points."""
         rg = self.robot
         width = centres_a.shape[1]
-        return self._point_motion(
-            posed,
-            step,
-            seg,
+        points = _Points(
             centres_a,
             centres_b,
-            element,
             rg.sphere_coef[element, :width],
             rg.sphere_radius[element, :width],
-            mask,
         )
+        return self._point_motion(posed, step, seg, element, points, mask)
 
     def _point_motion(
         self,
         posed: Posed,
         step: FloatArray,
         seg: IntArray,
-        at_a: FloatArray,
-        at_b: FloatArray,
         element: IntArray,
-        coef: FloatArray,
-        radius: FloatArray,
+        points: _Points,
         mask: FloatArray | None,
     ) -> tuple[FloatArray, FloatArray]:
-        """Motion (K, S) over segments `seg` of points at_a → at_b (K, S, 3) of `element`, and
-        of any point within `radius` (K, S) of them; with `mask` (K, D) only those dofs count."""
+        """Motion (K, S) over segments `seg` of `points` of `element`, and of any point within
+        their radius; with `mask` (K, D) only those dofs count."""
         motion = self.robot.motion
+        at_a, at_b, coef, radius = points.at_a, points.at_b, points.coef, points.radius
         if mask is not None and not np.any(
             mask * motion.ancestors[self.robot.element_link[element]]
         ):

@@ -71,7 +71,7 @@ def locate_failure(
     key = np.asarray(key_states, dtype=float)
     samples = interpolate(key, model, validator.resolution)
     state = np.asarray(result.state, dtype=float)
-    sample, at = _place(samples, state, planar=model.base is BaseType.PLANAR)
+    sample, at = _place(samples, state, base=model.base)
     counts = sample_counts(key, model, validator.resolution) if len(key) > 1 else np.ones(1)
     segment = int(np.searchsorted(np.cumsum(counts), sample, side="right"))
     contacts = list(result.contacts)
@@ -94,14 +94,14 @@ def locate_failure(
     )
 
 
-def _place(samples: FloatArray, state: FloatArray, *, planar: bool) -> tuple[int, float]:
+def _place(samples: FloatArray, state: FloatArray, *, base: BaseType) -> tuple[int, float]:
     """(i, t): `state` is samples[i] + t · (samples[i + 1] − samples[i]), the first such step;
     the nearest step when none holds it within `_ON_PATH`."""
     if len(samples) < 2:
         return 0, 0.0
     starts = samples[:-1]
-    steps = state_steps(starts, samples[1:], planar=planar)
-    offsets = state_steps(starts, state[None, :], planar=planar)
+    steps = state_steps(starts, samples[1:], base=base)
+    offsets = state_steps(starts, state[None, :], base=base)
     length2 = np.einsum("ij,ij->i", steps, steps)
     t = np.einsum("ij,ij->i", offsets, steps) / np.where(length2 > 0.0, length2, 1.0)
     t = np.clip(t, 0.0, 1.0)

@@ -39,7 +39,7 @@ def sample_counts(
     new end segments 0.92 against 1.40 ms), and a half or a quarter more than a third."""
     key = np.asarray(key_states, dtype=float)
     planar = model.base is BaseType.PLANAR
-    delta = segment_deltas(key, planar=planar)
+    delta = segment_deltas(key, base=model.base)
     off = model.arm_offset
     steps = np.zeros(len(delta))
     if planar:
@@ -58,7 +58,7 @@ def interpolate(
     key = np.asarray(key_states, dtype=float)
     if len(key) < 2:
         return key.copy()
-    delta = segment_deltas(key, planar=model.base is BaseType.PLANAR)
+    delta = segment_deltas(key, base=model.base)
     counts = sample_counts(key, model, resolution, subdivision)
     if len(counts) == 1:  # one segment, the usual cached motion
         frac = np.arange(counts[0] + 1) / counts[0]

@@ -35,11 +35,16 @@ from trajcache.core.lru import LRU
 from trajcache.geometry.collision.checker import CollisionChecker, Contact, ContactKind
 from trajcache.geometry.collision.shared import GeometryCache
 from trajcache.geometry.model.kinematics import check_states
-from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import state_steps
 from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.validation.certify import SegmentCertifier
+from trajcache.geometry.validation.certify import (
+    MAX_DEPTH,
+    MIN_PAD,
+    CertifierOptions,
+    SegmentCertifier,
+)
 from trajcache.geometry.validation.sampling import Resolution, interpolate, sample_counts
 from trajcache.geometry.validation.segments import Finding, SegmentStatus
 from trajcache.geometry.validation.stamp import certificate_digest
@@ -82,9 +87,6 @@ class ValidationResult:
         return self.status is ValidationStatus.VALID
 
 
-MIN_PAD, MAX_DEPTH = 1e-4, 24  # the certifier's defaults
-
-
 def settings_key(
     resolution: Resolution, certified: bool, min_pad: float = MIN_PAD, max_depth: int = MAX_DEPTH
 ) -> tuple[object, ...]:
@@ -102,9 +104,7 @@ class TrajectoryValidator:
         *,
         resolution: Resolution | None = None,
         certified: bool = True,
-        min_pad: float = MIN_PAD,
-        max_depth: int = MAX_DEPTH,
-        compiled: bool = True,
+        certifier: CertifierOptions = CertifierOptions(),
         geometry: GeometryCache | None = None,
         self_collision: bool = True,
     ) -> None:
@@ -116,15 +116,15 @@ class TrajectoryValidator:
         self.resolution = resolution or Resolution()
         self.certified = certified
         self.subdivision = CERTIFY_SUBDIVISION if certified else 1
-        self.settings_key = settings_key(self.resolution, certified, min_pad, max_depth)
+        self.settings_key = settings_key(
+            self.resolution, certified, certifier.min_pad, certifier.max_depth
+        )
         if not self_collision:  # a verdict on the scene alone
             self.settings_key = (*self.settings_key, "scene only")
         self.certifier = SegmentCertifier(
             self.checker,
-            planar=model.base is BaseType.PLANAR,
-            min_pad=min_pad,
-            max_depth=max_depth,
-            compiled=compiled,
+            base=model.base,
+            options=certifier,
         )
 
     def validate(self, key_states: FloatArray) -> ValidationResult:
@@ -231,8 +231,7 @@ class TrajectoryValidator:
         """The result for what certification stopped at, `lo` samples into the trajectory."""
         state = chunk[found.segment]
         if found.at > 0.0:
-            planar = self.model.base is BaseType.PLANAR
-            delta = state_steps(state, chunk[found.segment + 1], planar=planar)
+            delta = state_steps(state, chunk[found.segment + 1], base=self.model.base)
             state = state + found.at * delta
         if found.status is SegmentStatus.COLLISION:
             return _result(

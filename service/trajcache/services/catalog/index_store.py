@@ -37,10 +37,10 @@ import sqlalchemy as sa
 from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from trajcache.cache.index import TrajectoryIndex
-from trajcache.cache.metric import FloatArray
 from trajcache.core.lru import LRU
 from trajcache.db.models import Trajectory, TrajectoryTombstone, unpack_states
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.shapes import FloatArray
 
 if TYPE_CHECKING:
     from typing import TypeAlias
@@ -133,11 +133,6 @@ class IndexStore:
                 return self._sync(session, rider, params)
         row = session.connection().execute(rider, params).one_or_none()
         return None if row is None else tuple(row)
-
-    def sync(self, session: Session) -> None:
-        """Read new rows and tombstones now."""
-        with self._lock:
-            self._sync(session)
 
     def states(self, session: Session, ids: Iterable[int]) -> dict[int, FloatArray]:
         """Key states (read-only arrays) of the trajectories `ids` that exist, by id."""

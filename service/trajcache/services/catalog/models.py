@@ -125,58 +125,68 @@ def _model_config(
     )
 
 
+@dataclass(frozen=True)
+class ModelRegistration:
+    """What registers a model: its URDF, files and semantics, and its configuration.
+
+    The SRDF, when given, chooses the planning joints (`group`), names states and disables
+    self-collision pairs; `joint_values` holds joints outside the planning joints (by name, or
+    an SRDF group_state's name). Both are part of the model id. Acceleration and jerk limits
+    (one value for every planning joint, or per joint name) and the end-effector link are the
+    model's configuration, fixed at its first registration.
+    """
+
+    urdf: str
+    files: Mapping[str, bytes] | None = None
+    base: BaseType | str = BaseType.FIXED
+    joint_names: Sequence[str] | None = None
+    group: str | None = None
+    srdf: str | None = None
+    joint_values: Mapping[str, float] | str | None = None
+    name: str | None = None
+    acceleration_limits: JointLimits | None = None
+    jerk_limits: JointLimits | None = None
+    end_effector_link: str | None = None
+
+
 def register_model(
     *,
     session: Session,
     registry: ModelRegistry,
-    urdf: str,
-    files: Mapping[str, bytes] | None = None,
-    base: BaseType | str = BaseType.FIXED,
-    joint_names: Sequence[str] | None = None,
-    group: str | None = None,
-    srdf: str | None = None,
-    joint_values: Mapping[str, float] | str | None = None,
-    name: str | None = None,
+    registration: ModelRegistration,
     max_urdf_bytes: int | None = None,
-    acceleration_limits: JointLimits | None = None,
-    jerk_limits: JointLimits | None = None,
-    end_effector_link: str | None = None,
     commit: bool = True,
 ) -> tuple[RobotModel, bool]:
     """Register a model (same content → same model id, no new rows); return it and `created`.
 
-    The SRDF, when given, chooses the planning joints (`group`), names states and disables
-    self-collision pairs; `joint_values` holds joints outside the planning joints (by name, or
-    an SRDF group_state's name). Both are part of the model id.
-
-    Acceleration and jerk limits (one value for every planning joint, or per joint name) and
-    the end-effector link are the model's configuration, fixed at its first registration:
-    registering the same content again with a different configuration is a ConflictError.
+    Registering the same content again with a different configuration is a ConflictError.
     With `commit=False` a new model's row is only flushed and not put in `registry`: the caller
     commits it with its other writes, then caches the model.
     """
+    r = registration
+    urdf, srdf, files = r.urdf, r.srdf, r.files or {}
     _check_size("URDF", urdf, max_urdf_bytes)
     _check_size("SRDF", srdf, max_urdf_bytes)
     model = load_robot_model(
         urdf,
-        files=files or {},
-        base=base,
-        joint_names=joint_names,
-        group=group,
+        files=files,
+        base=r.base,
+        joint_names=r.joint_names,
+        group=r.group,
         srdf=srdf,
-        joint_values=joint_values,
-        name=name,
+        joint_values=r.joint_values,
+        name=r.name,
     )
     check_plannable(model)
     model = replace(model, name=model.name[:NAME_MAX])
-    config = _model_config(model, acceleration_limits, jerk_limits, end_effector_link)
+    config = _model_config(model, r.acceleration_limits, r.jerk_limits, r.end_effector_link)
     existing = _stored(session, model.model_id)
     if existing is not None:
         stored_name, stored = existing
         check_same_config(model.model_id, stored, config)
         return _cached(registry, model, stored_name, stored), False
     row = _model_row(
-        model, config, urdf=urdf, files=files or {}, semantics=_semantics(srdf, joint_values)
+        model, config, urdf=urdf, files=files, semantics=_semantics(srdf, r.joint_values)
     )
     if not commit:  # a concurrent registration fails the caller's transaction on IntegrityError
         session.add(row)

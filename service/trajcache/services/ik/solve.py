@@ -31,6 +31,7 @@ from trajcache.geometry.model.pin_kinematics import PinKinematics
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, pose_matrix
 from trajcache.geometry.model.srdf import parse_srdf
+from trajcache.geometry.path_quality import end_effector_link
 from trajcache.geometry.scene.fields import unit_quaternion
 from trajcache.geometry.scene.variant import model_in_scene
 from trajcache.geometry.validation.validator import validator_for
@@ -38,7 +39,6 @@ from trajcache.services.catalog.models import get_model, model_source
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
-from trajcache.trajectory_metrics import end_effector_link
 
 IK_BUDGET_S = 0.05  # default time budget of one IK request
 IK_BUDGET_MAX_S = 2.0  # the most a request may ask for

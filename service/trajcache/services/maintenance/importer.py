@@ -27,7 +27,12 @@ from trajcache.db.models import trajectory_content_hash
 from trajcache.geometry.errors import GeometryError
 from trajcache.geometry.model.kinematics import check_limits, check_states
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.services.catalog.models import ModelRegistry, get_model, register_model
+from trajcache.services.catalog.models import (
+    ModelRegistration,
+    ModelRegistry,
+    get_model,
+    register_model,
+)
 from trajcache.services.catalog.trajectories import SOURCES, store_trajectory
 from trajcache.services.errors import (
     ConflictError,
@@ -189,18 +194,20 @@ class Importer:
         model, created = register_model(
             session=self.session,
             registry=ModelRegistry(),  # the real one once committed (`finish`)
-            urdf=urdf,
-            files=files,
-            base=str(record.get("base", "fixed")),
-            joint_names=record.get("joint_names"),
-            srdf=_optional_text(record.get("srdf"), "srdf"),
-            joint_values=_joint_values(record.get("joint_values")),
-            name=record.get("name"),
             max_urdf_bytes=self.settings.max_urdf_bytes,
-            acceleration_limits=record.get("acceleration_limits"),
-            jerk_limits=record.get("jerk_limits"),
-            end_effector_link=record.get("end_effector_link"),
             commit=False,
+            registration=ModelRegistration(
+                urdf=urdf,
+                files=files,
+                base=str(record.get("base", "fixed")),
+                joint_names=record.get("joint_names"),
+                srdf=_optional_text(record.get("srdf"), "srdf"),
+                joint_values=_joint_values(record.get("joint_values")),
+                name=record.get("name"),
+                acceleration_limits=record.get("acceleration_limits"),
+                jerk_limits=record.get("jerk_limits"),
+                end_effector_link=record.get("end_effector_link"),
+            ),
         )
         if created:
             self.report.models_created += 1

@@ -3,7 +3,7 @@
 Whatever the outcome — a hit, a miss, a planner failure, a planned trajectory — the usage
 counters of the candidates and the plan event go to `ctx.records` (`services.plan.records`) as
 one :class:`PlanRecord`, stamped with the writer's clock, and the answer is counted in the
-Prometheus metrics (`trajcache.metrics.record_plan`) with the same status, source, requester and
+Prometheus metrics (`services.prometheus.record_plan`) with the same status, source, requester and
 timings as its plan event: `_record` is the one place of the plan flow that does both, whoever
 asked (a robot or a seed job), so `/metrics` and `/v1/stats` count the same requests. Nothing
 here writes to the database.
@@ -12,13 +12,13 @@ here writes to the database.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
 from trajcache.cache.memo import MemoUse
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.scene import Scene
-from trajcache.metrics import record_plan
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
@@ -26,9 +26,16 @@ from trajcache.services.plan.quality import AnswerExtras, answer_details
 from trajcache.services.plan.record_batch import EventDetails
 from trajcache.services.plan.records import PlanRecord, QualityJob
 from trajcache.services.plan.rejections import rejection_entries
+from trajcache.services.prometheus import record_plan
 from trajcache.timing import TimingError
 
-__all__ = ["answer_hit", "answer_planned", "answer_without_path", "describe_answer"]
+__all__ = [
+    "PlannedPath",
+    "answer_hit",
+    "answer_planned",
+    "answer_without_path",
+    "describe_answer",
+]
 
 
 def answer_hit(
@@ -37,14 +44,10 @@ def answer_hit(
     """Answer with a validated cached trajectory; its bookkeeping is queued, not awaited."""
     attempt.tried = len(attempt.failed) + 1
     timings = attempt.clock.timings()
-    record = _record(
-        attempt,
-        PlanStatus.SUCCESS,
-        timings,
-        source=PlanSource.CACHE,
-        trajectory_id=trajectory_id,
-        served=trajectory_id,
+    outcome = _Outcome(
+        PlanStatus.SUCCESS, PlanSource.CACHE, trajectory_id=trajectory_id, served=trajectory_id
     )
+    record = _record(attempt, outcome, timings)
     return PlanAnswer(
         PlanStatus.SUCCESS,
         PlanSource.CACHE,
@@ -59,43 +62,43 @@ def answer_hit(
     )
 
 
-def answer_planned(
-    attempt: PlanAttempt,
-    trajectory_id: int,
-    states: np.ndarray,
-    *,
-    seed: int | None,
-    quality: QualityJob | None,
-    planner: str | None = None,
-    phases: Mapping[str, float] | None = None,
-    stored: bool = True,
-    source: PlanSource = PlanSource.PLANNER,
-) -> PlanAnswer:
-    """Answer with the trajectory the planner found (stored); its quality is written later.
+@dataclass(frozen=True)
+class PlannedPath:
+    """A trajectory the planner found (or mended) and stored, as its answer reports it.
+
     `phases` are the planner's own times, added to the answer's timings (not to its record);
     `stored` is false when the path was identical to a trajectory already stored; `source` is
-    REPAIRED for a cached path the planner mended (`services.plan.repair`)."""
+    REPAIRED for a cached path the planner mended (`services.plan.repair`).
+    """
+
+    trajectory_id: int
+    states: np.ndarray
+    seed: int | None
+    planner: str | None = None
+    phases: Mapping[str, float] | None = None
+    stored: bool = True
+    source: PlanSource = PlanSource.PLANNER
+
+
+def answer_planned(
+    attempt: PlanAttempt, planned: PlannedPath, *, quality: QualityJob | None
+) -> PlanAnswer:
+    """Answer with the trajectory the planner found (stored); its quality is written later."""
     timings = attempt.clock.timings()
-    record = _record(
-        attempt,
-        PlanStatus.SUCCESS,
-        timings,
-        source=source,
-        trajectory_id=trajectory_id,
-        seed=seed,
-        quality=quality,
-    )
+    p = planned
+    outcome = _Outcome(PlanStatus.SUCCESS, p.source, trajectory_id=p.trajectory_id, seed=p.seed)
+    record = _record(attempt, outcome, timings, quality=quality)
     return PlanAnswer(
         PlanStatus.SUCCESS,
-        source,
-        trajectory_id,
-        states,
+        p.source,
+        p.trajectory_id,
+        p.states,
         attempt.tried,
-        {**timings, **(phases or {})},
+        {**timings, **(p.phases or {})},
         rejected=attempt.rejected,
         record=record,
-        planner=planner,
-        stored=stored,
+        planner=p.planner,
+        stored=p.stored,
     )
 
 
@@ -104,7 +107,7 @@ def answer_without_path(
 ) -> PlanAnswer:
     """Answer a miss, a failure or an error: no trajectory, and why."""
     timings = attempt.clock.timings()
-    record = _record(attempt, status, timings, error=message, seed=seed)
+    record = _record(attempt, _Outcome(status, error=message, seed=seed), timings)
     return PlanAnswer(
         status,
         None,
@@ -118,27 +121,36 @@ def answer_without_path(
     )
 
 
+@dataclass(frozen=True)
+class _Outcome:
+    """How a request ended, as its record keeps it; `served` is the cached trajectory a hit
+    returned."""
+
+    status: PlanStatus
+    source: PlanSource | None = None
+    trajectory_id: int | None = None
+    error: str | None = None
+    seed: int | None = None
+    served: int | None = None
+
+
 def _record(
     attempt: PlanAttempt,
-    status: PlanStatus,
+    outcome: _Outcome,
     timings: Mapping[str, float],
     *,
-    source: PlanSource | None = None,
-    trajectory_id: int | None = None,
-    error: str | None = None,
-    seed: int | None = None,
-    served: int | None = None,
     quality: QualityJob | None = None,
 ) -> int:
     """Queue the answer's record and count it in the metrics; a served candidate also updates
     the ranking facts now."""
+    status, source, served = outcome.status, outcome.source, outcome.served
     event = attempt.event(
         status,
         source=source,
-        trajectory_id=trajectory_id,
+        trajectory_id=outcome.trajectory_id,
         timings=timings,
-        error=error,
-        seed=seed,
+        error=outcome.error,
+        seed=outcome.seed,
     )
     records = attempt.ctx.records
     at = records.now()

@@ -47,7 +47,7 @@ def validate_candidate(
     known = scope is None or _memo_knows(attempt, adapted)
     key = None if known else _key(attempt, adapted)
     if key is not None and scope is not None:
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             certified = ctx.certificates.get(session, match.trajectory_id, key)
         if certified:
             result, use = validate_with_certificate(

@@ -31,7 +31,7 @@ from trajcache.services.catalog.trajectories import (
     store_trajectory,
 )
 from trajcache.services.errors import UnavailableError
-from trajcache.services.plan.answers import answer_planned, answer_without_path
+from trajcache.services.plan.answers import PlannedPath, answer_planned, answer_without_path
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
 from trajcache.services.plan.certified import certify_planned
 from trajcache.services.plan.records import QualityJob
@@ -98,17 +98,16 @@ def store_and_answer(
             trajectory_id,
             lambda: quality_columns(model, path, settings, scene, validators=validators),
         )
-    return answer_planned(
-        attempt,
+    planned = PlannedPath(
         trajectory_id,
         path,
-        seed=seed,
-        quality=job,
+        seed,
         planner=attempt.request.planner,
         phases=planner_phases(outcome.stats, attempt.clock.seconds("plan") * 1e3),
         stored=created,
         source=source,
     )
+    return answer_planned(attempt, planned, quality=job)
 
 
 def planner_phases(stats: Mapping[str, float], plan_ms: float) -> dict[str, float]:

@@ -51,7 +51,7 @@ import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from trajcache.cache.adapt import adapt_trajectory, base_is_still
+from trajcache.cache.adapt import adapt_trajectory
 from trajcache.cache.index import Match
 from trajcache.cache.memo import MemoUse
 from trajcache.cache.ranking import RANKING_COLUMNS, facts_from_row, rank_matches
@@ -64,6 +64,7 @@ from trajcache.geometry.model.kinematics import (
     resolve_state,
 )
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.space import base_is_still
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.scene.variant import model_in_scene
 from trajcache.geometry.validation.validator import ValidationResult
@@ -279,8 +280,8 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
         # what other replicas wrote before the request arrived (no query if `plan` read it)
         index = ctx.indexes.index(session, attempt.model, arrived=clock.arrived)
     with clock.measure("lookup"):
-        start, goal, offset = attempt.start, attempt.goal, attempt.model.arm_offset
-        arm_only = request.arm_only and base_is_still(start, goal, arm_offset=offset)
+        start, goal = attempt.start, attempt.goal
+        arm_only = request.arm_only and base_is_still(start, goal, attempt.model.base)
         ranking = ctx.ranking.active  # no rule on: skip the facts query, lookup's order stands
         matches: list[Match] = []
         if request.lookup:

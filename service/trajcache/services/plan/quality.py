@@ -4,7 +4,7 @@ The one home of trajectory quality in the service: `trajectory_quality` gives th
 stored trajectory carries (`services.catalog.trajectories`, the record writer for planned ones);
 `answer_details` gives what a plan request asked for (`AnswerExtras`): quality at a level, and
 the answer timed (`services.plan.answers.describe_answer` adds it to the answer). The metrics
-themselves are `trajcache.trajectory_metrics`.
+themselves are `trajcache.geometry.path_quality`.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from trajcache.core.config import Settings
 from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import path_length
+from trajcache.geometry.path_quality import Quality, ee_path_length, min_clearance, motion_bound
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
@@ -38,7 +39,6 @@ from trajcache.timing import (
     kinematic_limits,
     time_trajectory,
 )
-from trajcache.trajectory_metrics import Quality, ee_path_length, min_clearance, motion_bound
 
 
 class QualityLevel(str, Enum):
@@ -143,7 +143,7 @@ def trajectory_quality(
     if validator is not None:
         clearance = min_clearance(validator.checker, states, resolution=validator.resolution)
     quality = Quality(
-        path_length=path_length(states, planar=model.base is BaseType.PLANAR),
+        path_length=path_length(states, base=model.base),
         ee_path_length=ee_path_length(model, states),
         min_clearance=None if clearance is None else clearance.distance,
         duration_s=duration,
@@ -208,6 +208,4 @@ def answer_details(
 
 def _basic(model: RobotModel, states: FloatArray) -> Quality:
     array = np.asarray(states, dtype=float)
-    return Quality(
-        path_length(array, planar=model.base is BaseType.PLANAR), ee_path_length(model, array)
-    )
+    return Quality(path_length(array, base=model.base), ee_path_length(model, array))

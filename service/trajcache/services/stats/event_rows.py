@@ -74,15 +74,27 @@ def epoch_seconds(
     return sa.cast(sa.func.floor(sa.extract("epoch", column)), sa.BigInteger)
 
 
-def _matching(
-    table: type[PlanEvent] | type[PlanEventRollup],
-    robot_id: str | None,
-    model_id: str | None,
-    requester: str | None,
-) -> list[sa.ColumnElement[bool]]:
-    """Conditions for the given robot, model and requester (None: any)."""
-    wanted = ((table.robot_id, robot_id), (table.model_id, model_id), (table.requester, requester))
-    return [column == value for column, value in wanted if value is not None]
+@dataclass(frozen=True)
+class EventFilter:
+    """Which plan events count: one robot's, one model's, one requester's (None: any)."""
+
+    robot_id: str | None = None
+    model_id: str | None = None
+    requester: str | None = None  # "robot" or "seed_job"
+
+    def conditions(
+        self, table: type[PlanEvent] | type[PlanEventRollup]
+    ) -> list[sa.ColumnElement[bool]]:
+        """SQL conditions on `table`'s rows (events or rollups) for the values given."""
+        wanted = (
+            (table.robot_id, self.robot_id),
+            (table.model_id, self.model_id),
+            (table.requester, self.requester),
+        )
+        return [column == value for column, value in wanted if value is not None]
+
+
+ANY = EventFilter()
 
 
 def _keys(cols: list[Any]) -> dict[str, Any]:
@@ -96,10 +108,7 @@ def fetch_events(
     session: Session,
     begin: datetime,
     end: datetime,
-    *,
-    robot_id: str | None = None,
-    model_id: str | None = None,
-    requester: str | None = None,
+    filters: EventFilter = ANY,
 ) -> EventRows:
     """Plan events with `begin` ≤ created_at < `end`, as columns."""
     e = PlanEvent
@@ -114,7 +123,7 @@ def fetch_events(
         e.validate_ms,
         e.plan_ms,
         e.total_ms,
-    ).where(e.created_at >= begin, e.created_at < end, *_matching(e, robot_id, model_id, requester))
+    ).where(e.created_at >= begin, e.created_at < end, *filters.conditions(e))
     rows = session.connection().execute(query).all()  # core rows: no ORM overhead
     count = len(rows)
     cols = list(zip(*rows, strict=True)) if rows else [()] * 10
@@ -137,16 +146,13 @@ def first_event_at(
     session: Session,
     begin: datetime,
     end: datetime,
-    *,
-    robot_id: str | None = None,
-    model_id: str | None = None,
-    requester: str | None = None,
+    filters: EventFilter = ANY,
 ) -> datetime | None:
     """When the first plan event with `begin` ≤ created_at < `end` was written (one index
     seek), or None."""
     e = PlanEvent
     query = sa.select(e.created_at).where(
-        e.created_at >= begin, e.created_at < end, *_matching(e, robot_id, model_id, requester)
+        e.created_at >= begin, e.created_at < end, *filters.conditions(e)
     )
     first: datetime | None = session.scalar(query.order_by(e.created_at).limit(1))
     return first
@@ -156,10 +162,7 @@ def fetch_rollups(
     session: Session,
     begin: datetime,
     end: datetime,
-    *,
-    robot_id: str | None = None,
-    model_id: str | None = None,
-    requester: str | None = None,
+    filters: EventFilter = ANY,
 ) -> EventRows:
     """Rollups of the hours `begin` ≤ hour < `end`, as columns."""
     r = PlanEventRollup
@@ -176,9 +179,7 @@ def fetch_rollups(
         r.plan_ms,
         r.total_ms,
         r.histograms,
-    ).where(
-        r.bucket_start >= begin, r.bucket_start < end, *_matching(r, robot_id, model_id, requester)
-    )
+    ).where(r.bucket_start >= begin, r.bucket_start < end, *filters.conditions(r))
     rows = session.connection().execute(query).all()  # core rows: no ORM overhead
     count = len(rows)
     cols = list(zip(*rows, strict=True)) if rows else [()] * 12

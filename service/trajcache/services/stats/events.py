@@ -18,6 +18,7 @@ from sqlalchemy.orm import Session, defer
 
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.services.errors import InvalidInputError
+from trajcache.services.stats.event_rows import EventFilter
 
 STATUSES = ("success", "miss", "failure", "error", "refused")  # refused: no answer (4xx)
 SOURCES = ("cache", "planner", "none")  # none: no trajectory was returned
@@ -53,23 +54,29 @@ def decode_cursor(cursor: str) -> tuple[datetime, int]:
         ) from None
 
 
+@dataclass(frozen=True)
+class PlanEventFilter(EventFilter):
+    """Which plan events to list: `EventFilter`'s, and by status, source, the trajectory
+    returned, and time (`since` inclusive, `until` exclusive); None: any."""
+
+    status: str | None = None
+    source: str | None = None  # "none": no trajectory was returned
+    trajectory_id: int | None = None
+    since: datetime | None = None
+    until: datetime | None = None
+
+
 def list_plan_events(
     *,
     session: Session,
     limit: int,
     cursor: str | None = None,
-    robot_id: str | None = None,
-    model_id: str | None = None,
-    status: str | None = None,
-    source: str | None = None,
-    requester: str | None = None,
-    trajectory_id: int | None = None,
-    since: datetime | None = None,
-    until: datetime | None = None,
+    filters: PlanEventFilter = PlanEventFilter(),
 ) -> PlanEventPage:
-    """Events matching every filter given, newest first; `since` inclusive, `until` exclusive."""
-    e = PlanEvent
-    conditions: list[sa.ColumnElement[bool]] = []
+    """Events matching every filter given, newest first."""
+    e, f = PlanEvent, filters
+    status, source, requester, since, until = f.status, f.source, f.requester, f.since, f.until
+    conditions = f.conditions(e)
     if since is not None and until is not None and since >= until:
         raise InvalidInputError("query.since must be before query.until")
     if status is not None and status not in STATUSES:
@@ -80,14 +87,12 @@ def list_plan_events(
         raise InvalidInputError(
             f"query.requester: {requester!r} is not one of {', '.join(REQUESTERS)}"
         )
-    filters = ((e.robot_id, robot_id), (e.model_id, model_id), (e.status, status))
-    for column, value in (*filters, (e.requester, requester)):
-        if value is not None:
-            conditions.append(column == value)
+    if status is not None:
+        conditions.append(e.status == status)
     if source is not None:
         conditions.append(e.source.is_(None) if source == "none" else e.source == source)
-    if trajectory_id is not None:
-        conditions.append(e.trajectory_id == trajectory_id)
+    if f.trajectory_id is not None:
+        conditions.append(e.trajectory_id == f.trajectory_id)
     if since is not None:
         conditions.append(e.created_at >= since)
     if until is not None:
@@ -110,7 +115,8 @@ def list_plan_events(
 
 def trajectory_usage(*, session: Session, trajectory_id: int, limit: int = 20) -> list[PlanEvent]:
     """The most recent plan events that returned (or stored) trajectory `trajectory_id`."""
-    return list_plan_events(session=session, limit=limit, trajectory_id=trajectory_id).items
+    filters = PlanEventFilter(trajectory_id=trajectory_id)
+    return list_plan_events(session=session, limit=limit, filters=filters).items
 
 
 def top_trajectories(

@@ -14,6 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from trajcache.geometry.model.shapes import FloatArray
+
 METRICS = ("lookup", "validate", "plan", "total")
 LOWEST_MS = 1e-3
 BINS_PER_DECADE = 40
@@ -22,7 +24,6 @@ NBINS = DECADES * BINS_PER_DECADE + 2
 MAX_RELATIVE_ERROR = 10 ** (1 / BINS_PER_DECADE) - 1
 
 IntArray = npt.NDArray[np.int64]
-FloatArray = npt.NDArray[np.float64]
 
 # One stored entry: which timing, which bin, how many values (7 bytes, little-endian, packed).
 ENTRY = np.dtype([("metric", "u1"), ("bin", "<u2"), ("count", "<u4")])

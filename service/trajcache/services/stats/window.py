@@ -40,6 +40,8 @@ from sqlalchemy.orm import Session
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.stats import histograms
 from trajcache.services.stats.event_rows import (
+    ANY,
+    EventFilter,
     EventRows,
     ObjArray,
     codes,
@@ -173,19 +175,17 @@ def plan_stats(
     session: Session,
     window_s: int,
     group_by: str = "robot",
-    robot_id: str | None = None,
-    model_id: str | None = None,
-    requester: str | None = None,
+    filters: EventFilter = ANY,
     now: datetime | None = None,
 ) -> PlanStats:
-    """Statistics of the plan requests of the last `window_s` seconds, grouped by `group_by`."""
-    _check_query(group_by, requester)
+    """Statistics of the plan requests of the last `window_s` seconds that pass `filters`,
+    grouped by `group_by`."""
+    _check_query(group_by, filters.requester)
     until = now or datetime.now(UTC)
     since = until - timedelta(seconds=window_s)
-    filters = {"robot_id": robot_id, "model_id": model_id, "requester": requester}
-    span_s = _data_span_s(session, since, until, **filters)
+    span_s = _data_span_s(session, since, until, filters)
     bucket_s = bucket_seconds(span_s)
-    rows = _window_rows(session, since, until, bucket_s, **filters)
+    rows = _window_rows(session, since, until, bucket_s, filters)
 
     category = categories(rows.status, rows.source)
     models, model = codes(rows.model)
@@ -226,11 +226,11 @@ def plan_stats(
     )
 
 
-def _data_span_s(session: Session, since: datetime, until: datetime, **filters: str | None) -> int:
+def _data_span_s(session: Session, since: datetime, until: datetime, filters: EventFilter) -> int:
     """Seconds the time series covers: from the window's first event to `until`, at least
     `MIN_SPAN_S`, at most the window (the whole window when it holds no event)."""
     window_s = round((until - since).total_seconds())
-    first = first_event_at(session, since, until, **filters)
+    first = first_event_at(session, since, until, filters)
     if first is None:
         return window_s
     return min(window_s, max(MIN_SPAN_S, math.ceil((until - first).total_seconds())))
@@ -260,11 +260,11 @@ def _window_rows(
     since: datetime,
     until: datetime,
     bucket_s: int,
-    **filters: str | None,
+    filters: EventFilter,
 ) -> EventRows:
     """Events of [since, until), whole hours from the rollups when buckets are hours or more."""
     if bucket_s < ROLLUP_S:
-        return fetch_events(session, since, until, **filters)
+        return fetch_events(session, since, until, filters)
     rolled_until = refresh_rollups(session, now=until)
     heal_rollups(session, rolled_until=rolled_until)
     first_hour = floor_hour(since)
@@ -273,9 +273,9 @@ def _window_rows(
     last_hour = max(first_hour, min(floor_hour(until), rolled_until))
     return EventRows.concat(
         [
-            fetch_events(session, since, first_hour, **filters),
-            fetch_rollups(session, first_hour, last_hour, **filters),
-            fetch_events(session, last_hour, until, **filters),
+            fetch_events(session, since, first_hour, filters),
+            fetch_rollups(session, first_hour, last_hour, filters),
+            fetch_events(session, last_hour, until, filters),
         ]
     )
 

@@ -22,8 +22,8 @@ from trajcache.core.config import Settings
 from trajcache.geometry.model.poses import link_poses
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.path_quality import end_effector_link
 from trajcache.geometry.validation.sampling import Resolution, interpolate, sample_counts
-from trajcache.trajectory_metrics import end_effector_link
 
 __all__ = ["MAX_FRAMES", "PathFrames", "path_frames", "posed_links", "resolution_of"]
 

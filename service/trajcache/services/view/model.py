@@ -18,9 +18,9 @@ from sqlalchemy.orm import Session
 from trajcache.geometry.model.poses import pose7
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import ShapeKind
+from trajcache.geometry.path_quality import end_effector_link
 from trajcache.services.catalog.models import ModelRegistry, get_model
 from trajcache.services.errors import NotFoundError
-from trajcache.trajectory_metrics import end_effector_link
 
 __all__ = ["ElementView", "ModelView", "element_stl", "model_view"]
 

@@ -1,4 +1,4 @@
-"""Trajectory metrics: path lengths, clearance to the scene, motion bounds; pure geometry.
+"""A path's quality: path lengths, clearance to the scene, motion bounds; pure geometry.
 
 Cheap metrics (state-space and end-effector path length, tens of microseconds) are computed for
 every answer; clearance (FCL distances) costs milliseconds and is computed when a trajectory is
@@ -92,7 +92,7 @@ def ee_path_length(
     array = np.asarray(states, dtype=float)
     if len(array) < 2:
         return 0.0
-    deltas = segment_deltas(array, planar=model.base is BaseType.PLANAR)
+    deltas = segment_deltas(array, base=model.base)
     steps = np.abs(deltas).max(axis=1) / step
     total = float(steps.sum())
     scale = min(1.0, max_samples / total) if total > 0 else 1.0

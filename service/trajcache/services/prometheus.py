@@ -1,4 +1,5 @@
-"""Prometheus metrics at `GET /metrics`: plan requests, step latencies, cache size, planner pool.
+"""Prometheus metrics, served at `GET /metrics` (`api.prometheus`): plan requests, step
+latencies, cache size, planner pool.
 
 Every answered plan request is counted, a robot's and a seed job's alike (label `requester`:
 `robot` or `seed_job`), by the plan flow where it records the request's plan event
@@ -9,7 +10,7 @@ only if their metrics are merged: when `PROMETHEUS_MULTIPROC_DIR` is set, every 
 its samples to files there and `/metrics`, whichever worker answers, merges all of them
 (`MultiProcessCollector`). `trajcache serve --workers N` (N > 1) sets the variable before the
 workers start, to a fresh temporary directory, or empties the directory it already names
-(`trajcache.metrics_dir`); set it yourself (e.g. to a volume) to keep it elsewhere. It must be
+(`core.prometheus_dir`); set it yourself (e.g. to a volume) to keep it elsewhere. It must be
 set before this module is imported, which is why the command line does it, not the app; run
 `uvicorn --workers N` directly only with the variable set to an empty directory.
 
@@ -23,14 +24,11 @@ from __future__ import annotations
 import logging
 import os
 import threading
-from collections.abc import AsyncIterator, Callable, Iterator, Mapping
-from contextlib import asynccontextmanager
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Iterator, Mapping
+from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
-from fastapi import FastAPI, Request, Response
 from prometheus_client import (
-    CONTENT_TYPE_LATEST,
     REGISTRY,
     CollectorRegistry,
     Counter,
@@ -43,8 +41,8 @@ from prometheus_client.core import GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 from sqlalchemy.exc import SQLAlchemyError
 
+from trajcache.core.prometheus_dir import MULTIPROC_ENV
 from trajcache.db.models import Trajectory
-from trajcache.metrics_dir import MULTIPROC_ENV
 
 if TYPE_CHECKING:
     from trajcache.services.context import ServiceContext
@@ -212,61 +210,3 @@ def render(ctx: ServiceContext) -> bytes:
         multiprocess.MultiProcessCollector(merged)
         return generate_latest(merged) + generate_latest(database)
     return generate_latest(REGISTRY) + generate_latest(database)
-
-
-_EXAMPLE = """\
-# HELP trajcache_plan_requests_total Plan requests answered, by where the trajectory came from \
-(none: no trajectory), status and who asked (robot or seed_job).
-# TYPE trajcache_plan_requests_total counter
-trajcache_plan_requests_total{requester="robot",source="cache",status="success"} 253.0
-trajcache_plan_requests_total{requester="robot",source="planner",status="success"} 19.0
-trajcache_plan_requests_total{requester="seed_job",source="planner",status="success"} 140.0
-# HELP trajcache_cache_trajectories Trajectories in the cache, by model.
-# TYPE trajcache_cache_trajectories gauge
-trajcache_cache_trajectories{model="5158592d…"} 1204.0
-"""
-
-
-def install_metrics(app: FastAPI) -> None:
-    """Serve `GET /metrics` and sample the planner pool while the app runs."""
-
-    def metrics(request: Request) -> Response:
-        sampler: PoolSampler | None = getattr(request.app.state, "pool_sampler", None)
-        if sampler is not None:
-            sampler.sample()
-        return Response(render(request.app.state.ctx), media_type=CONTENT_TYPE_LATEST)
-
-    app.add_api_route(
-        "/metrics",
-        metrics,
-        methods=["GET"],
-        tags=["health"],
-        summary="Metrics in the Prometheus text format",
-        description="Plan requests by source, status and requester (robots and seed jobs), "
-        "lookup/validation/planning latency "
-        "histograms, cached trajectories per model, the planner pool's queue depth and worker "
-        "failures. With several server processes every answer covers all of them.",
-        response_class=Response,
-        responses={
-            200: {
-                "content": {CONTENT_TYPE_LATEST: {"example": _EXAMPLE}},
-                "description": "Metrics",
-            }
-        },
-    )
-    inner = app.router.lifespan_context
-
-    @asynccontextmanager
-    async def lifespan(app_: FastAPI) -> AsyncIterator[Any]:
-        async with inner(app_) as state:
-            sampler = PoolSampler(lambda: getattr(app_.state, "ctx", None))
-            app_.state.pool_sampler = sampler
-            sampler.start()
-            try:
-                yield state
-            finally:
-                sampler.stop()
-                if os.environ.get(MULTIPROC_ENV):
-                    multiprocess.mark_process_dead(os.getpid())
-
-    app.router.lifespan_context = lifespan

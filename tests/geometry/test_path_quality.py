@@ -12,14 +12,10 @@ import pytest
 from tests.robots import BRANCHED_URDF
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.kinematics import link_transforms
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.space import path_length
 from trajcache.geometry.model.urdf import load_robot_model
-from trajcache.geometry.scene.parse import parse_scene
-from trajcache.geometry.validation.validator import Resolution, interpolate
-from trajcache.reference.restroom import restroom_scene
-from trajcache.reference.robot import STOWED_ARM, reference_model
-from trajcache.trajectory_metrics import (
+from trajcache.geometry.path_quality import (
     MAX_DISTANCE_QUERIES,
     Quality,
     ee_path_length,
@@ -27,6 +23,10 @@ from trajcache.trajectory_metrics import (
     link_origins,
     min_clearance,
 )
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation.validator import Resolution, interpolate
+from trajcache.reference.restroom import restroom_scene
+from trajcache.reference.robot import STOWED_ARM, reference_model
 
 
 @pytest.fixture(scope="module")
@@ -37,9 +37,9 @@ def branched() -> RobotModel:
 def test_path_length_takes_the_base_angle_the_short_way() -> None:
     states = np.array([[0.0, 0.0, 3.1, 0.0], [3.0, 4.0, -3.1, 0.0]])
     expected = np.linalg.norm([3.0, 4.0, 2 * np.pi - 6.2, 0.0])
-    assert path_length(states, planar=True) == pytest.approx(expected)
-    assert path_length(states, planar=False) == pytest.approx(np.linalg.norm([3, 4, 6.2, 0]))
-    assert path_length(states[:1], planar=True) == 0.0
+    assert path_length(states, base=BaseType.PLANAR) == pytest.approx(expected)
+    assert path_length(states, base=BaseType.FIXED) == pytest.approx(np.linalg.norm([3, 4, 6.2, 0]))
+    assert path_length(states[:1], base=BaseType.PLANAR) == 0.0
 
 
 def test_end_effector_is_the_tip_of_the_longest_chain_or_the_configured_link(
