@@ -178,15 +178,27 @@ class PlanAttempt:
     checked: RobotModel  # `model` as the robot holds its joints in `scene`: what is validated
     start: np.ndarray
     goal: np.ndarray
-    failed: list[int] = field(default_factory=list)  # candidates that failed validation
-    rejected: list[dict[str, object]] = field(default_factory=list)  # and why
-    rejections: list[RejectedCandidate] = field(default_factory=list)  # as validated
+    rejections: list[RejectedCandidate] = field(default_factory=list)  # failed validation
     candidates: dict[int, np.ndarray] = field(default_factory=dict)  # key states, by id
     tried: int = 0  # candidates counted in the answer and its plan event
     certificates: list[CertificateWrite] = field(default_factory=list)  # to write with the record
     certificate_use: CertificateUse | None = None  # the last certificate a validation used
     goal_found_by: str | None = None  # a pose goal's state came from: "cached" or "ik"
     pose_goal_ms: float = 0.0  # finding a pose goal's state (part of the lookup phase)
+
+    @property
+    def failed(self) -> list[int]:
+        """The candidates that failed validation, in the order they were tried."""
+        return [r.trajectory_id for r in self.rejections]
+
+    @property
+    def rejected(self) -> list[dict[str, object]]:
+        """Why each failed, as the answer lists it."""
+        return [
+            {"trajectory_id": r.trajectory_id, "status": r.result.status.value,
+             "reason": r.result.message}
+            for r in self.rejections
+        ]  # fmt: skip
 
     @functools.cached_property
     def validator(self) -> TrajectoryValidator:

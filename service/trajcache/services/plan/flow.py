@@ -322,8 +322,6 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
                 if result.valid:
                     return _Hit(match, adapted, memo_use)
                 seen.append((adapted, result))
-            attempt.failed.append(match.trajectory_id)
-            attempt.rejected.append(_rejection(match, result))
             attempt.rejections.append(
                 RejectedCandidate(match.trajectory_id, match.reversed, adapted, result)
             )
@@ -372,11 +370,3 @@ def _read_without_transaction(session: Session) -> None:
     """
     if session.get_bind().dialect.name == "postgresql":
         session.connection(execution_options={"isolation_level": "AUTOCOMMIT"})
-
-
-def _rejection(match: Match, result: ValidationResult) -> dict[str, object]:
-    return {
-        "trajectory_id": match.trajectory_id,
-        "status": result.status.value,
-        "reason": result.message,
-    }
