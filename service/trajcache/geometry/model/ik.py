@@ -166,6 +166,15 @@ def solve_ik(problem: IkProblem) -> IkResult:
     )
 
 
+def descend_from_seed(problem: IkProblem) -> FloatArray | None:
+    """Damped least squares from the seed alone (a warm start: no restarts, no `valid_fn`):
+    the state that reaches the target, or None."""
+    setup = _setup(problem)
+    ends = problem.clock() + max(0.0, problem.budget_s)
+    state, _ = _descend(problem.kinematics, setup, problem.seed, ends, problem.clock)
+    return state
+
+
 def _nearest_valid(
     problem: IkProblem, setup: _Setup, states: list[FloatArray]
 ) -> tuple[FloatArray | None, int]:
