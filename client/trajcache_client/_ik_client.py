@@ -1,4 +1,5 @@
-"""The IK methods of `Client` and `AsyncClient` (each a one-line call of its operation)."""
+"""The IK and Cartesian path methods of `Client` and `AsyncClient` (each a one-line call of
+its operation)."""
 
 from __future__ import annotations
 
@@ -6,8 +7,8 @@ from collections.abc import Mapping
 from typing import Any, TypeVar
 
 from trajcache_client import _ik_operations as ops
-from trajcache_client._models import IkResult
-from trajcache_client._moveit_models import GetPositionIKResponse
+from trajcache_client._models import CartesianResult, IkResult
+from trajcache_client._moveit_models import GetCartesianPathResponse, GetPositionIKResponse
 from trajcache_client._operations import Operation
 
 T = TypeVar("T")
@@ -32,6 +33,18 @@ class IkMethods:
         YAML) → its response, whose `error_code` says whether it succeeded (-31: no solution)."""
         return self.call(ops.get_position_ik(robot_id, request))
 
+    def cartesian_path(self, robot_id: str, request: Mapping[str, Any]) -> CartesianResult:
+        """A Cartesian path: `{start, link, waypoints, max_step, ...}` → the joint path moving
+        the link along straight lines, as far as it goes, certified in the robot's scene."""
+        return self.call(ops.cartesian_path(robot_id, request))
+
+    def get_cartesian_path(
+        self, robot_id: str, request: Mapping[str, Any] | str
+    ) -> GetCartesianPathResponse:
+        """A Cartesian path with MoveIt's GetCartesianPath request (a mapping as JSON, text as
+        YAML) → its response: `fraction`, and `error_code` 1 whatever the fraction."""
+        return self.call(ops.get_cartesian_path(robot_id, request))
+
 
 class AsyncIkMethods:
     """Methods of the asynchronous client over `call`."""
@@ -51,3 +64,15 @@ class AsyncIkMethods:
         """Inverse kinematics with MoveIt's GetPositionIK request (a mapping as JSON, text as
         YAML) → its response, whose `error_code` says whether it succeeded (-31: no solution)."""
         return await self.call(ops.get_position_ik(robot_id, request))
+
+    async def cartesian_path(self, robot_id: str, request: Mapping[str, Any]) -> CartesianResult:
+        """A Cartesian path: `{start, link, waypoints, max_step, ...}` → the joint path moving
+        the link along straight lines, as far as it goes, certified in the robot's scene."""
+        return await self.call(ops.cartesian_path(robot_id, request))
+
+    async def get_cartesian_path(
+        self, robot_id: str, request: Mapping[str, Any] | str
+    ) -> GetCartesianPathResponse:
+        """A Cartesian path with MoveIt's GetCartesianPath request (a mapping as JSON, text as
+        YAML) → its response: `fraction`, and `error_code` 1 whatever the fraction."""
+        return await self.call(ops.get_cartesian_path(robot_id, request))
