@@ -72,6 +72,7 @@ def test_a_straight_approach_reaches_fraction_one_on_its_line(
     body = reply.json()
     assert body["status"] == "complete" and body["fraction"] == 1.0
     assert body["source"] == "computed" and body["warnings"] == []
+    assert isinstance(body["path_id"], int)  # stored: it reached the whole path
     assert len(body["states"]) == 11 and body["states"][0] == pytest.approx(READY)
     assert 0 < body["max_deviation_m"] < 2e-3
     end = np.array(waypoint["position"])
@@ -97,7 +98,7 @@ def test_a_move_into_an_obstacle_stops_short_and_names_it(
     assert app_client.put(f"/v1/robots/{robot}/scene", json={"objects": [box]}).status_code == 200
     body = cartesian(app_client, robot, native(waypoint, avoid_collisions=False)).json()
     assert body["status"] in ("collision", "too_close") and 0.0 < body["fraction"] < 1.0
-    assert "crate" in body["message"]
+    assert "crate" in body["message"] and body["path_id"] is None  # a part is never stored
     assert any("avoid_collisions=false is not honoured" in w for w in body["warnings"])
 
 
@@ -165,3 +166,40 @@ def test_the_moveit_form_keeps_success_when_the_path_stops_short(
     unknown = moveit_request(far, header={"frame_id": "camera"})
     body = cartesian(app_client, robot, unknown).json()
     assert body["error_code"]["val"] == -21 and "header.frame_id" in body["error_code"]["message"]
+
+
+def test_a_repeat_is_served_from_the_cache_within_its_tolerances(
+    app_client: TestClient, robot: str, panda_fk: Any
+) -> None:
+    _, waypoint = approach(panda_fk)
+    first = cartesian(app_client, robot, native(waypoint)).json()
+    again = cartesian(app_client, robot, native(waypoint)).json()
+    assert again["source"] == "cache" and again["path_id"] == first["path_id"]
+    assert again["states"] == first["states"] and again["fraction"] == 1.0
+    moved = [v + 5e-4 for v in READY]  # within the default 1e-3 rad
+    near = cartesian(app_client, robot, {**native(waypoint), "start": moved}).json()
+    assert near["source"] == "cache" and near["states"][0] == pytest.approx(moved)
+    assert near["states"][1:] == first["states"][1:]
+    shifted = {**waypoint, "position": [p + 0.003 for p in waypoint["position"]]}
+    body = cartesian(app_client, robot, native(shifted, cache={"store": False})).json()
+    assert body["source"] == "computed"  # 5 mm away: beyond the default 1 mm
+    assert body["path_id"] is None  # not stored, as asked
+    widened = native(shifted, cache={"position_tolerance": 0.006})
+    body = cartesian(app_client, robot, widened).json()
+    assert body["source"] == "cache" and body["path_id"] == first["path_id"]
+    assert body["max_deviation_m"] > first["max_deviation_m"]  # measured from the request's line
+    other = cartesian(app_client, robot, native(waypoint, max_step=0.02)).json()
+    assert other["source"] == "computed"  # other parameters: another path
+
+
+def test_a_repeat_after_a_scene_change_that_blocks_it_is_not_served_from_the_cache(
+    app_client: TestClient, robot: str, panda_fk: Any
+) -> None:
+    pose, waypoint = approach(panda_fk)
+    assert cartesian(app_client, robot, native(waypoint)).json()["fraction"] == 1.0
+    ahead = pose[:3, 3] + 0.17 * pose[:3, 2]
+    box = {"id": "crate", "type": "box", "size": [0.1, 0.1, 0.02]}
+    box["pose"] = {"position": ahead.tolist()}
+    assert app_client.put(f"/v1/robots/{robot}/scene", json={"objects": [box]}).status_code == 200
+    body = cartesian(app_client, robot, native(waypoint)).json()
+    assert body["source"] == "computed" and body["fraction"] < 1.0 and "crate" in body["message"]

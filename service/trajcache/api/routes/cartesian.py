@@ -32,6 +32,7 @@ from trajcache.api.schemas.cartesian import (
     CartesianResponse,
 )
 from trajcache.services.cartesian.path import CartesianAnswer, CartesianRequest, answer_cartesian
+from trajcache.services.cartesian.store import CacheQuery
 from trajcache.services.catalog.robot_model import robot_model_and_held
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
@@ -128,6 +129,13 @@ def _request(body: CartesianBody) -> CartesianRequest:
         orientation_tolerance=body.orientation_tolerance,
         avoid_collisions=body.avoid_collisions,
         timing=extras.timing,
+        cache=CacheQuery(
+            lookup=body.cache.lookup,
+            store=body.cache.store,
+            joint_tolerance=body.cache.joint_tolerance,
+            position_tolerance=body.cache.position_tolerance,
+            orientation_tolerance=body.cache.orientation_tolerance,
+        ),
     )
 
 

@@ -40,6 +40,7 @@ from trajcache.planning.cartesian import (
     MotionVerdict,
     cartesian_path,
 )
+from trajcache.services.cartesian.store import CacheQuery, lookup_path, store_path
 from trajcache.services.catalog.models import get_model, model_source
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
@@ -82,6 +83,7 @@ class CartesianRequest:
     orientation_tolerance: float = 1e-3
     avoid_collisions: bool = True
     timing: TimingRequest | None = field(default_factory=TimingRequest)
+    cache: CacheQuery = field(default_factory=CacheQuery)
     names: dict[str, str] = field(default_factory=dict)  # field → the name the caller used
 
 
@@ -121,8 +123,14 @@ def answer_cartesian(
     validator = validator_for(checked, robot.scene, ctx.settings, cache=ctx.validators)
     problem = _problem(kinematics, link, start, request, validator)
     read = time.perf_counter()
+    cache = request.cache
+    found = lookup_path(ctx, model.model_id, problem, cache) if cache.lookup else None
+    path, path_id, origin = (found.path, found.path_id, "cache") if found else (None, None, "")
     looked = time.perf_counter()
-    path, origin, path_id = cartesian_path(problem), "computed", None
+    if path is None:
+        path, origin = cartesian_path(problem), "computed"
+        if path.fraction == 1.0 and cache.store:
+            path_id = store_path(ctx, model.model_id, problem, path)
     solved = time.perf_counter()
     bounds = deviation_bounds(checked, link, path.states, path.lines, path.line_of)
     details = answer_details(
