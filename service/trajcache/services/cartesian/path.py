@@ -186,14 +186,21 @@ def _problem(
 
 def verdict_of(validator: TrajectoryValidator, states: FloatArray) -> MotionVerdict:
     """The certified validator's word on the joint path through `states`: the states that
-    lead a valid path, and why the next motion is not one (naming what it hits)."""
+    lead a valid path, and why the next motion is not one (naming what it hits). The prefix
+    kept is validated again until it is valid: a finding at a key state itself (its motion
+    begins there) leaves that state out too."""
     result = validator.validate(states)
     if result.valid:
         return MotionVerdict(len(states))
-    kept = max(1, result.segment + 1)
-    where = f"on the motion from state {kept - 1} to {kept}" if result.sample > 0 else "at start"
-    text = result.message or result.status.value
-    return MotionVerdict(kept, _STATUS[result.status], f"{text} ({where})")
+    first, kept = result, len(states)
+    while not result.valid and kept > 1:
+        kept = min(kept - 1, max(1, result.segment + 1))
+        result = validator.validate(states[:kept])
+    where = f"on the motion from state {kept - 1} to {kept}"
+    if not result.valid:  # the start itself
+        where, first = "at the start", result
+    text = first.message or first.status.value
+    return MotionVerdict(kept, _STATUS[first.status], f"{text} ({where})")
 
 
 def _start(model: RobotModel, request: CartesianRequest) -> FloatArray:
