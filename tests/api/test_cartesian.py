@@ -119,6 +119,8 @@ def test_malformed_and_refused_fields_are_422s_that_name_them(
     assert_detail(cartesian(app_client, robot, constrained), 422, "path_constraints")
     fast = {**moveit, "max_cartesian_speed": 0.2}
     assert_detail(cartesian(app_client, robot, fast), 422, "max_cartesian_speed")
+    far = native({"position": [100.0, 0.0, 0.0], "orientation": waypoint["orientation"]})
+    assert_detail(cartesian(app_client, robot, far), 422, "waypoints", "samples")
     bad = native({"position": waypoint["position"], "orientation": [0, 0, 0, 0.5]})
     assert_detail(cartesian(app_client, robot, bad), 422, "waypoints[0].orientation")
 

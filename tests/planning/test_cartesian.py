@@ -16,6 +16,7 @@ from trajcache.planning.cartesian import (
     CartesianStatus,
     MotionVerdict,
     cartesian_path,
+    sample_count,
     sample_lines,
 )
 from trajcache.reference.example_robots import ROBOTS
@@ -71,6 +72,7 @@ def test_samples_respect_both_steps_and_end_on_each_waypoint() -> None:
     assert len(poses) == 16  # π/2 / 0.1 rad rounds up to 16 steps, more than 3 of 1 cm
     assert np.allclose(poses[-1], turned) and share[-1] == 1.0 and set(line) == {0}
     assert np.allclose(lines[0], [[0, 0, 0], [0.03, 0, 0]])
+    assert sample_count(start, [turned, start], 0.01, 0.1) == 2 * len(poses)
 
 
 def test_an_unreachable_waypoint_stops_with_moveits_fraction(panda: PinKinematics) -> None:

@@ -41,6 +41,7 @@ __all__ = [
     "CartesianStatus",
     "MotionVerdict",
     "cartesian_path",
+    "sample_count",
     "sample_lines",
 ]
 
@@ -109,6 +110,18 @@ class _Samples:
     line: np.ndarray  # (M,) the line of each sample
     share: FloatArray  # (M,) how far along its line (k / n)
     lines: FloatArray  # (N, 2, 3)
+
+
+def sample_count(
+    start: FloatArray, waypoints: Sequence[FloatArray], max_step: float, max_rotation_step: float
+) -> int:
+    """How many samples `sample_lines` makes (cheap: no poses are built)."""
+    poses = np.concatenate([np.asarray(start, dtype=float)[None], np.asarray(waypoints, float)])
+    distances = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
+    turns = np.einsum("nij,nij->n", poses[:-1, :3, :3], poses[1:, :3, :3])  # trace(Aᵀ B)
+    angles = np.arccos(np.clip((turns - 1.0) / 2.0, -1.0, 1.0))
+    counts = np.maximum(np.ceil(distances / max_step - 1e-9), np.ceil(angles / max_rotation_step))
+    return int(np.maximum(counts, 1).sum())
 
 
 def sample_lines(

@@ -39,11 +39,13 @@ from trajcache.planning.cartesian import (
     CartesianStatus,
     MotionVerdict,
     cartesian_path,
+    sample_count,
 )
 from trajcache.services.cartesian.store import CacheQuery, lookup_path, store_path
 from trajcache.services.catalog.models import get_model, model_source
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
+from trajcache.services.errors import InvalidInputError
 from trajcache.services.ik.solve import link_of
 from trajcache.services.plan.quality import (
     AnswerDetails,
@@ -55,6 +57,7 @@ from trajcache.services.plan.quality import (
 __all__ = ["CartesianAnswer", "CartesianRequest", "Waypoint", "answer_cartesian"]
 
 Waypoint = tuple[tuple[float, float, float], tuple[float, float, float, float]]
+MAX_SAMPLES = 2000  # the most samples one request may ask for
 NOT_HONOURED = (
     "avoid_collisions=false is not honoured: every joint motion of a Cartesian path is "
     "certified collision-free in the robot's current scene"
@@ -122,6 +125,7 @@ def answer_cartesian(
     start = _start(checked, request)
     validator = validator_for(checked, robot.scene, ctx.settings, cache=ctx.validators)
     problem = _problem(kinematics, link, start, request, validator)
+    _check_size(problem, request)
     read = time.perf_counter()
     cache = request.cache
     found = lookup_path(ctx, model.model_id, problem, cache) if cache.lookup else None
@@ -182,6 +186,19 @@ def _problem(
         orientation_tolerance=request.orientation_tolerance,
         validate_fn=lambda states: verdict_of(validator, states),
     )
+
+
+def _check_size(problem: CartesianProblem, request: CartesianRequest) -> None:
+    """InvalidInputError (422) for a path of more than MAX_SAMPLES samples."""
+    kin = problem.kinematics
+    origin = kin.link_pose(problem.start, kin.frame_id(problem.link))
+    count = sample_count(origin, problem.waypoints, problem.max_step, problem.max_rotation_step)
+    if count > MAX_SAMPLES:
+        raise InvalidInputError(
+            f"{request.names.get('waypoints', 'waypoints')}: the lines need {count} samples of "
+            f"at most {problem.max_step:g} m and {problem.max_rotation_step:g} rad; at most "
+            f"{MAX_SAMPLES} (a larger max_step, or nearer waypoints)"
+        )
 
 
 def verdict_of(validator: TrajectoryValidator, states: FloatArray) -> MotionVerdict:
