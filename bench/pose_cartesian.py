@@ -12,9 +12,10 @@ object, and the goal state itself is free. For each kept move:
 - every answered path is dense-checked (`mbm_check.check_path`: `collisions`), and the hand's
   origin at each state and midway between states (yourdfpy) must lie within the answer's
   `max_deviation_m` of the line (`line_errors`);
-- a repeat with the start's joints moved by up to 4 mrad each (the hand moves by at most a few
-  mm: `repeat_start_shift_mm_max`) and the waypoint by up to 5 mm, with the cache tolerances
-  widened to cover them (5 mrad, 6 mm): `cartesian_hit_rate` is the share served from the cache.
+- a repeat with the start's joints moved by up to 4 mrad each (scaled down where the hand would
+  move by more than 5 mm: `repeat_start_shift_mm_max`) and the waypoint by up to 5 mm, with the
+  cache tolerances widened to cover them (5 mrad, 6 mm): `cartesian_hit_rate` is the share
+  served from the cache.
 
 Prints a table and ends with one JSON line.
 """
@@ -103,6 +104,19 @@ class CartesianRun:
             gap = float(np.linalg.norm(p - (a + t * (b - a))))
             self.counts["line_errors"] += gap > answer["max_deviation_m"] + 1e-9
 
+    def jittered(self, state: np.ndarray, pose: np.ndarray, rng: Any) -> np.ndarray:
+        """The start with every joint moved by up to 4 mrad, scaled down where that would move
+        the hand by more than 5 mm."""
+        step = rng.uniform(-1, 1, state.shape) * START_JITTER_RAD
+        lower, upper = self.run.checker.lower, self.run.checker.upper
+        start = np.clip(state + step, lower, upper)
+        shift = float(np.linalg.norm(self.run.hand.of(start)[:3, 3] - pose[:3, 3]))
+        if shift > WAYPOINT_JITTER_M:
+            start = np.clip(state + step * 0.95 * WAYPOINT_JITTER_M / shift, lower, upper)
+            shift = float(np.linalg.norm(self.run.hand.of(start)[:3, 3] - pose[:3, 3]))
+        self.shifts.append(shift)
+        return start
+
     def move(self, tally: Tally, robot_id: str, state: np.ndarray, sign: float, rng: Any) -> None:
         pose = self.run.hand.of(state)
         shift = sign * MOVE_M * pose[:3, 2]
@@ -123,9 +137,7 @@ class CartesianRun:
             return
         self.counts["complete"] += 1
         self.times["computed"].append(answer["timings_ms"]["total"])
-        start = np.clip(state + rng.uniform(-1, 1, state.shape) * START_JITTER_RAD,
-                        self.run.checker.lower, self.run.checker.upper)  # fmt: skip
-        self.shifts.append(float(np.linalg.norm(self.run.hand.of(start)[:3, 3] - pose[:3, 3])))
+        start = self.jittered(state, pose, rng)
         jitter = rng.normal(size=3)
         moved = end + jitter / np.linalg.norm(jitter) * rng.uniform(0, WAYPOINT_JITTER_M)
         body = {**body, "start": start.tolist()}

@@ -4,7 +4,8 @@ From the link's pose at the start state, straight lines (position linear, orient
 through each waypoint in turn, sampled so that no step exceeds `max_step` (m) nor
 `max_rotation_step` (rad). Each sample is solved by damped least squares from the previous
 sample's state (a warm start, `ik.descend_from_seed`: no restarts, so a solution stays on its
-branch). The path stops at the first sample that
+branch; a joint at a limit that a step would push out is held there, so the others take up the
+motion). The path stops at the first sample that
 
 1. has no IK solution within the tolerances (the joint limits hold by projection), or
 2. jumps: a revolute (or continuous) joint changes by more than `revolute_jump_threshold`, a
@@ -188,7 +189,9 @@ def _solve(
             problem.link, pose, problem.position_tolerance, problem.orientation_tolerance
         )
         found = descend_from_seed(
-            IkProblem(problem.kinematics, target, states[-1], budget_s=IK_BUDGET_S)
+            IkProblem(
+                problem.kinematics, target, states[-1], budget_s=IK_BUDGET_S, hold_limits=True
+            )
         )
         where = f"sample {k + 1} of {len(samples.poses)} (line {int(samples.line[k]) + 1})"
         if found is None:
