@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from trajcache.geometry.model.cartesian_bound import deviation_bounds, distance_to_segment
+from trajcache.geometry.model.ik import IkProblem, PoseTarget, descend_from_seed
 from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.pin_kinematics import PinKinematics
 from trajcache.geometry.model.shapes import FloatArray
@@ -107,3 +108,18 @@ def test_a_rejected_motion_keeps_the_path_before_it(panda: PinKinematics) -> Non
     path = cartesian_path(CartesianProblem(panda, LINK, READY, waypoints, validate_fn=validate))
     assert path.status is CartesianStatus.COLLISION and "'box'" in path.message
     assert len(path.states) == 4 and path.fraction == pytest.approx(0.3)
+
+
+def test_a_warm_start_holds_a_joint_at_its_limit_and_moves_the_others(
+    panda: PinKinematics,
+) -> None:
+    model = panda.model
+    seed = READY.copy()
+    seed[1] = model.upper[1]  # panda_joint2 at its upper limit
+    target = _hand(panda, seed)
+    target[:3, 3] += [0.0, 0.01, 0.0]
+    goal = PoseTarget(LINK, target, 1e-4, 1e-3)
+    assert descend_from_seed(IkProblem(panda, goal, seed, budget_s=1.0)) is None  # it stalls
+    held = descend_from_seed(IkProblem(panda, goal, seed, budget_s=1.0, hold_limits=True))
+    assert held is not None and np.all(held >= model.lower) and np.all(held <= model.upper)
+    assert np.linalg.norm(_hand(panda, held)[:3, 3] - target[:3, 3]) <= 1e-4
