@@ -55,6 +55,7 @@ bench-smoke: setup
 	$(BIN)/python bench/mbm.py --smoke --moveit --cross-scene
 	$(BIN)/python bench/ik.py --smoke
 	$(BIN)/python bench/pose_goals.py --smoke
+	$(BIN)/python bench/pose_goals.py --smoke --cartesian
 	$(BIN)/python bench/certify_sampling.py --smoke
 
 clean:

@@ -15,7 +15,11 @@ Every returned path is dense-checked as in bench/mbm.py (mbm_check: meshes, self
 scene's allowed pairs), and its last state's hand pose is checked against the pose asked, with
 yourdfpy (`pose_errors`: out of tolerance). Prints a table and ends with one JSON line.
 
-    python bench/pose_goals.py [--smoke] [--per-family N] [--budget S] [--seed N]
+With `--cartesian`, straight 10 cm approach and retreat moves of the hand from each goal state
+instead (`pose_cartesian`: `cartesian_success_rate`, `cartesian_ms_median`,
+`cartesian_hit_rate`).
+
+    python bench/pose_goals.py [--smoke] [--cartesian] [--per-family N] [--budget S] [--seed N]
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from rich.console import Console
 from rich.table import Table
 from scipy.spatial.transform import Rotation
 
+import pose_cartesian
 from harness.service import running_service
 from mbm_check import SceneChecker, check_path, panda_description
 from mbm_problems import (
@@ -157,6 +162,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--budget", type=float, default=5.0, help="planning budget s")
     parser.add_argument("--seed", type=int, default=1, help="of the replays' shifts")
     parser.add_argument("--smoke", action="store_true", help=f"{SMOKE_PER_FAMILY} per family")
+    parser.add_argument("--cartesian", action="store_true", help="Cartesian moves instead")
     args = parser.parse_args(argv)
     if args.smoke and args.per_family is None:
         args.per_family, args.budget = SMOKE_PER_FAMILY, 2.0
@@ -165,6 +171,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    if args.cartesian:
+        return pose_cartesian.main(args, PoseRun)
     began = time.perf_counter()
     problems = load_problems(unpacked(args.data), list(FAMILIES), args.per_family)
     tallies: dict[str, Tally] = {}

@@ -34,6 +34,7 @@ from trajcache_client._exceptions import (
     ValidationError,
 )
 from trajcache_client._models import (
+    CartesianResult,
     ContactPair,
     Health,
     IkResult,
@@ -60,7 +61,11 @@ from trajcache_client._models import (
     TrajectorySummary,
     ValidationReuse,
 )
-from trajcache_client._moveit_models import GetPositionIKResponse, MotionPlanResponse
+from trajcache_client._moveit_models import (
+    GetCartesianPathResponse,
+    GetPositionIKResponse,
+    MotionPlanResponse,
+)
 from trajcache_client._operations import Operation
 from trajcache_client._retry import NO_RETRY, Retry
 from trajcache_client._stats_models import (
@@ -92,11 +97,13 @@ __all__ = [
     "AsyncClient",
     "AuthError",
     "BadRequestError",
+    "CartesianResult",
     "Client",
     "ConflictError",
     "ContactPair",
     "Failure",
     "Frames",
+    "GetCartesianPathResponse",
     "GetPositionIKResponse",
     "Health",
     "IkResult",

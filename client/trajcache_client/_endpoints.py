@@ -147,6 +147,16 @@ class Endpoints:
         """Inverse kinematics with MoveIt's GetPositionIK request (a mapping as JSON, text as
         YAML) → its response, whose `error_code` says whether it succeeded (-31: no solution).""",
     )
+    cartesian_path = endpoint(
+        ik_ops.cartesian_path,
+        """A Cartesian path: `{start, link, waypoints, max_step, ...}` → the joint path moving
+        the link along straight lines, as far as it goes, certified in the robot's scene.""",
+    )
+    get_cartesian_path = endpoint(
+        ik_ops.get_cartesian_path,
+        """A Cartesian path with MoveIt's GetCartesianPath request (a mapping as JSON, text as
+        YAML) → its response: `fraction`, and `error_code` 1 whatever the fraction.""",
+    )
 
     # --- trajectories -----------------------------------------------------------------------
     store_trajectory = endpoint(

@@ -290,6 +290,36 @@ class IkResult(_Answer):
         return self.status == "success" and self.state is not None
 
 
+class CartesianResult(_Answer):
+    """A Cartesian path answer: the joint path moving the link along straight lines through
+    the waypoints, as far as it goes (`fraction`, MoveIt's), and why it stopped (`status`:
+    "complete", "no_ik_solution", "joint_jump", "collision", "too_close", "out_of_limits")."""
+
+    status: (
+        Literal[
+            "complete", "no_ik_solution", "joint_jump", "collision", "too_close", "out_of_limits"
+        ]
+        | str
+    )
+    source: Literal["computed", "cache"] | str
+    fraction: float
+    states: list[list[float]]
+    state_names: list[str]
+    link: str
+    max_deviation_m: float  # bound on the link's distance from its lines between states
+    message: str = ""
+    warnings: list[str] = Field(default_factory=list)
+    path_id: int | None
+    joint_trajectory: JointTrajectory | None = None
+    quality: TrajectoryQuality | None = None
+    timings_ms: dict[str, float]
+
+    @property
+    def ok(self) -> bool:
+        """True when the whole path was reached."""
+        return self.fraction == 1.0
+
+
 class TrajectoryCreated(_Answer):
     """A stored trajectory's id; `created` is false when it was already stored."""
 

@@ -167,3 +167,38 @@ class GetPositionIKResponse(TypedDict):
     solution: RobotState
     error_code: MoveItErrorCode
     trajcache: TrajcacheIkExtras
+
+
+class TrajcacheCartesianExtras(TypedDict):
+    """How the native Cartesian path answered ("invalid": refused before computing)."""
+
+    status: (
+        Literal[
+            "complete",
+            "no_ik_solution",
+            "joint_jump",
+            "collision",
+            "too_close",
+            "out_of_limits",
+            "invalid",
+        ]
+        | str
+    )
+    source: Literal["computed", "cache"] | str | None
+    message: str
+    warnings: list[str]
+    link: str | None
+    max_deviation_m: float | None
+    path_id: int | None
+    timings_ms: dict[str, float]
+
+
+class GetCartesianPathResponse(TypedDict):
+    """`moveit_msgs/GetCartesianPath` response (`error_code.val` 1 with any `fraction`), plus
+    `trajcache`: how it was answered."""
+
+    start_state: RobotState
+    solution: RobotTrajectory
+    fraction: float
+    error_code: MoveItErrorCode
+    trajcache: TrajcacheCartesianExtras

@@ -12,12 +12,13 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
 
-from trajcache.db import migrate
+from trajcache.db import cartesian, migrate  # noqa: F401  (cartesian: registers its table)
 from trajcache.db.base import Base
 from trajcache.db.models import Trajectory
 
 TABLES = {
     "api_keys",
+    "cartesian_paths",
     "model_files",
     "plan_event_rollup_state",
     "plan_event_rollups",

@@ -60,6 +60,7 @@ POLICY: dict[tuple[str, str], Rule] = {
     ("POST", "/robots/{robot_id}/plan"): _rule(R, own_robot=True),
     ("POST", "/robots/{robot_id}/motion-plan"): _rule(R, own_robot=True),
     ("POST", "/robots/{robot_id}/ik"): _rule(R, own_robot=True),
+    ("POST", "/robots/{robot_id}/cartesian-path"): _rule(R, own_robot=True),
     ("GET", "/trajectories"): _rule(S),
     ("GET", "/trajectories/{trajectory_id}"): _rule(S),
     ("POST", "/trajectories"): _rule(S),

@@ -10,6 +10,7 @@ from fastapi import APIRouter, Depends
 from trajcache.api.auth import authorize
 from trajcache.api.routes import (
     admin,
+    cartesian,
     ik,
     models,
     motion_plan,
@@ -31,4 +32,5 @@ api_router.include_router(seed_jobs.router)
 api_router.include_router(admin.router)
 api_router.include_router(motion_plan.router)
 api_router.include_router(ik.router)
+api_router.include_router(cartesian.router)
 api_router.include_router(view.router)

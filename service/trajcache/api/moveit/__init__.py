@@ -17,6 +17,13 @@ from trajcache.api.moveit._body import (
     read_document,
     validated,
 )
+from trajcache.api.moveit._cartesian import (
+    CartesianQuery,
+    GetCartesianPathIn,
+    GetCartesianPathOut,
+    cartesian_query,
+    cartesian_response,
+)
 from trajcache.api.moveit._codes import (
     MotionPlanError,
     MoveItErrorCode,
@@ -42,6 +49,9 @@ from trajcache.api.moveit._response import answered_body, refused_body
 from trajcache.api.moveit._schemas import MotionPlanResponseOut
 
 __all__ = [
+    "CartesianQuery",
+    "GetCartesianPathIn",
+    "GetCartesianPathOut",
     "GetPositionIKIn",
     "GetPositionIKOut",
     "IkQuery",
@@ -56,6 +66,8 @@ __all__ = [
     "Vector3",
     "answer_code",
     "answered_body",
+    "cartesian_query",
+    "cartesian_response",
     "ik_answer_code",
     "ik_query",
     "ik_response",

@@ -158,7 +158,12 @@ def ik_query(message: GetPositionIKIn, *, model: RobotModel, held: Mapping[str, 
             text = str(exc).replace("start_state", "ik_request.robot_state")
             raise MotionPlanError(exc.code, text) from None
         warnings = [w.replace("start_state", "ik_request.robot_state") for w in warnings]
-    position, orientation = _in_base_frame(ik.pose_stamped, model, seed)
+    position, orientation = pose_in_base_frame(
+        ik.pose_stamped,
+        model,
+        seed,
+        ("ik_request.pose_stamped.header.frame_id", "ik_request.pose_stamped.pose.orientation"),
+    )
     budget = ik.timeout.seconds()
     if budget > IK_BUDGET_MAX_S:
         warnings.append(f"timeout {budget:g} s is above the most, {IK_BUDGET_MAX_S:g} s: clamped")
@@ -183,10 +188,11 @@ def ik_query(message: GetPositionIKIn, *, model: RobotModel, held: Mapping[str, 
     return IkQuery(request, multi_dof[0] if multi_dof else DEFAULT_BASE_JOINT, tuple(warnings))
 
 
-def _in_base_frame(
-    stamped: PoseStamped, model: RobotModel, seed: Any
+def pose_in_base_frame(
+    stamped: PoseStamped, model: RobotModel, seed: Any, names: tuple[str, str]
 ) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
-    """The pose in the frame IK reads (the world's; for a fixed base, its root link's)."""
+    """The pose in the frame IK reads (the world's; for a fixed base, its root link's);
+    `names`: the frame's and the orientation's fields, as errors name them."""
     frame, pose = stamped.frame(), stamped.pose
     position = (pose.position.x, pose.position.y, pose.position.z)
     o = pose.orientation
@@ -197,11 +203,11 @@ def _in_base_frame(
     if frame != root:
         raise MotionPlanError(
             MoveItErrorCode.FRAME_TRANSFORM_FAILURE,
-            f"ik_request.pose_stamped.header.frame_id {frame!r} is neither the world "
+            f"{names[0]} {frame!r} is neither the world "
             f"({', '.join(repr(f) for f in WORLD_FRAMES[1:])}) nor the root link {root!r}",
         )
     x, y, theta = (0.0, 0.0, 0.0) if seed is None else (float(v) for v in seed[:3])
-    quaternion = unit_quaternion(list(orientation), "ik_request.pose_stamped.pose.orientation")
+    quaternion = unit_quaternion(list(orientation), names[1])
     base = pose_matrix([x, y, 0.0], [0.0, 0.0, math.sin(theta / 2), math.cos(theta / 2)])
     world = base @ pose_matrix(list(position), quaternion)
     return _pose_parts(world)

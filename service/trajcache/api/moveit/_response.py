@@ -39,7 +39,7 @@ def answered_body(
     return _body(
         message,
         trajectory_start=robot_state_body(model, list(map(float, start)), query.base_joint),
-        trajectory=_robot_trajectory(model, extras["joint_trajectory"], query.base_joint),
+        trajectory=robot_trajectory_body(model, extras["joint_trajectory"], query.base_joint),
         code=code,
         text="" if code is MoveItErrorCode.SUCCESS else answer.message,
         warnings=[*query.warnings, *answer.warnings],
@@ -87,7 +87,7 @@ def refused_body(
     return _body(
         message,
         trajectory_start=trajectory_start,
-        trajectory=_robot_trajectory(None, None, ""),
+        trajectory=robot_trajectory_body(None, None, ""),
         code=code,
         text=text,
         warnings=list(warnings),
@@ -140,7 +140,7 @@ def robot_state_body(model: RobotModel, state: list[float], base_joint: str) -> 
     }
 
 
-def _robot_trajectory(
+def robot_trajectory_body(
     model: RobotModel | None, timed: dict[str, Any] | None, base_joint: str
 ) -> dict[str, Any]:
     """The RobotTrajectory of a timed `joint_trajectory` (all state values); empty if None."""

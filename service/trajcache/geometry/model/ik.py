@@ -89,6 +89,7 @@ class IkProblem:
     solutions: int = 3  # distinct states reaching the pose to compare before answering
     budget_s: float = 0.05
     rng_seed: int = 0
+    hold_limits: bool = False  # values at a limit that a step would push out are held
     clock: Callable[[], float] = field(default=time.perf_counter, repr=False)
 
 
@@ -128,6 +129,7 @@ class _Setup:
     target: pin.SE3
     tolerances: tuple[float, float]
     data: pin.Data  # Pinocchio's workspace, one per problem
+    hold_limits: bool = False
 
 
 def solve_ik(problem: IkProblem) -> IkResult:
@@ -166,6 +168,15 @@ def solve_ik(problem: IkProblem) -> IkResult:
     )
 
 
+def descend_from_seed(problem: IkProblem) -> FloatArray | None:
+    """Damped least squares from the seed alone (a warm start: no restarts, no `valid_fn`):
+    the state that reaches the target, or None."""
+    setup = _setup(problem)
+    ends = problem.clock() + max(0.0, problem.budget_s)
+    state, _ = _descend(problem.kinematics, setup, problem.seed, ends, problem.clock)
+    return state
+
+
 def _nearest_valid(
     problem: IkProblem, setup: _Setup, states: list[FloatArray]
 ) -> tuple[FloatArray | None, int]:
@@ -200,6 +211,7 @@ def _setup(problem: IkProblem) -> _Setup:
         target=pin.SE3(np.asarray(target.pose, dtype=float)),
         tolerances=(target.position_tolerance, target.orientation_tolerance),
         data=kin.pin_model.createData(),
+        hold_limits=problem.hold_limits,
     )
 
 
@@ -256,13 +268,30 @@ def _descend(
         velocity = setup.velocity
         if velocity is None:
             velocity = kin.velocity_of(state)[:, setup.columns]
-        jac = jacobian @ velocity
-        step = jac.T @ _solve_spd(jac @ jac.T + damping, error)
+        step = _step(jacobian @ velocity, error, damping, state[setup.columns], setup)
         largest = float(np.abs(step).max())
         if largest > MAX_STEP:
             step *= MAX_STEP / largest
         state[setup.columns] = _bounded(state[setup.columns] + step, setup)
     return None, MAX_ITERATIONS
+
+
+def _step(
+    jac: FloatArray, error: FloatArray, damping: FloatArray, values: FloatArray, setup: _Setup
+) -> FloatArray:
+    """The damped least-squares step; with `hold_limits`, the values at a limit that it would
+    push out are held and the step solved again without them (the others take up the motion,
+    where projection alone would stall)."""
+    step = jac.T @ _solve_spd(jac @ jac.T + damping, error)
+    if not setup.hold_limits:
+        return step
+    held = ((values <= setup.lower) & (step < 0)) | ((values >= setup.upper) & (step > 0))
+    held &= ~setup.turns
+    if not held.any():
+        return step
+    free = jac.copy()
+    free[:, held] = 0.0
+    return free.T @ _solve_spd(free @ free.T + damping, error)
 
 
 def _solve_spd(a: FloatArray, b: FloatArray) -> FloatArray:

@@ -1,0 +1,203 @@
+"""`bench/pose_goals.py --cartesian`: straight approach and retreat moves of the MBM Panda's hand.
+
+From each MotionBenchMaker Panda problem's goal state (`../shared/data/mbm-panda`), two 10 cm
+straight moves of `panda_hand` along its approach axis (its z): forward (approach) and back
+(retreat), sent to `POST /v1/robots/{id}/cartesian-path` through the REST API, in the
+problem's scene. A move is kept when the independent check finds its line clear: the hand and
+its fingers (Pinocchio and coal, from the shipped URDF and meshes: `mbm_check`, sharing no code
+with the service), placed at the goal state and slid along the line every 5 mm, touch no scene
+object, and the goal state itself is free. For each kept move:
+
+- `cartesian_success_rate`: answers that reach fraction 1.0; the others are listed by reason;
+- every answered path is dense-checked (`mbm_check.check_path`: `collisions`), and the hand's
+  origin at each state and midway between states (yourdfpy) must lie within the answer's
+  `max_deviation_m` of the line (`line_errors`);
+- a repeat with the start's joints moved by up to 4 mrad each (scaled down where the hand would
+  move by more than 5 mm: `repeat_start_shift_mm_max`) and the waypoint by up to 5 mm, with the
+  cache tolerances widened to cover them (5 mrad, 6 mm): `cartesian_hit_rate` is the share
+  served from the cache.
+
+Prints a table and ends with one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections import Counter
+from typing import Any
+
+import coal
+import numpy as np
+import pinocchio as pin
+from rich.console import Console
+from rich.table import Table
+
+from harness.service import running_service
+from mbm_check import SceneChecker, check_path
+from mbm_problems import FAMILIES, allowed_pairs, clamp, load_problems, scene_objects, unpacked
+from mbm_tally import Tally, percentile
+from trajcache_client import NO_RETRY, APIError, Client
+
+LINK = "panda_hand"
+HAND_LINKS = ("panda_hand", "panda_leftfinger", "panda_rightfinger")
+MOVE_M = 0.10
+SLIDE_STEP_M = 0.005
+START_JITTER_RAD = 4e-3
+WAYPOINT_JITTER_M = 0.005
+CACHE = {"joint_tolerance": 5e-3, "position_tolerance": 6e-3}
+
+
+def line_clear(checker: SceneChecker, state: np.ndarray, shift: np.ndarray) -> bool:
+    """Whether the hand and fingers at `state`, slid along `shift` every 5 mm, touch no object."""
+    if not checker.is_free(state):
+        return False
+    q = checker.configuration(state)
+    pin.forwardKinematics(checker.model, checker.data, q)
+    pin.updateGeometryPlacements(checker.model, checker.data, checker.geoms, checker.geom_data)
+    n = len(checker.robot_geoms.geometryObjects)
+    hand = [g for g in range(n) if checker.link_of(g) in HAND_LINKS]
+    objects = checker.geoms.geometryObjects
+    steps = max(1, int(np.ceil(np.linalg.norm(shift) / SLIDE_STEP_M)))
+    request, result = coal.CollisionRequest(), coal.CollisionResult()
+    for k in range(n, len(objects)):
+        other = coal.Transform3s(
+            checker.geom_data.oMg[k].rotation, checker.geom_data.oMg[k].translation
+        )
+        for g in hand:
+            placed = checker.geom_data.oMg[g]
+            for t in np.linspace(0.0, 1.0, steps + 1):
+                moved = coal.Transform3s(placed.rotation, placed.translation + t * shift)
+                result.clear()
+                geometry = checker.geoms.geometryObjects[g].geometry
+                if coal.collide(geometry, moved, objects[k].geometry, other, request, result):
+                    return False
+    return True
+
+
+class CartesianRun:
+    """The moves through a running service, with tallies of what came back."""
+
+    def __init__(self, client: Client, args: argparse.Namespace, run: Any) -> None:
+        self.client, self.args, self.run = client, args, run  # run: pose_goals.PoseRun
+        self.counts: Counter[str] = Counter()
+        self.reasons: Counter[str] = Counter()
+        self.times: dict[str, list[float]] = {"computed": [], "hit": []}
+        self.shifts: list[float] = []
+
+    def ask(self, robot_id: str, body: dict[str, Any]) -> dict[str, Any] | None:
+        try:
+            return self.client.cartesian_path(robot_id, body).model_dump()
+        except APIError as exc:
+            self.counts["http_5xx" if exc.status_code >= 500 else "http_4xx"] += 1
+            return None
+
+    def check(self, tally: Tally, answer: dict[str, Any], line: tuple[Any, Any]) -> None:
+        states = np.asarray(answer["states"], dtype=float)
+        check_path(tally, self.run.checker, states, (states[0], states[-1]), "cartesian")
+        a, b = np.asarray(line[0]), np.asarray(line[1])
+        mids = (states[:-1] + states[1:]) / 2 if len(states) > 1 else states[:0]
+        for state in [*states, *mids]:
+            p = self.run.hand.of(state)[:3, 3]
+            t = np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0)
+            gap = float(np.linalg.norm(p - (a + t * (b - a))))
+            self.counts["line_errors"] += gap > answer["max_deviation_m"] + 1e-9
+
+    def jittered(self, state: np.ndarray, pose: np.ndarray, rng: Any) -> np.ndarray:
+        """The start with every joint moved by up to 4 mrad, scaled down where that would move
+        the hand by more than 5 mm."""
+        step = rng.uniform(-1, 1, state.shape) * START_JITTER_RAD
+        lower, upper = self.run.checker.lower, self.run.checker.upper
+        start = np.clip(state + step, lower, upper)
+        shift = float(np.linalg.norm(self.run.hand.of(start)[:3, 3] - pose[:3, 3]))
+        if shift > WAYPOINT_JITTER_M:
+            start = np.clip(state + step * 0.95 * WAYPOINT_JITTER_M / shift, lower, upper)
+            shift = float(np.linalg.norm(self.run.hand.of(start)[:3, 3] - pose[:3, 3]))
+        self.shifts.append(shift)
+        return start
+
+    def move(self, tally: Tally, robot_id: str, state: np.ndarray, sign: float, rng: Any) -> None:
+        pose = self.run.hand.of(state)
+        shift = sign * MOVE_M * pose[:3, 2]
+        if not line_clear(self.run.checker, state, shift):
+            self.counts["lines_blocked"] += 1
+            return
+        self.counts["moves"] += 1
+        quat = self.run.hand.goal(state)["orientation"]
+        end = pose[:3, 3] + shift
+        body = {"start": state.tolist(), "link": LINK, "cache": CACHE,
+                "waypoints": [{"position": end.tolist(), "orientation": quat}]}  # fmt: skip
+        answer = self.ask(robot_id, body)
+        if answer is None:
+            return
+        self.check(tally, answer, (pose[:3, 3], end))
+        if answer["fraction"] < 1.0:
+            self.reasons[f"{answer['status']}: {answer['message'][:90]}"] += 1
+            return
+        self.counts["complete"] += 1
+        self.times["computed"].append(answer["timings_ms"]["total"])
+        start = self.jittered(state, pose, rng)
+        jitter = rng.normal(size=3)
+        moved = end + jitter / np.linalg.norm(jitter) * rng.uniform(0, WAYPOINT_JITTER_M)
+        body = {**body, "start": start.tolist()}
+        body["waypoints"] = [{"position": moved.tolist(), "orientation": quat}]
+        self.counts["repeats"] += 1
+        again = self.ask(robot_id, body)
+        if again is None:
+            return
+        self.check(tally, again, (self.run.hand.of(start)[:3, 3], moved))
+        if again["source"] == "cache":
+            self.counts["hits"] += 1
+            self.times["hit"].append(again["timings_ms"]["total"])
+
+    def problem(self, tally: Tally, problem: Any) -> None:
+        robot_id = f"cartesian-{problem.label}"
+        goal, _ = clamp(problem.goal, self.run.checker.lower, self.run.checker.upper)
+        self.client.put_robot(robot_id, self.run.model_id)
+        self.client.put_scene(robot_id, problem.scene_text, media_type="application/yaml")
+        self.run.checker.set_scene(scene_objects(problem.scene), allowed_pairs(problem.scene))
+        tally.problems += 1
+        rng = np.random.default_rng([self.args.seed, FAMILIES.index(problem.family), problem.index])
+        for sign in (1.0, -1.0):  # approach, then retreat
+            self.move(tally, robot_id, goal, sign, rng)
+
+
+def main(args: argparse.Namespace, run_class: Any) -> int:
+    """Run the moves of every problem; print the table and the JSON line."""
+    began = time.perf_counter()
+    problems = load_problems(unpacked(args.data), list(FAMILIES), args.per_family)
+    tallies: dict[str, Tally] = {}
+    with running_service() as base, Client(base, timeout=120, retry=NO_RETRY) as client:
+        bench = CartesianRun(client, args, run_class(client, args))
+        for problem in problems:
+            bench.problem(tallies.setdefault(problem.family, Tally(problem.family)), problem)
+    counts = sum((t.counts for t in tallies.values()), bench.counts)
+    table = Table(title="MotionBenchMaker, Panda, 10 cm Cartesian approach and retreat")
+    table.add_column("misses (fraction < 1), by reason")
+    table.add_column("n")
+    for reason, n in bench.reasons.most_common():
+        table.add_row(reason, str(n))
+    Console(width=140).print(table)
+    moves, repeats = counts["moves"], counts["repeats"]
+    figures = {
+        "problems": sum(t.problems for t in tallies.values()),
+        "moves": moves,
+        "lines_blocked": counts["lines_blocked"],
+        "cartesian_success_rate": round(counts["complete"] / moves, 4) if moves else None,
+        "cartesian_ms_median": percentile(bench.times["computed"]),
+        "repeats": repeats,
+        "cartesian_hit_rate": round(counts["hits"] / repeats, 4) if repeats else None,
+        "hit_ms_median": percentile(bench.times["hit"]),
+        "repeat_start_shift_mm_max": round(max(bench.shifts, default=0.0) * 1e3, 2),
+        "line_errors": counts["line_errors"],
+        "collisions": counts["collisions"],
+        "self_collisions": counts["self_collisions"],
+        "http_4xx": counts["http_4xx"],
+        "http_5xx": counts["http_5xx"],
+        "wall_s": round(time.perf_counter() - began, 1),
+        "smoke": args.smoke,
+    }
+    print(json.dumps(figures))
+    bad = figures["collisions"] or figures["self_collisions"] or figures["line_errors"]
+    return 1 if bad or figures["http_5xx"] else 0

@@ -1,0 +1,1 @@
+"""Cartesian paths for a robot in its current scene, cached (`path`, `store`)."""
