@@ -11,6 +11,7 @@ import numpy.typing as npt
 from sqlalchemy import (
     JSON,
     BigInteger,
+    Boolean,
     DateTime,
     Dialect,
     Float,
@@ -198,15 +199,15 @@ class Trajectory(Base):
     last_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     last_real_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     planning_time_ms: Mapped[float | None] = mapped_column(Float)
-    # A repaired path's provenance: the cached trajectory whose failing stretch was replaced.
-    parent_id: Mapped[int | None] = mapped_column(BigInteger)
-    # Quality at store time: state-space and end-effector path lengths, minimum clearance to the
-    # recorded scene (m; None without a scene) and time-optimal duration (s); details in `quality`.
+    parent_id: Mapped[int | None] = mapped_column(BigInteger)  # a repair's source trajectory
+    # Quality: path lengths, clearance to the recorded scene (m), time-optimal duration (s);
+    # pending: an imported row's, computed in the background (`maintenance/backfill.py`).
     length: Mapped[float | None] = mapped_column(Float)
     ee_length: Mapped[float | None] = mapped_column(Float)
     min_clearance: Mapped[float | None] = mapped_column(Float)
     duration_s: Mapped[float | None] = mapped_column(Float)
     quality: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    quality_pending: Mapped[bool] = mapped_column(Boolean, default=False, index=True)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
     def states_array(self) -> npt.NDArray[np.float64]:

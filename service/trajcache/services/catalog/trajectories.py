@@ -14,7 +14,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
-from trajcache.core.config import Settings, get_settings
+from trajcache.core.config import Settings
 from trajcache.db import models as tables
 from trajcache.geometry.errors import GeometryError, StateError
 from trajcache.geometry.model.kinematics import check_limits, check_states
@@ -45,6 +45,7 @@ def store_trajectory(
     model: RobotModel,
     states: npt.ArrayLike,
     source: str,
+    settings: Settings,
     robot_id: str | None = None,
     scene_hash: str | None = None,
     env: Mapping[str, Any] | None = None,
@@ -53,7 +54,6 @@ def store_trajectory(
     require_robot: bool = False,
     commit: bool = True,
     scene: Scene | None = None,
-    settings: Settings | None = None,
     compute_quality: bool = True,
     scenes: SceneCache | None = None,
     validators: ValidatorCache | None = None,
@@ -64,11 +64,12 @@ def store_trajectory(
     With `require_robot`, `robot_id` must name a robot of this model. With `commit=False` the
     row is only flushed, so the caller can commit it together with other writes.
 
-    A new row gets its quality columns (`compute_quality`): path lengths, duration after
-    time-optimal timing and, in `scene` or else the stored scene version with `scene_hash`,
-    the minimum clearance. A metric that cannot be computed is left empty; the store proceeds.
-    `scenes` and `validators` (the service's caches) spare parsing the scene and building its
-    validator again.
+    A new row gets its quality columns (`compute_quality`) under the caller's `settings` (the
+    app's, never the process environment's): path lengths, duration after time-optimal timing
+    and, in `scene` or else the stored scene version with `scene_hash`, the minimum clearance.
+    A metric that cannot be computed is left empty; the store proceeds. `scenes` and
+    `validators` (the service's caches) spare parsing the scene and building its validator
+    again.
     """
     array = _validated(
         session,
@@ -89,14 +90,48 @@ def store_trajectory(
         return existing, False
     if compute_quality:
         if scene is None and scene_hash is not None:
-            scene = _scene_with_hash(session, scene_hash, scenes)
-        _fill_quality(row, model, array, settings or get_settings(), scene, validators)
+            scene = scene_with_hash(session, scene_hash, scenes)
+        _fill_quality(row, model, array, settings, scene, validators)
     new_id = _insert_unless_present(session, row)
     if new_id is None:  # stored concurrently by another request or replica
         return _stored_meanwhile(session, row), False
     if commit:
         session.commit()
     return new_id, True
+
+
+def new_row(
+    model: RobotModel,
+    states: npt.ArrayLike,
+    *,
+    source: str,
+    robot_id: str | None = None,
+    scene_hash: str | None = None,
+    env: Mapping[str, Any] | None = None,
+    planning_time_ms: float | None = None,
+    max_states: int | None = None,
+) -> tables.Trajectory:
+    """A new, unsaved row of `model`, its states checked as `store_trajectory` checks them
+    (the robot's existence is not: bulk writers store history of robots long gone)."""
+    array = check_states(model, states, name="state")
+    _check_count(array.shape[0], max_states)
+    check_limits(model, array, name="state")
+    if source not in SOURCES:
+        raise InvalidInputError(f"source {source!r} must be one of {', '.join(SOURCES)}")
+    if robot_id is not None:
+        check_robot_id(robot_id)
+    if scene_hash is not None and not 1 <= len(scene_hash) <= 64:
+        raise InvalidInputError("scene_hash must be 1-64 characters")
+    row = tables.Trajectory(model_id=model.model_id, source=source, robot_id=robot_id)
+    row.scene_hash, row.env = scene_hash, parse_env(dict(env or {}))
+    row.planning_time_ms = planning_time_ms
+    row.set_states(array)
+    return row
+
+
+def row_values(row: tables.Trajectory) -> dict[str, Any]:
+    """The column values set on an unsaved row (for a Core INSERT)."""
+    return {key: getattr(row, key) for key in _COLUMNS if key in row.__dict__}
 
 
 def set_parent(session: Session, trajectory_id: int, parent_id: int) -> None:
@@ -159,7 +194,7 @@ def _fill_quality(
         setattr(row, name, value)
 
 
-def _scene_with_hash(session: Session, scene_hash: str, scenes: SceneCache | None) -> Scene | None:
+def scene_with_hash(session: Session, scene_hash: str, scenes: SceneCache | None) -> Scene | None:
     """The scene with this hash, a robot's version or else a seed job's, parsed once per
     `scenes`; None if none is stored."""
     cached = scenes.get(scene_hash) if scenes is not None else None
@@ -241,7 +276,7 @@ def _find(session: Session, model_id: str, content_hash: str) -> int | None:
 
 def _insert_unless_present(session: Session, row: tables.Trajectory) -> int | None:
     """INSERT … ON CONFLICT (model_id, content_hash) DO NOTHING; the new id, or None."""
-    values = {key: getattr(row, key) for key in _COLUMNS if key in row.__dict__}
+    values = row_values(row)
     dialect = session.get_bind().dialect.name
     if dialect in ("postgresql", "sqlite"):
         insert = postgresql.insert if dialect == "postgresql" else sqlite.insert
