@@ -55,6 +55,7 @@ bench-smoke: setup
 	$(BIN)/python bench/mbm.py --smoke --moveit --cross-scene
 	$(BIN)/python bench/ik.py --smoke
 	$(BIN)/python bench/pose_goals.py --smoke
+	$(BIN)/python bench/transfer.py --smoke
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 from collections.abc import Mapping, Sized
 from typing import Any
@@ -16,9 +17,10 @@ from sqlalchemy.orm import Session, defer
 
 from trajcache.core.config import Settings
 from trajcache.db import models as tables
+from trajcache.db.states import state_columns
 from trajcache.geometry.errors import GeometryError, StateError
 from trajcache.geometry.model.kinematics import check_limits, check_states
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.scene.fields import parse_env
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.scene import Scene
@@ -100,7 +102,7 @@ def store_trajectory(
     return new_id, True
 
 
-def new_row(
+def new_row_values(
     model: RobotModel,
     states: npt.ArrayLike,
     *,
@@ -110,28 +112,54 @@ def new_row(
     env: Mapping[str, Any] | None = None,
     planning_time_ms: float | None = None,
     max_states: int | None = None,
-) -> tables.Trajectory:
-    """A new, unsaved row of `model`, its states checked as `store_trajectory` checks them
-    (the robot's existence is not: bulk writers store history of robots long gone)."""
-    array = check_states(model, states, name="state")
+) -> dict[str, Any]:
+    """The column values of a new row of `model` (for a bulk INSERT), its states checked as
+    `store_trajectory` checks them (the robot's existence is not: bulk writers store history
+    of robots long gone)."""
+    array = _checked_states(model, states)
     _check_count(array.shape[0], max_states)
-    check_limits(model, array, name="state")
     if source not in SOURCES:
         raise InvalidInputError(f"source {source!r} must be one of {', '.join(SOURCES)}")
     if robot_id is not None:
         check_robot_id(robot_id)
     if scene_hash is not None and not 1 <= len(scene_hash) <= 64:
         raise InvalidInputError("scene_hash must be 1-64 characters")
-    row = tables.Trajectory(model_id=model.model_id, source=source, robot_id=robot_id)
-    row.scene_hash, row.env = scene_hash, parse_env(dict(env or {}))
-    row.planning_time_ms = planning_time_ms
-    row.set_states(array)
-    return row
+    return {
+        "model_id": model.model_id,
+        "source": source,
+        "robot_id": robot_id,
+        "scene_hash": scene_hash,
+        "env": parse_env(dict(env or {})),
+        "planning_time_ms": planning_time_ms,
+        **state_columns(array),
+    }
 
 
-def row_values(row: tables.Trajectory) -> dict[str, Any]:
-    """The column values set on an unsaved row (for a Core INSERT)."""
-    return {key: getattr(row, key) for key in _COLUMNS if key in row.__dict__}
+def _checked_states(model: RobotModel, states: npt.ArrayLike) -> np.ndarray:
+    """`check_states` and `check_limits` in one pass for states that pass them (the bulk of an
+    import): finite and within the limits without their tolerance. Anything else goes through
+    the two checks, which accept what is within tolerance and name what is wrong."""
+    try:
+        array = np.asarray(states, dtype=np.float64)
+    except (TypeError, ValueError):
+        array = np.empty((0, 0))
+    if array.ndim == 2 and array.shape[1] == model.dof and np.isfinite(array).all():
+        lower, upper = _strict_limits(model)
+        if ((array >= lower) & (array <= upper)).all():
+            return array
+    array = check_states(model, states, name="state")
+    check_limits(model, array, name="state")
+    return array
+
+
+@functools.lru_cache(maxsize=64)
+def _strict_limits(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+    """The joint limits `check_limits` applies, without its tolerance (a planar base's x, y
+    and theta unbounded)."""
+    lower, upper = model.lower.astype(np.float64), model.upper.astype(np.float64)
+    if model.base is BaseType.PLANAR:
+        lower[:3], upper[:3] = -np.inf, np.inf
+    return lower, upper
 
 
 def set_parent(session: Session, trajectory_id: int, parent_id: int) -> None:
@@ -276,7 +304,7 @@ def _find(session: Session, model_id: str, content_hash: str) -> int | None:
 
 def _insert_unless_present(session: Session, row: tables.Trajectory) -> int | None:
     """INSERT … ON CONFLICT (model_id, content_hash) DO NOTHING; the new id, or None."""
-    values = row_values(row)
+    values = {key: getattr(row, key) for key in _COLUMNS if key in row.__dict__}
     dialect = session.get_bind().dialect.name
     if dialect in ("postgresql", "sqlite"):
         insert = postgresql.insert if dialect == "postgresql" else sqlite.insert

@@ -98,7 +98,7 @@ class QualityBackfill:
 
     def _loop(self) -> None:
         rate = self.ctx.settings.quality_backfill_per_s
-        batch = max(1, min(MAX_BATCH, math.ceil(rate)))
+        batch = batch_size(rate)
         pause = 0.0
         while not self._stopping.wait(pause):
             started = time.monotonic()
@@ -108,6 +108,15 @@ class QualityBackfill:
                 _log.warning("background quality failed: %s", exc)
                 done = 0
             self.done += done
-            elapsed = time.monotonic() - started
-            # `done` rows may take done / rate seconds in all; none pending: look again later.
-            pause = max(done / rate - elapsed, 0.0) if done else IDLE_POLL_S
+            pause = pause_after(done, rate, time.monotonic() - started)
+
+
+def batch_size(rate: float) -> int:
+    """Rows per batch at `rate` rows a second: a second's worth, at most MAX_BATCH."""
+    return max(1, min(MAX_BATCH, math.ceil(rate)))
+
+
+def pause_after(done: int, rate: float, elapsed_s: float) -> float:
+    """The rest after a batch of `done` rows that took `elapsed_s`: `done` rows may take
+    done / rate seconds in all; none were pending: look again after IDLE_POLL_S."""
+    return max(done / rate - elapsed_s, 0.0) if done else IDLE_POLL_S

@@ -28,7 +28,7 @@ from trajcache.core.config import Settings
 from trajcache.geometry.errors import GeometryError
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.catalog.models import ModelRegistry, get_model, register_model
-from trajcache.services.catalog.trajectories import SOURCES, new_row, row_values
+from trajcache.services.catalog.trajectories import SOURCES, new_row_values
 from trajcache.services.errors import (
     ConflictError,
     InvalidInputError,
@@ -243,7 +243,7 @@ class Importer:
 
     def _trajectory(self, record: Mapping[str, Any]) -> None:
         model = self._model_for(record.get("model_id"))
-        row = new_row(
+        values = new_row_values(
             model,
             _states(record),
             source=self.source or _optional_str(record, "source") or "import",
@@ -254,9 +254,8 @@ class Importer:
             max_states=self.settings.max_trajectory_states,
         )
         expected = record.get("content_hash")
-        if expected is not None and expected != row.content_hash:
+        if expected is not None and expected != values["content_hash"]:
             raise _LineError("content_hash does not match the states")
-        values = row_values(row)
         values.update({name: _counter(record, name) for name in COUNTERS})
         values.update({name: _timestamp(record, name) for name in TIMES})
         values["created_at"] = values["created_at"] or datetime.now(UTC)

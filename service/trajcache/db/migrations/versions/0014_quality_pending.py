@@ -20,15 +20,16 @@ depends_on: str | Sequence[str] | None = None
 
 
 def upgrade() -> None:
-    # Rows stored before this revision had their quality computed when they were stored.
-    with op.batch_alter_table("trajectories") as batch:
-        batch.add_column(
-            sa.Column("quality_pending", sa.Boolean(), nullable=False, server_default=sa.false())
-        )
-        batch.create_index("ix_trajectories_quality_pending", ["quality_pending"])
+    # Rows stored before this revision had their quality computed when they were stored. A
+    # plain ADD COLUMN (no batch copy): SQLite keeps the table's AUTOINCREMENT.
+    op.add_column(
+        "trajectories",
+        sa.Column("quality_pending", sa.Boolean(), nullable=False, server_default=sa.false()),
+    )
+    op.create_index("ix_trajectories_quality_pending", "trajectories", ["quality_pending"])
 
 
 def downgrade() -> None:
-    with op.batch_alter_table("trajectories") as batch:
-        batch.drop_index("ix_trajectories_quality_pending")
+    op.drop_index("ix_trajectories_quality_pending", table_name="trajectories")
+    with op.batch_alter_table("trajectories", table_kwargs={"sqlite_autoincrement": True}) as batch:
         batch.drop_column("quality_pending")
