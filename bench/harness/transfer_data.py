@@ -76,12 +76,14 @@ def write_export(path: Path, rows: int, seed: int = 7) -> None:
 def import_file(database_url: str, path: Path, queue: Queue[Any]) -> None:
     """Import `path` (run in a process of its own, as `trajcache import` runs); put
     (inserted, seconds of the import itself) on `queue`."""
+    from trajcache.cli.transfer import IMPORT_NICENESS, lower_priority
     from trajcache.db import migrate
     from trajcache.db.session import make_engine, make_sessionmaker
     from trajcache.services.catalog.models import ModelRegistry
     from trajcache.services.maintenance.importer import import_lines
     from trajcache.services.maintenance.reading import CHUNK_BYTES, export_lines
 
+    lower_priority(IMPORT_NICENESS)  # as `trajcache import` does
     settings = Settings(database_url=database_url)
     migrate.upgrade(settings.database_url)
     engine = make_engine(settings.database_url)

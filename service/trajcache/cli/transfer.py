@@ -10,6 +10,7 @@ name). An import is one transaction: a corrupt, truncated or empty file imports 
 from __future__ import annotations
 
 import gzip
+import os
 import re
 import sys
 from collections.abc import Iterator
@@ -145,6 +146,16 @@ def _input(path: Path, bar: Progress) -> Iterator[Iterator[str]]:
         yield export_lines(chunks=chunks, what="file")
 
 
+IMPORT_NICENESS = 10
+
+
+def lower_priority(niceness: int) -> None:
+    """Add `niceness` to this process's CPU niceness (where the platform has one): a bulk
+    import yields the CPU to the service answering robots on the same machine."""
+    if niceness > 0 and hasattr(os, "nice"):
+        os.nice(niceness)
+
+
 def import_command(
     file: Annotated[Path, typer.Argument(help="JSON Lines export, or gzip of it.", exists=True)],
     source: Annotated[
@@ -155,15 +166,28 @@ def import_command(
     ] = None,
     show_rejected: Annotated[int, typer.Option(min=0, help="Rejected lines to list.")] = 20,
     migrate: Annotated[bool, typer.Option(help="Upgrade the database schema first.")] = True,
+    nice: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=19,
+            help="CPU niceness added to the import, so a service on the same "
+            "machine keeps answering first (0: none).",
+        ),
+    ] = IMPORT_NICENESS,
     database_url: DatabaseUrlOption = None,
 ) -> None:
-    """Import an export in one transaction; idempotent. Exit status 1: lines were rejected."""
+    """Import an export in one transaction; idempotent. Exit status 1: lines were rejected.
+
+    Trajectories are written in batches; their quality is computed afterwards by a running
+    service, in the background (they show `quality_pending` until then)."""
     from trajcache.services.catalog.models import ModelRegistry
     from trajcache.services.errors import ServiceError
     from trajcache.services.maintenance.importer import import_lines
 
     settings = load_settings(database_url)
     console = err_console()
+    lower_priority(nice)
     try:
         with (
             open_session(settings, migrate=migrate) as session,
