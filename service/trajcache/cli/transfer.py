@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
 from enum import Enum
 from pathlib import Path
-from typing import IO, Annotated
+from typing import IO, TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -32,6 +32,9 @@ from rich.progress import (
 from rich.table import Table
 
 from trajcache.cli.common import DatabaseUrlOption, err_console, fail, load_settings, open_session
+
+if TYPE_CHECKING:
+    from trajcache.services.maintenance.importer import ImportReport
 
 _DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([smhdw]?)\s*$")
 _UNITS = {"": 1, "s": 1, "m": 60, "h": 3600, "d": 86400, "w": 604800}
@@ -203,7 +206,12 @@ def import_command(
             )
     except (ServiceError, OSError) as exc:
         raise fail(exc) from None
-    table = Table(title=f"import of {file.name}", show_header=False)
+    _print_report(report, file.name, show_rejected, console)
+
+
+def _print_report(report: ImportReport, name: str, show_rejected: int, console: Console) -> None:
+    """The import's table and its first rejected lines; exit status 1 if lines were rejected."""
+    table = Table(title=f"import of {name}", show_header=False)
     table.add_row("lines", str(report.lines))
     table.add_row(
         "models registered / already there", f"{report.models_created} / {report.models_existing}"
