@@ -46,6 +46,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
 
+import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
@@ -149,7 +150,7 @@ _EXPORTED = (
     _T.source,
     _T.robot_id,
     _T.scene_hash,
-    _T.env,
+    sa.cast(_T.env, sa.Text).label("env_text"),  # decoded only when not empty
     _T.content_hash,
     _T.planning_time_ms,
     *(getattr(_T, name) for name in TIMES),
@@ -159,7 +160,7 @@ _EXPORTED = (
 
 def trajectory_record(row: Any) -> dict[str, Any]:
     """The trajectory line of a stored row (an ORM row, or a row of `_EXPORTED`)."""
-    states = tables.unpack_states(row.states, n_states=row.n_states, dof=row.dof)
+    states = np.frombuffer(row.states, dtype=tables.STATE_DTYPE).reshape(row.n_states, row.dof)
     record: dict[str, Any] = {
         "type": "trajectory",
         "model_id": row.model_id,
@@ -167,7 +168,7 @@ def trajectory_record(row: Any) -> dict[str, Any]:
         "source": row.source,
         "robot_id": row.robot_id,
         "scene_hash": row.scene_hash,
-        "env": dict(row.env or {}),
+        "env": _env(row),
         "content_hash": row.content_hash,
         "planning_time_ms": row.planning_time_ms,
     }
@@ -176,6 +177,14 @@ def trajectory_record(row: Any) -> dict[str, Any]:
     for name in COUNTERS:
         record[name] = int(getattr(row, name) or 0)
     return record
+
+
+def _env(row: Any) -> dict[str, Any]:
+    """The row's environment values; an empty one (most) is not decoded."""
+    if not hasattr(row, "env_text"):
+        return dict(row.env or {})
+    text = row.env_text
+    return {} if text is None or text == "{}" else dict(json.loads(text))
 
 
 def export_records(
