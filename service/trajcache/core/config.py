@@ -251,7 +251,7 @@ class Settings(BaseSettings):
         description="Seconds between a replica's looks for queued or orphaned seed jobs.",
     )
     seed_scene_retention_days: float = Field(
-        default=7.0, ge=0, description="Days finished seed jobs keep scenes no path uses (0: ever)."
+        default=7.0, ge=0, description="Days finished seed jobs keep unused scenes (0: keep them)."
     )
     ranking_pool: int = Field(
         default=10,
