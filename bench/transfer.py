@@ -44,7 +44,7 @@ IMPORT_DEADLINE_S = 1800.0
 
 def start_import(url: str, path: Path) -> tuple[Any, Any]:
     """The import process (started) and its queue, once it is ready to import."""
-    ctx = multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("fork")  # the parent has imported trajcache already
     results = ctx.Queue()
     proc = ctx.Process(target=import_file, args=(url, path, results), daemon=True)
     proc.start()
