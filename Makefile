@@ -57,6 +57,7 @@ bench-smoke: setup
 	$(BIN)/python bench/pose_goals.py --smoke
 	$(BIN)/python bench/pose_goals.py --smoke --cartesian
 	$(BIN)/python bench/certify_sampling.py --smoke
+	$(BIN)/python bench/transfer.py --smoke
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

@@ -348,6 +348,7 @@ class TrajectorySummary(_Answer):
     ee_length: float | None = None
     min_clearance: float | None = None
     duration_s: float | None = None
+    quality_pending: bool = False  # imported; quality computed in the background
     created_at: datetime
 
 

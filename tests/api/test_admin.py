@@ -116,11 +116,13 @@ def test_export_then_import_into_another_database(
         exported = source.get("/v1/admin/export", params={"source": "real"})
         assert exported.status_code == 200
         assert exported.headers["content-type"].startswith("application/x-ndjson")
-        assert source.get("/v1/admin/export", params={"source": "sim"}).text.count("\n") == 1
+        assert source.get("/v1/admin/export", params={"source": "sim"}).text.count("\n") == 2
         assert_detail(source.get("/v1/admin/export", params={"model_id": "nope"}), 404)
         assert_detail(source.get("/v1/admin/export", params={"source": "dream"}), 422, "source")
     lines = exported.text.splitlines()
-    assert [json.loads(line)["type"] for line in lines] == ["header", "model"] + ["trajectory"] * 3
+    assert [json.loads(line)["type"] for line in lines] == ["header", "model"] + [
+        "trajectory"
+    ] * 3 + ["end"]
 
     target = client_factory(**QUIET)
     first = target.post(
@@ -138,9 +140,9 @@ def test_export_then_import_into_another_database(
     assert (second.json()["inserted"], second.json()["duplicates"]) == (0, 3)
     assert target.get("/v1/trajectories").json()["total"] == 3
 
-    broken = exported.content + b'{"type": "trajectory", "model_id": "%s", "states": [[0]]}\n' % (
-        model_id.encode()
-    )
+    *written, end = exported.content.splitlines(keepends=True)
+    short = b'{"type": "trajectory", "model_id": "%s", "states": [[0]]}\n' % model_id.encode()
+    broken = b"".join([*written, short, end])
     report = target.post("/v1/admin/import", content=broken).json()
     assert report["rejected_count"] == 1
     assert (
@@ -182,7 +184,8 @@ def test_a_line_that_is_not_json_refuses_the_whole_import(
     target = client_factory(**QUIET)
     assert_detail(target.post("/v1/admin/import", content=body), 422, "line 500: not JSON")
     assert_nothing_imported(target)
-    response = target.post("/v1/admin/import", content=b"\n".join(lines))
+    end = b'{"type": "end", "trajectories": 497}'
+    response = target.post("/v1/admin/import", content=b"\n".join([*lines, end]))
     assert response.json()["inserted"] == 497, response.text
 
 
@@ -202,7 +205,7 @@ def test_import_refuses_corrupt_truncated_or_empty_bodies(
     refused(packed[:-4], f"gzip stream truncated after {len(packed) - 4} bytes")
     refused(packed + b"trailing", "not valid gzip", f"byte {len(packed) + 1}")
     refused(packed[:-8] + bytes(8), "not valid gzip", "incorrect data check")
-    refused(exported + b"\xff\xfe\n", "line 6: not UTF-8 text (byte 1 of the line)")
+    refused(exported + b"\xff\xfe\n", "line 7: not UTF-8 text (byte 1 of the line)")
     refused(b"", "empty body: nothing to import")
     refused(b"\n \r\n", "empty body: nothing to import")
     refused(gzip.compress(b""), "empty body: nothing to import")

@@ -40,6 +40,7 @@ def source_url(tmp_path: Path) -> Iterator[str]:
         for k in range(5):
             new_id, _ = store_trajectory(
                 session=session,
+                settings=Settings(),
                 model=model,
                 states=[[0.0, 0.0], [0.1 * k, 0.5]],
                 source="sim" if k < 2 else "real",
@@ -119,8 +120,10 @@ def test_corrupt_truncated_or_empty_files_import_nothing(source_url: str, tmp_pa
     text = plain.read_bytes()
     packed = gzip.compress(text)
     target = f"sqlite:///{tmp_path / 'target.db'}"
+    written = text[: text.rindex(b'{"type":"end"')]  # without the end line
     cases = {
-        "cut.jsonl": (text + b'{"type": "trajectory", ', "line 8: not JSON"),
+        "cut.jsonl": (written + b'{"type": "trajectory", ', "line 8: not JSON"),
+        "no-end.jsonl": (written, "ends without its end line: it was cut short"),
         "cut.jsonl.gz": (packed[:-4], f"gzip stream truncated after {len(packed) - 4} bytes"),
         "empty.jsonl": (b"\n", "empty file: nothing to import"),
     }

@@ -143,9 +143,9 @@ def test_prune_export_and_import(quick: Client, tmp_path: Path) -> None:
     streamed = b"".join(quick.iter_export_cache(chunk_size=64))
     assert _body(streamed) == _body(exported)
     lines = [json.loads(line) for line in exported.splitlines()]
-    assert [line["type"] for line in lines] == ["header", "model"] + ["trajectory"] * 4
-    assert quick.export_cache(sources=["sim"]).count(b"\n") == 1
-    assert quick.export_cache(model_ids=[model_id], models=False).count(b"\n") == 5
+    assert [line["type"] for line in lines] == ["header", "model"] + ["trajectory"] * 4 + ["end"]
+    assert quick.export_cache(sources=["sim"]).count(b"\n") == 2  # header and end
+    assert quick.export_cache(model_ids=[model_id], models=False).count(b"\n") == 6
     with pytest.raises(tc.NotFoundError):
         quick.export_cache(model_ids=["nope"])
     with pytest.raises(tc.NotFoundError):
@@ -160,10 +160,12 @@ def test_prune_export_and_import(quick: Client, tmp_path: Path) -> None:
 
     (tmp_path / "cache.jsonl.gz").write_bytes(gzip.compress(exported))
     imported = quick.import_cache(tmp_path / "cache.jsonl.gz")
-    assert (imported.lines, imported.inserted, imported.duplicates) == (6, 3, 1)
+    assert (imported.lines, imported.inserted, imported.duplicates) == (7, 3, 1)
     again = quick.import_cache(exported.decode(), source="import")
     assert (again.inserted, again.duplicates, again.rejected_count) == (0, 4, 0)
-    bad = quick.import_cache(exported + b'{"type": "trajectory", "model_id": "nope"}\n')
+    *written, end = exported.splitlines(keepends=True)
+    unknown = b'{"type": "trajectory", "model_id": "nope"}\n'
+    bad = quick.import_cache(b"".join([*written, unknown, end]))
     assert bad.rejected_count == 1 and bad.rejected[0].line == 7
 
 

@@ -45,6 +45,7 @@ def store(ctx: ServiceContext, model: RobotModel, states: list[list[float]]) -> 
     with ctx.sessions() as session:
         trajectory_id, _ = store_trajectory(
             session=session,
+            settings=Settings(),
             model=model,
             states=np.asarray(states, dtype=float),
             source="sim",

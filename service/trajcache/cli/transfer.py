@@ -10,6 +10,7 @@ name). An import is one transaction: a corrupt, truncated or empty file imports 
 from __future__ import annotations
 
 import gzip
+import os
 import re
 import sys
 from collections.abc import Iterator
@@ -17,7 +18,7 @@ from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
 from enum import Enum
 from pathlib import Path
-from typing import IO, Annotated
+from typing import IO, TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -31,6 +32,9 @@ from rich.progress import (
 from rich.table import Table
 
 from trajcache.cli.common import DatabaseUrlOption, err_console, fail, load_settings, open_session
+
+if TYPE_CHECKING:
+    from trajcache.services.maintenance.importer import ImportReport
 
 _DURATION = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([smhdw]?)\s*$")
 _UNITS = {"": 1, "s": 1, "m": 60, "h": 3600, "d": 86400, "w": 604800}
@@ -145,6 +149,16 @@ def _input(path: Path, bar: Progress) -> Iterator[Iterator[str]]:
         yield export_lines(chunks=chunks, what="file")
 
 
+IMPORT_NICENESS = 10
+
+
+def lower_priority(niceness: int) -> None:
+    """Add `niceness` to this process's CPU niceness (where the platform has one): a bulk
+    import yields the CPU to the service answering robots on the same machine."""
+    if niceness > 0 and hasattr(os, "nice"):
+        os.nice(niceness)
+
+
 def import_command(
     file: Annotated[Path, typer.Argument(help="JSON Lines export, or gzip of it.", exists=True)],
     source: Annotated[
@@ -155,15 +169,28 @@ def import_command(
     ] = None,
     show_rejected: Annotated[int, typer.Option(min=0, help="Rejected lines to list.")] = 20,
     migrate: Annotated[bool, typer.Option(help="Upgrade the database schema first.")] = True,
+    nice: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=19,
+            help="CPU niceness added to the import, so a service on the same "
+            "machine keeps answering first (0: none).",
+        ),
+    ] = IMPORT_NICENESS,
     database_url: DatabaseUrlOption = None,
 ) -> None:
-    """Import an export in one transaction; idempotent. Exit status 1: lines were rejected."""
+    """Import an export in one transaction; idempotent. Exit status 1: lines were rejected.
+
+    Trajectories are written in batches; their quality is computed afterwards by a running
+    service, in the background (they show `quality_pending` until then)."""
     from trajcache.services.catalog.models import ModelRegistry
     from trajcache.services.errors import ServiceError
     from trajcache.services.maintenance.importer import import_lines
 
     settings = load_settings(database_url)
     console = err_console()
+    lower_priority(nice)
     try:
         with (
             open_session(settings, migrate=migrate) as session,
@@ -179,7 +206,12 @@ def import_command(
             )
     except (ServiceError, OSError) as exc:
         raise fail(exc) from None
-    table = Table(title=f"import of {file.name}", show_header=False)
+    _print_report(report, file.name, show_rejected, console)
+
+
+def _print_report(report: ImportReport, name: str, show_rejected: int, console: Console) -> None:
+    """The import's table and its first rejected lines; exit status 1 if lines were rejected."""
+    table = Table(title=f"import of {name}", show_header=False)
     table.add_row("lines", str(report.lines))
     table.add_row(
         "models registered / already there", f"{report.models_created} / {report.models_existing}"

@@ -21,9 +21,7 @@ class Settings(BaseSettings):
     """All configuration of the service; every field is documented for the README table."""
 
     model_config = SettingsConfigDict(
-        env_prefix="TRAJCACHE_",
-        extra="ignore",
-        validate_default=True,
+        env_prefix="TRAJCACHE_", extra="ignore", validate_default=True
     )
 
     # Database
@@ -250,6 +248,9 @@ class Settings(BaseSettings):
         gt=0,
         description="Seconds between a replica's looks for queued or orphaned seed jobs.",
     )
+    seed_scene_retention_days: float = Field(
+        default=7.0, ge=0, description="Days finished seed jobs keep unused scenes (0: keep them)."
+    )
     ranking_pool: int = Field(
         default=10,
         ge=1,
@@ -313,6 +314,9 @@ class Settings(BaseSettings):
         ge=0,
         description="Seconds between automatic evictions when cache_max_per_model is set "
         "(0 = only on demand: `trajcache prune`, POST /v1/admin/prune).",
+    )
+    quality_backfill_per_s: float = Field(
+        default=50.0, ge=0, description="Quality computations per second after an import (0: off)."
     )
 
     @field_validator("database_url")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 from datetime import UTC, datetime
 from typing import Any
 
@@ -11,6 +10,7 @@ import numpy.typing as npt
 from sqlalchemy import (
     JSON,
     BigInteger,
+    Boolean,
     DateTime,
     Dialect,
     Float,
@@ -26,8 +26,11 @@ from sqlalchemy.orm import Mapped, mapped_column, relationship
 from sqlalchemy.types import TypeDecorator
 
 from trajcache.db.base import Base
+from trajcache.db.states import STATE_DTYPE as STATE_DTYPE
+from trajcache.db.states import pack_states as pack_states
+from trajcache.db.states import state_columns, unpack_states
+from trajcache.db.states import trajectory_content_hash as trajectory_content_hash
 
-STATE_DTYPE = np.dtype("<f8")
 # SQLite only autoincrements INTEGER PRIMARY KEY; PostgreSQL gets a BIGINT identity.
 BigIntPK = BigInteger().with_variant(Integer, "sqlite")
 
@@ -54,31 +57,6 @@ class UTCDateTime(TypeDecorator[datetime]):
         if value is not None and value.tzinfo is None:
             value = value.replace(tzinfo=UTC)
         return value
-
-
-def pack_states(states: npt.ArrayLike) -> bytes:
-    """Serialize an (n, dof) array of states as float64 little-endian, row-major."""
-    array = np.asarray(states, dtype=np.float64)
-    if array.ndim != 2:
-        raise ValueError(f"states must be a 2-D (n, dof) array, got shape {array.shape}")
-    return np.ascontiguousarray(array, dtype=STATE_DTYPE).tobytes(order="C")
-
-
-def unpack_states(data: bytes, *, n_states: int, dof: int) -> npt.NDArray[np.float64]:
-    """Deserialize bytes from `pack_states` into a writable (n_states, dof) float64 array."""
-    expected = n_states * dof * STATE_DTYPE.itemsize
-    if len(data) != expected:
-        raise ValueError(f"state blob has {len(data)} bytes, expected {expected}")
-    array = np.frombuffer(data, dtype=STATE_DTYPE).reshape(n_states, dof)
-    return array.astype(np.float64, copy=True)
-
-
-def trajectory_content_hash(states: npt.ArrayLike) -> str:
-    """SHA-256 of a trajectory's shape and packed states (identity for idempotent import)."""
-    array = np.asarray(states, dtype=np.float64)
-    digest = hashlib.sha256(f"{array.shape[0]}x{array.shape[1]}:".encode())
-    digest.update(pack_states(array))
-    return digest.hexdigest()
 
 
 class RobotModel(Base):
@@ -198,15 +176,15 @@ class Trajectory(Base):
     last_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     last_real_validated_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     planning_time_ms: Mapped[float | None] = mapped_column(Float)
-    # A repaired path's provenance: the cached trajectory whose failing stretch was replaced.
-    parent_id: Mapped[int | None] = mapped_column(BigInteger)
-    # Quality at store time: state-space and end-effector path lengths, minimum clearance to the
-    # recorded scene (m; None without a scene) and time-optimal duration (s); details in `quality`.
+    parent_id: Mapped[int | None] = mapped_column(BigInteger)  # a repair's source trajectory
+    # Quality: path lengths, clearance to the recorded scene (m), time-optimal duration (s);
+    # pending: an imported row's, computed in the background (`maintenance/backfill.py`).
     length: Mapped[float | None] = mapped_column(Float)
     ee_length: Mapped[float | None] = mapped_column(Float)
     min_clearance: Mapped[float | None] = mapped_column(Float)
     duration_s: Mapped[float | None] = mapped_column(Float)
     quality: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    quality_pending: Mapped[bool] = mapped_column(Boolean, default=False, index=True)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
     def states_array(self) -> npt.NDArray[np.float64]:
@@ -214,18 +192,9 @@ class Trajectory(Base):
         return unpack_states(self.states, n_states=self.n_states, dof=self.dof)
 
     def set_states(self, states: npt.ArrayLike) -> None:
-        """Store key states and the columns derived from them (start/goal, prefilter, hash)."""
-        array = np.asarray(states, dtype=np.float64)
-        if array.ndim != 2 or array.shape[0] < 2 or array.shape[1] < 1:
-            raise ValueError(f"need at least 2 states of dof >= 1, got shape {array.shape}")
-        self.states = pack_states(array)
-        self.n_states, self.dof = int(array.shape[0]), int(array.shape[1])
-        self.start, self.goal = array[0].tolist(), array[-1].tolist()
-        first, last = array[0], array[-1]
-        self.start_x, self.goal_x = float(first[0]), float(last[0])
-        self.start_y = float(first[1]) if self.dof > 1 else 0.0
-        self.goal_y = float(last[1]) if self.dof > 1 else 0.0
-        self.content_hash = trajectory_content_hash(array)
+        """Store key states and the columns derived from them (`state_columns`)."""
+        for key, value in state_columns(states).items():
+            setattr(self, key, value)
 
 
 class TrajectoryCertificate(Base):

@@ -32,7 +32,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from trajcache.geometry.model.ik import IkProblem, PoseTarget, descend_from_seed
 from trajcache.geometry.model.pin_kinematics import PinKinematics
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import segment_deltas
 
@@ -241,7 +241,7 @@ def _relative_jump(
 ) -> tuple[FloatArray, CartesianStatus, str]:
     """MoveIt's relative check: the path up to the first step longer than `jump_threshold` ×
     the mean step (not checked on paths of fewer than MIN_STEPS_FOR_JUMP steps)."""
-    steps = np.linalg.norm(segment_deltas(states, planar=False), axis=1)
+    steps = np.linalg.norm(segment_deltas(states, base=BaseType.FIXED), axis=1)
     if len(steps) < MIN_STEPS_FOR_JUMP:
         notes.append(
             f"jump_threshold is not checked on a path of {len(steps)} steps (fewer than "

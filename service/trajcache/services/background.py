@@ -1,10 +1,12 @@
-"""Background work of one service process: the seed job scheduler and timed eviction."""
+"""Background work of one service process: the seed job scheduler (which also prunes old seed
+jobs' scenes), timed eviction and the quality of imported trajectories."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from trajcache.services.context import ServiceContext
+from trajcache.services.maintenance.backfill import QualityBackfill
 from trajcache.services.maintenance.eviction import EvictionTimer
 from trajcache.services.seeding.scheduler import SeedScheduler
 
@@ -15,18 +17,23 @@ class Background:
 
     seeds: SeedScheduler
     eviction: EvictionTimer | None
+    quality: QualityBackfill | None = None
 
     def stop(self) -> None:
         """Hand running seed jobs back and stop the timers."""
+        if self.quality is not None:
+            self.quality.stop()
         if self.eviction is not None:
             self.eviction.stop()
         self.seeds.stop()
 
 
 def start_background(ctx: ServiceContext) -> Background:
-    """Start the seed scheduler (it resumes unfinished jobs at once) and timed eviction."""
+    """Start the seed scheduler (it resumes unfinished jobs at once), timed eviction and the
+    background quality of imports (it resumes rows left pending, at once)."""
     settings = ctx.settings
     eviction = None
     if settings.cache_max_per_model > 0 and settings.eviction_interval_s > 0:
         eviction = EvictionTimer(ctx).start()
-    return Background(seeds=SeedScheduler(ctx).start(), eviction=eviction)
+    quality = QualityBackfill(ctx).start() if settings.quality_backfill_per_s > 0 else None
+    return Background(seeds=SeedScheduler(ctx).start(), eviction=eviction, quality=quality)

@@ -39,6 +39,7 @@ def add(ctx: ServiceContext, model_id: str, k: int, **values: Any) -> int:
         model = get_model(session=session, registry=ctx.models, model_id=model_id)
         new_id, _ = store_trajectory(
             session=session,
+            settings=Settings(),
             model=model,
             states=[[0.0] * model.dof, [0.01 * (k + 1)] * model.dof],
             source="sim",

@@ -81,6 +81,7 @@ def fill(ctx: ServiceContext) -> dict[str, Any]:
         for k, source in enumerate(("sim", "sim", "real")):
             new_id, _ = store_trajectory(
                 session=session,
+                settings=Settings(),
                 model=arm,
                 states=[[0.0, 0.0], [0.1 * k, 0.2], [0.5, 0.5 + 0.1 * k]],
                 source=source,
@@ -91,7 +92,11 @@ def fill(ctx: ServiceContext) -> dict[str, Any]:
             )
             ids.append(new_id)
         lift_id, _ = store_trajectory(
-            session=session, model=lift, states=[[0.0], [0.4]], source="planner"
+            session=session,
+            settings=Settings(),
+            model=lift,
+            states=[[0.0], [0.4]],
+            source="planner",
         )
         session.execute(
             sa.update(Trajectory)
@@ -189,7 +194,7 @@ def test_import_is_idempotent(source_ctx: ServiceContext, target_ctx: ServiceCon
     assert (again.inserted, again.duplicates, again.rejected_count) == (0, 4, 0)
     assert (again.models_created, again.models_existing) == (0, 2)
     assert len(rows(target_ctx)) == 4
-    doubled = run_import(target_ctx, [lines[-1], lines[-1]])
+    doubled = run_import(target_ctx, [lines[-2], lines[-2]])  # the last trajectory
     assert (doubled.inserted, doubled.duplicates) == (0, 2)
 
 
@@ -198,7 +203,7 @@ def test_bad_lines_are_rejected_with_reasons_and_the_rest_imported(
 ) -> None:
     filled = fill(source_ctx)
     lines = export_lines(source_ctx, ExportFilter(model_ids=(filled["arm"],)))
-    good = json.loads(lines[-1])
+    good = json.loads(lines[-2])  # the last trajectory
 
     def variant(**changes: Any) -> str:
         return dumps({**good, **changes})
@@ -245,7 +250,7 @@ def test_a_line_that_is_not_json_imports_nothing(
     fill(source_ctx)
     lines = export_lines(source_ctx)
     assert [json.loads(line)["type"] for line in lines[:2]] == ["header", "model"]
-    cut = [*lines, lines[-1][:40]]
+    cut = [*lines[:-1], lines[-2][:40]]  # a trajectory line cut short
     with pytest.raises(ImportFormatError, match=f"line {len(cut)}: not JSON"):
         run_import(target_ctx, cut)
     assert rows(target_ctx) == []
@@ -335,7 +340,9 @@ def test_a_model_with_an_srdf_and_held_joints_keeps_its_id(
                 urdf=TWO_JOINT_URDF, srdf=SRDF, group="arm", joint_values={"elbow": 0.5}
             ),
         )
-        store_trajectory(session=session, model=model, states=[[0.0], [0.4]], source="sim")
+        store_trajectory(
+            session=session, settings=Settings(), model=model, states=[[0.0], [0.4]], source="sim"
+        )
     lines = export_lines(source_ctx)
     (record,) = [json.loads(line) for line in lines if json.loads(line)["type"] == "model"]
     assert (record["srdf"], record["joint_values"]) == (SRDF, {"elbow": 0.5})

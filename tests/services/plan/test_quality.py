@@ -54,10 +54,20 @@ def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
             registration=ModelRegistration(urdf=TWO_JOINT_URDF),
         )
         with_scene, _ = store_trajectory(
-            session=session, model=model, states=states, source="sim", scene=SCENE
+            session=session,
+            settings=Settings(),
+            model=model,
+            states=states,
+            source="sim",
+            scene=SCENE,
         )
         plain, _ = store_trajectory(
-            session=session, model=model, states=states[:2], source="sim", compute_quality=False
+            session=session,
+            settings=Settings(),
+            model=model,
+            states=states[:2],
+            source="sim",
+            compute_quality=False,
         )
         row = session.get(Trajectory, with_scene)
         assert row is not None

@@ -454,7 +454,11 @@ def test_a_job_runs_hits_and_misses(ctx: ServiceContext, model_id: str) -> None:
 
         model = get_model(session=session, registry=ctx.models, model_id=model_id)
         store_trajectory(
-            session=session, model=model, states=[[0.0, 0.0], [0.5, 0.5]], source="real"
+            session=session,
+            settings=Settings(),
+            model=model,
+            states=[[0.0, 0.0], [0.5, 0.5]],
+            source="real",
         )
     goals = [[0.5, 0.5], [0.52, 0.48], [-1.0, 1.0]]  # two near the stored one, one far away
     job_id = queue(ctx, arm_job(model_id, goals))

@@ -6,6 +6,7 @@ from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
 from typing import Annotated, Literal
 
+from anyio import from_thread
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import StreamingResponse
 from pydantic import BaseModel, ConfigDict, Field
@@ -32,7 +33,7 @@ router = APIRouter(prefix="/admin", tags=["admin"], responses=COMMON, route_clas
 NDJSON = "application/x-ndjson"
 _MODEL_ID = "5158592d7f5559c728b6d23f76857a89890f358d7aa40994d9e2338ac93ec821"
 _NDJSON_EXAMPLE = (
-    '{"type":"header","format":"trajcache-export","version":1,"exported_at":"2025-06-02T09:25:01Z",'
+    '{"type":"header","format":"trajcache-export","version":2,"exported_at":"2025-06-02T09:25:01Z",'
     '"filters":{"model_ids":[],"sources":["sim"],"created_after":null,"created_before":null}}\n'
     '{"type":"model","model_id":"' + _MODEL_ID + '","name":"arm2","base":"fixed",'
     '"joint_names":["j1"],"urdf":"<robot name=\\"arm2\\">…</robot>","files":[],'
@@ -42,6 +43,7 @@ _NDJSON_EXAMPLE = (
     '"planning_time_ms":68.2,"created_at":"2025-06-01T10:00:00Z","last_used_at":null,'
     '"last_validated_at":null,"last_real_validated_at":null,"hits":0,"failures":0,'
     '"consecutive_failures":0,"real_validations":0}\n'
+    '{"type":"end","trajectories":1}\n'
 )
 MAX_AGE_S = 1e10  # about 300 years: ages beyond cannot be subtracted from today's date
 
@@ -236,8 +238,10 @@ def export_route(
     "one (same model and states) is already there. Rejected lines are listed with their "
     "reasons; the rest is imported. The import is one transaction: a corrupt, truncated or "
     "empty body (gzip that does not unpack to its end, text that is not UTF-8, a line that is "
-    "not JSON) is a 422 naming the byte or line, and nothing is imported. `source` relabels "
-    "every trajectory's provenance.",
+    "not JSON, a version-2 export without its end line) is a 422 naming the byte or line, and "
+    "nothing is imported. The body is read as it arrives and rows are written in batches; "
+    "imported trajectories show `quality_pending` until the service has computed their "
+    "quality in the background. `source` relabels every trajectory's provenance.",
     openapi_extra={
         "requestBody": {
             "required": True,
@@ -264,11 +268,18 @@ async def import_route(
     ctx: CtxDep,
     source: Annotated[SourceName | None, Query()] = None,
 ) -> ImportOut:
-    """Import the body."""
-    body = await request.body()  # bounded while read (BoundedBodyRoute)
+    """Import the body as it arrives (never whole in memory), in a worker thread."""
+    stream = request.stream()  # bounded while read (BoundedBodyRoute)
+
+    def chunks() -> Iterator[bytes]:
+        while True:
+            try:
+                yield from_thread.run(stream.__anext__)
+            except StopAsyncIteration:
+                return
 
     def work() -> ImportOut:
-        lines = export_lines(chunks=[body], max_bytes=ctx.settings.max_body_bytes)
+        lines = export_lines(chunks=chunks(), max_bytes=ctx.settings.max_body_bytes)
         with ctx.sessions() as session:
             report = run_import(
                 session=session,

@@ -84,6 +84,7 @@ def store_trajectory_route(
         model=model,
         states=body.states,
         source=body.source,
+        settings=ctx.settings,
         robot_id=body.robot_id,
         scene_hash=body.scene_hash,
         env=body.env,

@@ -103,6 +103,11 @@ class TrajectorySummary(BaseModel):
     duration_s: float | None = Field(
         default=None, description="Duration after time-optimal timing (s) at store time."
     )
+    quality_pending: bool = Field(
+        default=False,
+        description="Imported, its quality (lengths, clearance, duration) not computed yet: "
+        "the service computes it in the background, and the quality fields stay null till then.",
+    )
     created_at: datetime
 
 

@@ -99,7 +99,7 @@ def deviation_bounds(
     if len(array) < 2:
         return np.zeros(0)
     weights = chain_weights(model, link)
-    steps = np.abs(segment_deltas(array, planar=bool(model.arm_offset)))
+    steps = np.abs(segment_deltas(array, base=model.base))
     turn = steps @ weights.revolute
     slide = steps @ weights.prismatic
     bow = (3.0 * turn**2 * weights.reach + 3.0 * turn * slide) / 8.0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 from collections.abc import Mapping, Sized
 from typing import Any
@@ -14,11 +15,12 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
-from trajcache.core.config import Settings, get_settings
+from trajcache.core.config import Settings
 from trajcache.db import models as tables
+from trajcache.db.states import state_columns
 from trajcache.geometry.errors import GeometryError, StateError
 from trajcache.geometry.model.kinematics import check_limits, check_states
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.scene.fields import parse_env
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.scene import Scene
@@ -45,6 +47,7 @@ def store_trajectory(
     model: RobotModel,
     states: npt.ArrayLike,
     source: str,
+    settings: Settings,
     robot_id: str | None = None,
     scene_hash: str | None = None,
     env: Mapping[str, Any] | None = None,
@@ -53,7 +56,6 @@ def store_trajectory(
     require_robot: bool = False,
     commit: bool = True,
     scene: Scene | None = None,
-    settings: Settings | None = None,
     compute_quality: bool = True,
     scenes: SceneCache | None = None,
     validators: ValidatorCache | None = None,
@@ -64,11 +66,12 @@ def store_trajectory(
     With `require_robot`, `robot_id` must name a robot of this model. With `commit=False` the
     row is only flushed, so the caller can commit it together with other writes.
 
-    A new row gets its quality columns (`compute_quality`): path lengths, duration after
-    time-optimal timing and, in `scene` or else the stored scene version with `scene_hash`,
-    the minimum clearance. A metric that cannot be computed is left empty; the store proceeds.
-    `scenes` and `validators` (the service's caches) spare parsing the scene and building its
-    validator again.
+    A new row gets its quality columns (`compute_quality`) under the caller's `settings` (the
+    app's, never the process environment's): path lengths, duration after time-optimal timing
+    and, in `scene` or else the stored scene version with `scene_hash`, the minimum clearance.
+    A metric that cannot be computed is left empty; the store proceeds. `scenes` and
+    `validators` (the service's caches) spare parsing the scene and building its validator
+    again.
     """
     array = _validated(
         session,
@@ -89,14 +92,74 @@ def store_trajectory(
         return existing, False
     if compute_quality:
         if scene is None and scene_hash is not None:
-            scene = _scene_with_hash(session, scene_hash, scenes)
-        _fill_quality(row, model, array, settings or get_settings(), scene, validators)
+            scene = scene_with_hash(session, scene_hash, scenes)
+        _fill_quality(row, model, array, settings, scene, validators)
     new_id = _insert_unless_present(session, row)
     if new_id is None:  # stored concurrently by another request or replica
         return _stored_meanwhile(session, row), False
     if commit:
         session.commit()
     return new_id, True
+
+
+def new_row_values(
+    model: RobotModel,
+    states: npt.ArrayLike,
+    *,
+    source: str,
+    robot_id: str | None = None,
+    scene_hash: str | None = None,
+    env: Mapping[str, Any] | None = None,
+    planning_time_ms: float | None = None,
+    max_states: int | None = None,
+) -> dict[str, Any]:
+    """The column values of a new row of `model` (for a bulk INSERT), its states checked as
+    `store_trajectory` checks them (the robot's existence is not: bulk writers store history
+    of robots long gone)."""
+    array = _checked_states(model, states)
+    _check_count(array.shape[0], max_states)
+    if source not in SOURCES:
+        raise InvalidInputError(f"source {source!r} must be one of {', '.join(SOURCES)}")
+    if robot_id is not None:
+        check_robot_id(robot_id)
+    if scene_hash is not None and not 1 <= len(scene_hash) <= 64:
+        raise InvalidInputError("scene_hash must be 1-64 characters")
+    return {
+        "model_id": model.model_id,
+        "source": source,
+        "robot_id": robot_id,
+        "scene_hash": scene_hash,
+        "env": parse_env(dict(env or {})),
+        "planning_time_ms": planning_time_ms,
+        **state_columns(array),
+    }
+
+
+def _checked_states(model: RobotModel, states: npt.ArrayLike) -> np.ndarray:
+    """`check_states` and `check_limits` in one pass for states that pass them (the bulk of an
+    import): finite and within the limits without their tolerance. Anything else goes through
+    the two checks, which accept what is within tolerance and name what is wrong."""
+    try:
+        array = np.asarray(states, dtype=np.float64)
+    except (TypeError, ValueError):
+        array = np.empty((0, 0))
+    if array.ndim == 2 and array.shape[1] == model.dof and np.isfinite(array).all():
+        lower, upper = _strict_limits(model)
+        if ((array >= lower) & (array <= upper)).all():
+            return array
+    array = check_states(model, states, name="state")
+    check_limits(model, array, name="state")
+    return array
+
+
+@functools.lru_cache(maxsize=64)
+def _strict_limits(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+    """The joint limits `check_limits` applies, without its tolerance (a planar base's x, y
+    and theta unbounded)."""
+    lower, upper = model.lower.astype(np.float64), model.upper.astype(np.float64)
+    if model.base is BaseType.PLANAR:
+        lower[:3], upper[:3] = -np.inf, np.inf
+    return lower, upper
 
 
 def set_parent(session: Session, trajectory_id: int, parent_id: int) -> None:
@@ -159,7 +222,7 @@ def _fill_quality(
         setattr(row, name, value)
 
 
-def _scene_with_hash(session: Session, scene_hash: str, scenes: SceneCache | None) -> Scene | None:
+def scene_with_hash(session: Session, scene_hash: str, scenes: SceneCache | None) -> Scene | None:
     """The scene with this hash, a robot's version or else a seed job's, parsed once per
     `scenes`; None if none is stored."""
     cached = scenes.get(scene_hash) if scenes is not None else None

@@ -1,9 +1,13 @@
 """Importing an export into a database, in one transaction (the format: `transfer`).
 
 Every line is checked on its own: a JSON object that fails its checks is rejected with its
-number and reason and the rest is imported. A line that is not JSON (a corrupt or cut file), or
-a header of another format or a newer version, refuses the whole import: nothing is stored.
-Models registered by the import reach the process's registry only once it is committed.
+number and reason and the rest is imported. A line that is not JSON (a corrupt or cut file), a
+header of another format or a newer version, or a version-2 export without its end line (cut
+short) refuses the whole import: nothing is stored. Trajectories are written in batches
+(`bulk_insert`), all inside the one transaction. Their quality (timing, clearance) is not
+computed here: new rows are marked pending and the service computes it in the background
+(`backfill`). Models registered by the import reach the process's registry only once it is
+committed.
 """
 
 from __future__ import annotations
@@ -17,15 +21,11 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
-import sqlalchemy as sa
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from trajcache.core.config import Settings
-from trajcache.db import models as tables
-from trajcache.db.models import trajectory_content_hash
 from trajcache.geometry.errors import GeometryError
-from trajcache.geometry.model.kinematics import check_limits, check_states
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.catalog.models import (
     ModelRegistration,
@@ -33,17 +33,17 @@ from trajcache.services.catalog.models import (
     get_model,
     register_model,
 )
-from trajcache.services.catalog.trajectories import SOURCES, store_trajectory
+from trajcache.services.catalog.trajectories import SOURCES, new_row_values
 from trajcache.services.errors import (
     ConflictError,
     InvalidInputError,
     NotFoundError,
     ServiceError,
 )
+from trajcache.services.maintenance.bulk_insert import DEFAULT_BATCH_ROWS, BatchWriter
 from trajcache.services.maintenance.transfer import COUNTERS, FORMAT, FORMAT_VERSION, TIMES
 
 MAX_LISTED_REJECTS = 1000
-_T = tables.Trajectory
 
 
 @dataclass(frozen=True)
@@ -117,6 +117,7 @@ class Importer:
         registry: ModelRegistry,
         settings: Settings,
         source: str | None = None,
+        batch_rows: int = DEFAULT_BATCH_ROWS,
     ) -> None:
         if source is not None and source not in SOURCES:
             raise InvalidInputError(f"source {source!r} must be one of {', '.join(SOURCES)}")
@@ -127,12 +128,17 @@ class Importer:
         self.report = ImportReport()
         self._model_ids: dict[str, str] = {}  # id in the file -> id in this database
         self._models: dict[str, RobotModel] = {}
+        self._writer = BatchWriter(session, batch_rows=batch_rows)
+        self._version = 0  # of the header; 0: no header read
+        self._ended = False
 
     def feed(self, line_no: int, text: str) -> None:
         """Import one line (blank lines are skipped)."""
         if not text.strip():
             return
         self.report.lines += 1
+        if self._ended:
+            raise ImportFormatError(f"line {line_no}: text after the export's end line")
         try:
             record = json.loads(text, parse_constant=_reject_constant)
             if not isinstance(record, dict):
@@ -144,6 +150,8 @@ class Importer:
                 self._model(record)
             elif kind == "trajectory":
                 self._trajectory(record)
+            elif kind == "end":
+                self._ended = True  # version 2: the export was written to its end
             else:
                 raise _LineError(f"unknown line type {kind!r:.40}")
         except json.JSONDecodeError as exc:
@@ -158,7 +166,14 @@ class Importer:
             self.report.reject(line_no, str(exc)[:500])
 
     def finish(self) -> ImportReport:
-        """Commit the import and return the report."""
+        """Write the last batch, commit the import and return the report."""
+        if self._version >= 2 and not self._ended:
+            raise ImportFormatError(
+                "the export ends without its end line: it was cut short; nothing was imported"
+            )
+        self._writer.flush()
+        self.report.inserted += self._writer.inserted
+        self.report.duplicates += self._writer.duplicates
         self.session.commit()
         for model in self._models.values():
             self.registry.put(model)
@@ -175,6 +190,7 @@ class Importer:
                 f"line {line_no}: export format version {version!r:.20} is newer than this "
                 f"trajcache reads ({FORMAT_VERSION}); upgrade trajcache"
             )
+        self._version = version
 
     def _model(self, record: Mapping[str, Any]) -> None:
         file_id = record.get("model_id")
@@ -234,32 +250,24 @@ class Importer:
 
     def _trajectory(self, record: Mapping[str, Any]) -> None:
         model = self._model_for(record.get("model_id"))
-        states = check_states(model, _states(record), name="state")
-        check_limits(model, states, name="state")
-        expected = record.get("content_hash")
-        if expected is not None and expected != trajectory_content_hash(states):
-            raise _LineError("content_hash does not match the states")
-        times = {name: _timestamp(record, name) for name in TIMES}
-        counters = {name: _counter(record, name) for name in COUNTERS}
-        new_id, created = store_trajectory(
-            session=self.session,
-            model=model,
-            states=states,
+        values = new_row_values(
+            model,
+            _states(record),
             source=self.source or _optional_str(record, "source") or "import",
             robot_id=_optional_str(record, "robot_id"),
             scene_hash=_optional_str(record, "scene_hash"),
             env=_env(record),
             planning_time_ms=_optional_number(record, "planning_time_ms"),
             max_states=self.settings.max_trajectory_states,
-            commit=False,
         )
-        if not created:
-            self.report.duplicates += 1
-            return
-        values: dict[str, Any] = dict(counters)
-        values.update({k: v for k, v in times.items() if v is not None})
-        self.session.execute(sa.update(_T).where(_T.id == new_id).values(**values))
-        self.report.inserted += 1
+        expected = record.get("content_hash")
+        if expected is not None and expected != values["content_hash"]:
+            raise _LineError("content_hash does not match the states")
+        values.update({name: _counter(record, name) for name in COUNTERS})
+        values.update({name: _timestamp(record, name) for name in TIMES})
+        values["created_at"] = values["created_at"] or datetime.now(UTC)
+        values["quality_pending"] = True  # computed by the service in the background
+        self._writer.add(values)
 
 
 def _states(record: Mapping[str, Any]) -> list[Any]:
@@ -301,9 +309,12 @@ def import_lines(
     settings: Settings,
     lines: Iterable[str],
     source: str | None = None,
+    batch_rows: int = DEFAULT_BATCH_ROWS,
 ) -> ImportReport:
     """Import export lines in one transaction; the report lists the rejected ones."""
-    importer = Importer(session=session, registry=registry, settings=settings, source=source)
+    importer = Importer(
+        session=session, registry=registry, settings=settings, source=source, batch_rows=batch_rows
+    )
     try:
         for number, text in enumerate(lines, start=1):
             importer.feed(number, text)

@@ -2,7 +2,7 @@
 
 One JSON object per line, in this order:
 
-1. `{"type": "header", "format": "trajcache-export", "version": 1, "exported_at": ISO-8601,
+1. `{"type": "header", "format": "trajcache-export", "version": 2, "exported_at": ISO-8601,
    "filters": {...}}` — optional on import; a file of another format or a newer version is
    refused as a whole.
 2. Per model, before its trajectories: `{"type": "model", "model_id", "name", "base",
@@ -17,15 +17,24 @@ One JSON object per line, in this order:
    "consecutive_failures", "real_validations"}` — states ordered as the model's
    `state_names`; timestamps ISO-8601 (UTC) or null; `content_hash` (optional on import) is
    checked against the states.
+4. `{"type": "end", "trajectories": N}` (version 2): the last line, with the number of
+   trajectory lines written (for information). A version-2 file without it was cut short (a
+   plain file can be cut at a line's end) and is refused as a whole, as is text after it.
 
-Import is idempotent: a trajectory is identified by its model and the hash of its states, so
-importing the same one twice stores one row (the second is counted as a duplicate, its
-counters are not added). Every trajectory is checked like a stored one (state count, length,
-finite values, joint limits); a line that fails is rejected with its line number and reason,
-and the rest is imported. The import is one transaction: input that is corrupt, truncated or
-empty (gzip that does not unpack to its end, text that is not UTF-8, a line that is not JSON;
-see `reading`) refuses the whole import and stores nothing, and an interrupted import stores
-nothing either, so it can simply be run again.
+Versions: 1 (trajcache up to the release that added background quality) has no end line;
+importing it still works, without the cut-short check. 2 adds the end line.
+
+Export streams: rows are read a batch at a time (a server-side cursor on PostgreSQL) and
+written as they come, so its memory does not grow with the cache. Import is idempotent: a
+trajectory is identified by its model and the hash of its states, so importing the same one
+twice stores one row (the second is counted as a duplicate, its counters are not added). Every
+trajectory is checked like a stored one (state count, length, finite values, joint limits); a
+line that fails is rejected with its line number and reason, and the rest is imported. Rows are
+written in batches (`bulk_insert`); their quality is computed afterwards, in the background
+(`backfill`), and shows as pending until then. The import is one transaction: input that is
+corrupt, truncated or empty (gzip that does not unpack to its end, text that is not UTF-8, a
+line that is not JSON; see `reading`) refuses the whole import and stores nothing, and an
+interrupted import stores nothing either, so it can simply be run again.
 """
 
 from __future__ import annotations
@@ -37,6 +46,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
 
+import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
@@ -45,7 +55,8 @@ from trajcache.services.catalog.trajectories import SOURCES
 from trajcache.services.errors import InvalidInputError, NotFoundError
 
 FORMAT = "trajcache-export"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+EXPORT_BATCH_ROWS = 2000
 _T = tables.Trajectory
 COUNTERS = ("hits", "failures", "consecutive_failures", "real_validations")
 TIMES = ("created_at", "last_used_at", "last_validated_at", "last_real_validated_at")
@@ -131,16 +142,33 @@ def model_record(session: Session, model_id: str) -> dict[str, Any]:
     }
 
 
-def trajectory_record(row: tables.Trajectory) -> dict[str, Any]:
-    """The trajectory line of a stored row."""
+_EXPORTED = (
+    _T.model_id,
+    _T.states,
+    _T.n_states,
+    _T.dof,
+    _T.source,
+    _T.robot_id,
+    _T.scene_hash,
+    sa.cast(_T.env, sa.Text).label("env_text"),  # decoded only when not empty
+    _T.content_hash,
+    _T.planning_time_ms,
+    *(getattr(_T, name) for name in TIMES),
+    *(getattr(_T, name) for name in COUNTERS),
+)
+
+
+def trajectory_record(row: Any) -> dict[str, Any]:
+    """The trajectory line of a stored row (an ORM row, or a row of `_EXPORTED`)."""
+    states = np.frombuffer(row.states, dtype=tables.STATE_DTYPE).reshape(row.n_states, row.dof)
     record: dict[str, Any] = {
         "type": "trajectory",
         "model_id": row.model_id,
-        "states": row.states_array().tolist(),
+        "states": states.tolist(),
         "source": row.source,
         "robot_id": row.robot_id,
         "scene_hash": row.scene_hash,
-        "env": dict(row.env or {}),
+        "env": _env(row),
         "content_hash": row.content_hash,
         "planning_time_ms": row.planning_time_ms,
     }
@@ -151,10 +179,18 @@ def trajectory_record(row: tables.Trajectory) -> dict[str, Any]:
     return record
 
 
+def _env(row: Any) -> dict[str, Any]:
+    """The row's environment values; an empty one (most) is not decoded."""
+    if not hasattr(row, "env_text"):
+        return dict(row.env or {})
+    text = row.env_text
+    return {} if text is None or text == "{}" else dict(json.loads(text))
+
+
 def export_records(
     *, session: Session, filt: ExportFilter, include_models: bool = True
 ) -> Iterator[dict[str, Any]]:
-    """The header, then each model's line and its trajectories (by model, then id)."""
+    """The header, each model's line and its trajectories (by model, then id), the end line."""
     check_filter(session, filt)
     yield {
         "type": "header",
@@ -163,18 +199,21 @@ def export_records(
         "exported_at": _iso(datetime.now(UTC)),
         "filters": filt.as_dict(),
     }
-    rows = session.scalars(
-        sa.select(_T)
+    rows = session.execute(
+        sa.select(*_EXPORTED)
         .where(*filt.conditions())
         .order_by(_T.model_id, _T.id)
-        .execution_options(yield_per=500)
+        .execution_options(yield_per=EXPORT_BATCH_ROWS)
     )
     current: str | None = None
+    count = 0
     for row in rows:
         if include_models and row.model_id != current:
             current = row.model_id
             yield model_record(session, row.model_id)
+        count += 1
         yield trajectory_record(row)
+    yield {"type": "end", "trajectories": count}
 
 
 def dumps(record: Mapping[str, Any]) -> str:

@@ -79,6 +79,7 @@ def store_and_answer(
             model=model,
             states=path,
             source=attempt.origin.store_source,
+            settings=settings,
             robot_id=attempt.origin.store_robot_id,
             scene_hash=scene.hash,
             env=scene.env,

@@ -2,7 +2,8 @@
 
 It polls every `seed_poll_interval_s` (and at once when woken: a job was queued, a run ended),
 claims up to `seed_max_running_jobs` jobs (see `jobs` for the lease) and runs each in a
-`JobRun`. On stop it hands its jobs back, so they resume on any replica.
+`JobRun`. On stop it hands its jobs back, so they resume on any replica. It also prunes old
+seed jobs' scenes (`retention`), at start and then every `PRUNE_EVERY_S`.
 """
 
 from __future__ import annotations
@@ -11,10 +12,13 @@ import logging
 import os
 import socket
 import threading
+import time
 import uuid
+from datetime import timedelta
 
 from trajcache.services.context import ServiceContext
 from trajcache.services.seeding.jobs import claim_job, claimable_jobs
+from trajcache.services.seeding.retention import PRUNE_EVERY_S, prune_seed_scenes
 from trajcache.services.seeding.runner import JobRun
 
 __all__ = ["SeedScheduler", "replica_id"]
@@ -38,6 +42,7 @@ class SeedScheduler:
         self._poll_lock = threading.Lock()  # one poll at a time
         self._wake = threading.Event()
         self._stopping = threading.Event()
+        self._next_prune = 0.0  # monotonic time of the next scene prune (0: at the first poll)
         self._thread = threading.Thread(target=self._loop, name="seed-scheduler", daemon=True)
 
     def start(self) -> SeedScheduler:
@@ -113,10 +118,22 @@ class SeedScheduler:
             self._runs.pop(job_id, None)
         self._wake.set()
 
+    def prune_scenes(self) -> int:
+        """Prune old seed jobs' scenes now (0 days of retention: never); how many went."""
+        days = self.ctx.settings.seed_scene_retention_days
+        if days <= 0:
+            return 0
+        with self.ctx.sessions() as session:
+            return prune_seed_scenes(session, retention=timedelta(days=days))
+
     def _loop(self) -> None:
         while not self._stopping.is_set():
             try:
                 self.poll()
+                if time.monotonic() >= self._next_prune:
+                    self._next_prune = time.monotonic() + PRUNE_EVERY_S
+                    if pruned := self.prune_scenes():
+                        _log.info("pruned %d scenes of old seed jobs", pruned)
             except Exception as exc:  # the database may be away; try again at the next poll
                 _log.warning("seed job poll failed: %s", exc)
             self._wake.wait(self.ctx.settings.seed_poll_interval_s)

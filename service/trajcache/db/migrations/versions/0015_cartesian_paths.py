@@ -1,7 +1,7 @@
 """The store of Cartesian path answers.
 
-Revision ID: 0014_cartesian_paths
-Revises: 0013
+Revision ID: 0015
+Revises: 0014
 Create Date: 2026-11-28 02:10:00.000000+00:00
 """
 
@@ -13,8 +13,8 @@ import sqlalchemy as sa
 from alembic import op
 
 # revision identifiers, used by Alembic.
-revision: str = "0014_cartesian_paths"
-down_revision: str | Sequence[str] | None = "0013"
+revision: str = "0015"
+down_revision: str | Sequence[str] | None = "0014"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -1,0 +1,153 @@
+"""Writing imported trajectories in batches: one multi-row INSERT per batch, not one per row.
+
+Rows are keyed by model and content hash, as the table's unique constraint keys them. A batch
+is written with `INSERT … ON CONFLICT (model_id, content_hash) DO NOTHING RETURNING id`: a row
+already stored (before the import, or by an earlier batch of it) is not returned and counts as
+a duplicate; a row repeated inside one batch is dropped before the INSERT and counts the same.
+On PostgreSQL a batch is copied (COPY, the driver's compiled path) into a temporary table of
+the transaction and inserted from there with one `INSERT … SELECT … ON CONFLICT DO NOTHING`: a
+VALUES list of 25 parameters a row costs more to build and parse than the rows cost to insert.
+The writer never commits: the importer's one transaction holds every batch.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy.orm import Session
+
+from trajcache.db import models as tables
+
+DEFAULT_BATCH_ROWS = 1000
+_TABLE: sa.Table = tables.Trajectory.__table__  # type: ignore[assignment]
+# Every row of a batch carries the same keys (an executemany needs one statement shape).
+_KEYS = (
+    "model_id",
+    "source",
+    "robot_id",
+    "states",
+    "n_states",
+    "dof",
+    "start",
+    "goal",
+    "start_x",
+    "start_y",
+    "goal_x",
+    "goal_y",
+    "scene_hash",
+    "env",
+    "content_hash",
+    "planning_time_ms",
+    "hits",
+    "failures",
+    "consecutive_failures",
+    "real_validations",
+    "last_used_at",
+    "last_validated_at",
+    "last_real_validated_at",
+    "created_at",
+    "quality_pending",
+)
+
+_KEY_SET = frozenset(_KEYS)
+
+
+class BatchWriter:
+    """Collects rows (`add`) and inserts them a batch at a time (`flush`, at `batch_rows`)."""
+
+    def __init__(self, session: Session, *, batch_rows: int = DEFAULT_BATCH_ROWS) -> None:
+        self.session = session
+        self.batch_rows = max(1, batch_rows)
+        self.inserted = 0
+        self.duplicates = 0
+        self._pending: dict[tuple[str, str], dict[str, Any]] = {}
+        self._dialect = session.get_bind().dialect.name
+        self._statement = _insert_statement(self._dialect)
+        self._staged = False  # the PostgreSQL staging table exists
+
+    def add(self, values: Mapping[str, Any]) -> None:
+        """Queue one row (the columns of `_KEYS`; missing ones are null)."""
+        key = (values["model_id"], values["content_hash"])
+        if key in self._pending:
+            self.duplicates += 1
+            return
+        if _KEY_SET.issubset(values):
+            self._pending[key] = dict(values)
+        else:
+            self._pending[key] = {name: values.get(name) for name in _KEYS}
+        if len(self._pending) >= self.batch_rows:
+            self.flush()
+
+    def flush(self) -> None:
+        """Insert the queued rows (inside the session's transaction)."""
+        if not self._pending:
+            return
+        rows = list(self._pending.values())
+        self._pending.clear()
+        if self._dialect == "postgresql":
+            new = _staged_insert(self.session, rows, first=not self._staged)
+            self._staged = True
+        elif self._statement is None:
+            new = sum(_insert_one(self.session, row) for row in rows)
+        else:
+            new = len(self.session.connection().execute(self._statement, rows).all())
+        self.inserted += new
+        self.duplicates += len(rows) - new
+
+
+def _insert_statement(dialect: str) -> sa.Insert | None:
+    """The batch INSERT of PostgreSQL and SQLite; None elsewhere (one savepoint per row)."""
+    if dialect not in ("postgresql", "sqlite"):
+        return None
+    insert = postgresql.insert if dialect == "postgresql" else sqlite.insert
+    return (
+        insert(_TABLE)
+        .on_conflict_do_nothing(index_elements=["model_id", "content_hash"])
+        .returning(_TABLE.c.id)
+    )
+
+
+def _insert_one(session: Session, row: dict[str, Any]) -> int:
+    """1 if the row was inserted, 0 if it was already there (other databases)."""
+    key = (_TABLE.c.model_id == row["model_id"]) & (_TABLE.c.content_hash == row["content_hash"])
+    if session.execute(sa.select(_TABLE.c.id).where(key)).first() is not None:
+        return 0
+    session.execute(sa.insert(_TABLE), [row])
+    return 1
+
+
+_STAGE = "trajcache_import_batch"  # a temporary table of the import's transaction
+
+
+def _staged_insert(session: Session, rows: list[dict[str, Any]], first: bool) -> int:
+    """Insert `rows` on PostgreSQL: COPY into a temporary table, then one INSERT … SELECT …
+    ON CONFLICT DO NOTHING; how many were new."""
+    names = ", ".join(_KEYS)
+    raw = session.connection().connection.driver_connection
+    assert raw is not None  # a live connection of the session's transaction
+    with raw.cursor() as cursor:
+        if first:  # dropped at the end of the transaction, as the import's rows commit
+            cursor.execute(
+                f"CREATE TEMPORARY TABLE {_STAGE} ON COMMIT DROP AS "
+                f"SELECT {names} FROM {_TABLE.name} WITH NO DATA"
+            )
+        else:
+            cursor.execute(f"TRUNCATE {_STAGE}")
+        with cursor.copy(f"COPY {_STAGE} ({names}) FROM STDIN") as copy:
+            for row in rows:
+                values = [row[k] for k in _KEYS]
+                for i in _JSON_AT:
+                    values[i] = json.dumps(values[i])
+                copy.write_row(values)
+        cursor.execute(
+            f"INSERT INTO {_TABLE.name} ({names}) SELECT {names} FROM {_STAGE} "
+            "ON CONFLICT (model_id, content_hash) DO NOTHING RETURNING id"
+        )
+        return len(cursor.fetchall())
+
+
+_JSON_AT = [i for i, name in enumerate(_KEYS) if isinstance(_TABLE.c[name].type, sa.JSON)]
