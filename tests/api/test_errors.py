@@ -69,7 +69,7 @@ def test_a_robot_id_of_only_dots_is_a_422_naming_it_on_every_robot_route(
 ) -> None:
     paths = openapi_document()["paths"]
     operations = [(m.upper(), p) for p, ops in paths.items() if "{robot_id}" in p for m in ops]
-    assert len(operations) == 9
+    assert len(operations) == 10
     for method, path in operations:
         for robot_id in (".", "..", "..."):
             encoded = robot_id.replace(".", "%2E")  # a client would resolve the dot segments

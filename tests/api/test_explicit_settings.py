@@ -22,7 +22,7 @@ IMPORTED = [[0.0, 0.1], [0.6, 0.5], [1.1, 0.3]]
 def durations(client: object, model_id: str, states: list[list[float]]) -> tuple[float, float]:
     """The duration under the app's settings and under the environment's (defaults)."""
     ctx = ctx_of(client)  # type: ignore[arg-type]
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         model = get_model(session=session, registry=ctx.models, model_id=model_id)
     array = np.asarray(states)
     app = quality_columns(model, array, ctx.settings, None)

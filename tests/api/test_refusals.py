@@ -110,7 +110,7 @@ def test_the_moveit_route_records_its_in_band_refusals(app_client: TestClient) -
 
 def _key(client: TestClient, role: str, robots: list[str] | None = None) -> dict[str, str]:
     ctx = ctx_of(client)
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         _, secret = create_key(session=session, name=role, role=role, robot_ids=robots)
     ctx.keys.clear()
     return {"Authorization": f"Bearer {secret}"}

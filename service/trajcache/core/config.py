@@ -357,9 +357,8 @@ class Settings(BaseSettings):
             return self
         if path.startswith("file:") or Path(path).is_absolute():
             return self
-        self.database_url = url.set(database=str(self.data_dir / path)).render_as_string(
-            hide_password=False
-        )
+        located = url.set(database=str(self.data_dir / path))
+        self.database_url = located.render_as_string(hide_password=False)
         return self
 
     @field_validator("default_planner")
@@ -380,7 +379,7 @@ class Settings(BaseSettings):
     @field_validator("log_level", mode="before")
     @classmethod
     def _lower_log_level(cls, value: object) -> object:
-        return value.strip().lower() if isinstance(value, str) else value
+        return value.strip().lower() if isinstance(value, str) else value  # fmt: skip
 
     @model_validator(mode="after")
     def _check_limits(self) -> Self:

@@ -47,7 +47,7 @@ def many(count: int) -> list[str]:
 
 
 def count(ctx: ServiceContext, table: type[Any]) -> int:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return int(session.scalar(sa.select(sa.func.count()).select_from(table)) or 0)
 
 
@@ -106,10 +106,10 @@ def test_a_cut_after_several_batches_imports_nothing(target_ctx: ServiceContext)
 
 def test_background_quality_fills_pending_rows(target_ctx: ServiceContext) -> None:
     run_import(target_ctx, many(5))
-    with target_ctx.session() as session:
+    with target_ctx.sessions() as session:
         assert backfill.pending_count(session) == 5
     assert backfill.backfill_batch(target_ctx, 2) == 2
-    with target_ctx.session() as session:
+    with target_ctx.sessions() as session:
         assert backfill.pending_count(session) == 3
         done = session.scalars(sa.select(Trajectory).where(Trajectory.quality_pending.is_(False)))
         assert all(r.duration_s is not None and r.length is not None for r in done)
@@ -128,7 +128,7 @@ def test_background_quality_resumes_after_a_restart(database_url: str) -> None:
         assert background.quality is not None
 
         def pending() -> int:
-            with restarted.session() as session:
+            with restarted.sessions() as session:
                 return backfill.pending_count(session)
 
         assert wait_until(lambda: pending() == 0, timeout_s=60, interval_s=0.1)

@@ -9,7 +9,7 @@ import sqlalchemy as sa
 from tests.robots import TWO_JOINT_URDF
 from trajcache.core.config import Settings
 from trajcache.db.models import SeedJob, SeedJobScene
-from trajcache.services.catalog.models import register_model
+from trajcache.services.catalog.models import ModelRegistration, register_model
 from trajcache.services.catalog.trajectories import store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.seeding.retention import prune_seed_scenes
@@ -23,7 +23,7 @@ def add_job(
     ctx: ServiceContext, model_id: str, *, finished: datetime | None, hashes: list[str]
 ) -> int:
     """A seed job (finished at `finished`, or still running) with a scene per hash."""
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         job = SeedJob(
             model_id=model_id,
             state="running" if finished is None else "done",
@@ -41,7 +41,7 @@ def add_job(
 
 
 def scenes(ctx: ServiceContext) -> set[tuple[int, str]]:
-    with ctx.session() as session:
+    with ctx.sessions() as session:
         return {
             (j, h) for j, h in session.execute(sa.select(SeedJobScene.job_id, SeedJobScene.hash))
         }
@@ -50,8 +50,12 @@ def scenes(ctx: ServiceContext) -> set[tuple[int, str]]:
 def test_old_scenes_go_unless_a_trajectory_names_them(migrated_url: str) -> None:
     ctx = ServiceContext.create(Settings(database_url=migrated_url, worker_backend="none"))
     try:
-        with ctx.session() as session:
-            model, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+        with ctx.sessions() as session:
+            model, _ = register_model(
+                session=session,
+                registry=ctx.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
             store_trajectory(
                 session=session,
                 settings=ctx.settings,
@@ -63,11 +67,11 @@ def test_old_scenes_go_unless_a_trajectory_names_them(migrated_url: str) -> None
         old = add_job(ctx, model.model_id, finished=NOW - 2 * WEEK, hashes=["used", "unused"])
         recent = add_job(ctx, model.model_id, finished=NOW - timedelta(days=1), hashes=["new"])
         running = add_job(ctx, model.model_id, finished=None, hashes=["live"])
-        with ctx.session() as session:
+        with ctx.sessions() as session:
             assert prune_seed_scenes(session, retention=WEEK, now=NOW) == 1
         kept = {(old, "used"), (recent, "new"), (running, "live")}
         assert scenes(ctx) == kept
-        with ctx.session() as session:  # nothing more to prune: the rest is used or recent
+        with ctx.sessions() as session:  # nothing more to prune: the rest is used or recent
             assert prune_seed_scenes(session, retention=WEEK, now=NOW) == 0
             session.execute(sa.text("DELETE FROM trajectories"))
             session.commit()
@@ -82,8 +86,12 @@ def test_the_scheduler_prunes_with_the_retention_setting(migrated_url: str) -> N
     settings = Settings(database_url=migrated_url, worker_backend="none")
     ctx = ServiceContext.create(settings)
     try:
-        with ctx.session() as session:
-            model, _ = register_model(session=session, registry=ctx.models, urdf=TWO_JOINT_URDF)
+        with ctx.sessions() as session:
+            model, _ = register_model(
+                session=session,
+                registry=ctx.models,
+                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
+            )
         now = datetime.now(UTC)
         add_job(ctx, model.model_id, finished=now - timedelta(days=3), hashes=["a"])
         assert SeedScheduler(ctx).prune_scenes() == 0  # within the default week
