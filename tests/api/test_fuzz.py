@@ -43,7 +43,7 @@ from trajcache.services.catalog.keys import create_key
 from trajcache.services.context import ServiceContext
 
 DOCUMENT = Path(__file__).resolve().parents[2] / "openapi" / "openapi.json"
-EXAMPLES = {GenerationMode.POSITIVE: 60, GenerationMode.NEGATIVE: 25}
+EXAMPLES = {GenerationMode.POSITIVE: 40, GenerationMode.NEGATIVE: 15}
 NDJSON = "application/x-ndjson"
 # Any bytes are text: a body "violating" a text schema is still valid text on the wire.
 TEXT_BODIES = {"POST /v1/admin/import"}

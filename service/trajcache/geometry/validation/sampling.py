@@ -31,12 +31,15 @@ def sample_counts(
     `subdivision`, each of those steps is cut into as many again (the samples of the coarser
     cut are among them).
 
-    Certified validation subdivides (`validator.CERTIFY_SUBDIVISION`): it proves the motion
+    Certified validation may subdivide (`validator.CERTIFY_SUBDIVISION`): it proves the motion
     between samples, so their spacing decides only its cost. Finer samples leave fewer pairs to
-    exact distances and conservative advancement in Python: on 70 of the MotionBenchMaker
-    Panda's planned paths (`bench/certify_sampling.py`), a third of the step took a third less
-    CPU time than the step itself (whole paths 3.6 against 5.5 ms at the median, a hit's two
-    new end segments 0.92 against 1.40 ms), and a half or a quarter more than a third."""
+    exact distances and conservative advancement in Python, but cost more bound evaluations.
+    On 70 of the MotionBenchMaker Panda's planned paths, in tight shelves and cages
+    (`bench/certify_sampling.py`), a third of the step took a third less CPU time (whole paths
+    3.6 against 5.5 ms at the median, a hit's two new end segments 0.92 against 1.40 ms); on
+    the reference robot's open workload (`bench/validation.py --smoke`) it took more (1.74
+    against 1.34 ms per trajectory, 1.16 against 0.69 ms per workload motion). So it stays 1
+    until it is chosen where it pays, per segment."""
     key = np.asarray(key_states, dtype=float)
     planar = model.base is BaseType.PLANAR
     delta = segment_deltas(key, base=model.base)

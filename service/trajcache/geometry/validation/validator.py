@@ -52,7 +52,7 @@ from trajcache.geometry.validation.stamp import certificate_digest
 IntArray = NDArray[np.int64]
 
 _CHUNK = 256
-CERTIFY_SUBDIVISION = 3  # certified samples per resolution step (`sampling.sample_counts`)
+CERTIFY_SUBDIVISION = 1  # certified samples per resolution step (`sampling.sample_counts`)
 _SPREAD = 9  # samples checked first, spread along the trajectory, when it has
 _SPREAD_ABOVE = 32  # more resolution steps than this (below, certifying them all costs no more)
 
