@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import ssl
 from collections.abc import AsyncIterator, Iterable, Mapping
 from types import TracebackType
 from typing import Any, TypeVar
@@ -23,6 +24,7 @@ class AsyncClient(Endpoints, AsyncCaller, BaseClient):
     """An asyncio trajcache client; use it with `async with` or call `aclose()`.
 
     `transport` replaces the network (e.g. `httpx.MockTransport`, `httpx.ASGITransport(app)`).
+    `verify` is httpx's (a TLS context, or False); by default every client shares one context.
     """
 
     def __init__(
@@ -34,8 +36,11 @@ class AsyncClient(Endpoints, AsyncCaller, BaseClient):
         timeout: float | httpx.Timeout | None = DEFAULT_TIMEOUT,
         retry: Retry = DEFAULT_RETRY,
         transport: httpx.AsyncBaseTransport | None = None,
+        verify: ssl.SSLContext | bool | None = None,
     ) -> None:
-        super().__init__(base_url, api_key=api_key, headers=headers, timeout=timeout, retry=retry)
+        super().__init__(
+            base_url, api_key=api_key, headers=headers, timeout=timeout, retry=retry, verify=verify
+        )
         self._http = httpx.AsyncClient(transport=transport, **self._http_options())
 
     async def __aenter__(self) -> AsyncClient:

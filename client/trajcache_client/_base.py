@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import logging
+import ssl
 from collections.abc import Mapping
 from typing import Any, TypeVar
 
@@ -22,6 +24,14 @@ DEFAULT_RETRY = Retry()
 logger = logging.getLogger("trajcache_client")
 
 
+@functools.cache
+def default_tls() -> ssl.SSLContext:
+    """httpx's default TLS context (certifi's CA bundle, or SSL_CERT_FILE / SSL_CERT_DIR), built
+    once per process. httpx builds one per client, and loading the CA bundle costs 40-200 ms:
+    more than a short-lived client's calls (a readiness poll, a CLI command)."""
+    return httpx.create_ssl_context()
+
+
 class BaseClient:
     """Settings of a client and the parts of a call that do not depend on sync or async I/O."""
 
@@ -33,8 +43,10 @@ class BaseClient:
         headers: Mapping[str, str] | None,
         timeout: float | httpx.Timeout | None,
         retry: Retry,
+        verify: ssl.SSLContext | bool | None = None,
     ) -> None:
         self.base_url = base_url.rstrip("/")
+        self.verify = default_tls() if verify is None or verify is True else verify
         self.retry = retry
         self.timeout = httpx.Timeout(timeout)
         merged = {"user-agent": f"trajcache-client/{__version__}", "accept": "application/json"}
@@ -44,7 +56,12 @@ class BaseClient:
         self.headers = merged
 
     def _http_options(self) -> dict[str, Any]:
-        return {"base_url": self.base_url, "headers": self.headers, "timeout": self.timeout}
+        return {
+            "base_url": self.base_url,
+            "headers": self.headers,
+            "timeout": self.timeout,
+            "verify": self.verify,
+        }
 
     def _timeout_for(self, op: Operation[Any]) -> httpx.Timeout:
         read = self.timeout.read

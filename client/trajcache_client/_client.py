@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ssl
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from types import TracebackType
@@ -22,7 +23,8 @@ T = TypeVar("T")
 class Client(Endpoints, SyncCaller, BaseClient):
     """A blocking trajcache client; use it as a context manager or call `close()`.
 
-    `transport` replaces the network, e.g. `httpx.MockTransport(handler)` in tests.
+    `transport` replaces the network, e.g. `httpx.MockTransport(handler)` in tests. `verify` is
+    httpx's (a TLS context, or False); by default every client shares one context per process.
     """
 
     def __init__(
@@ -34,8 +36,11 @@ class Client(Endpoints, SyncCaller, BaseClient):
         timeout: float | httpx.Timeout | None = DEFAULT_TIMEOUT,
         retry: Retry = DEFAULT_RETRY,
         transport: httpx.BaseTransport | None = None,
+        verify: ssl.SSLContext | bool | None = None,
     ) -> None:
-        super().__init__(base_url, api_key=api_key, headers=headers, timeout=timeout, retry=retry)
+        super().__init__(
+            base_url, api_key=api_key, headers=headers, timeout=timeout, retry=retry, verify=verify
+        )
         self._http = httpx.Client(transport=transport, **self._http_options())
 
     def __enter__(self) -> Client:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.metadata
 import io
 import json
+import ssl
 import zipfile
 from email import policy
 from email.message import EmailMessage
@@ -365,3 +366,19 @@ def test_every_client_method_has_an_async_twin() -> None:
 
 def test_the_client_version_is_the_distributions() -> None:
     assert tc.__version__ == importlib.metadata.version("trajcache")
+
+
+def test_clients_share_one_tls_context_unless_given_their_own() -> None:
+    """httpx loads the CA bundle per client; ours load it once per process, and a context or
+    `verify=False` given to a client is the one it uses."""
+    shared = [
+        Client("http://a")._http._transport._pool._ssl_context,  # type: ignore[attr-defined]
+        tc.AsyncClient("https://b")._http._transport._pool._ssl_context,  # type: ignore[attr-defined]
+    ]
+    assert shared[0] is shared[1]
+    assert shared[0].verify_mode is ssl.CERT_REQUIRED
+    own = ssl.create_default_context()
+    given = Client("http://a", verify=own)._http._transport._pool._ssl_context  # type: ignore[attr-defined]
+    assert given is own
+    unverified = Client("http://a", verify=False)._http._transport._pool._ssl_context  # type: ignore[attr-defined]
+    assert unverified.verify_mode is ssl.CERT_NONE
