@@ -40,24 +40,18 @@ lint: setup
 	$(BIN)/ruff format --check service client tests bench
 	$(BIN)/mypy
 
+# Every benchmark at smoke size, $(JOBS) at a time (each starts its own services on free ports and
+# temporary databases), the longest first; each one's output is printed whole when it ends.
+SMOKES := paper_tables reuse_quality load mbm safety_soak real_robots pose_goals pose_cartesian \
+	plan_hit transfer certify_sampling validation planning stats rejections ik lookup
+SMOKE_mbm := bench/mbm.py --smoke --moveit --cross-scene
+SMOKE_pose_cartesian := bench/pose_goals.py --smoke --cartesian
+
 bench-smoke: setup
-	$(BIN)/python bench/validation.py --smoke
-	$(BIN)/python bench/lookup.py --smoke
-	$(BIN)/python bench/plan_hit.py --smoke
-	$(BIN)/python bench/stats.py --smoke
-	$(BIN)/python bench/reuse_quality.py --smoke
-	$(BIN)/python bench/planning.py --smoke
-	$(BIN)/python bench/paper_tables.py --smoke
-	$(BIN)/python bench/safety_soak.py --smoke
-	$(BIN)/python bench/load.py --smoke
-	$(BIN)/python bench/real_robots.py --smoke
-	$(BIN)/python bench/rejections.py --smoke
-	$(BIN)/python bench/mbm.py --smoke --moveit --cross-scene
-	$(BIN)/python bench/ik.py --smoke
-	$(BIN)/python bench/pose_goals.py --smoke
-	$(BIN)/python bench/pose_goals.py --smoke --cartesian
-	$(BIN)/python bench/certify_sampling.py --smoke
-	$(BIN)/python bench/transfer.py --smoke
+	$(MAKE) --no-print-directory -j$(JOBS) --output-sync=target $(addprefix smoke-,$(SMOKES))
+
+smoke-%:
+	$(BIN)/python $(or $(SMOKE_$*),bench/$*.py --smoke)
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
