@@ -25,6 +25,7 @@ end's d ≤ M, and no level certifies its segments.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -38,7 +39,8 @@ from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import segment_deltas
 from trajcache.geometry.validation.advance import Advancer
-from trajcache.geometry.validation.segments import Finding, OpenPairs, SegmentStatus
+from trajcache.geometry.validation.refine import PIECES, certify_in_pieces
+from trajcache.geometry.validation.segments import Finding, MovingPoints, OpenPairs, SegmentStatus
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
@@ -59,23 +61,15 @@ MIN_PAD, MAX_DEPTH = 1e-4, 24  # the certifier's defaults
 
 
 @dataclass(frozen=True)
-class _Points:
-    """Points at_a → at_b (K, S, 3) of elements, their lever coefficients and ball radii."""
-
-    at_a: FloatArray
-    at_b: FloatArray
-    coef: FloatArray
-    radius: FloatArray
-
-
-@dataclass(frozen=True)
 class CertifierOptions:
     """How the certifier works: the smallest pad and deepest split of its advancer, and its
-    compiled kernels or (`compiled=False`) the numpy levels of `clearance.py`."""
+    compiled kernels or (`compiled=False`) the numpy levels of `clearance.py`, and the pieces
+    a segment the levels leave open is cut into (`refine.py`; 1: none)."""
 
     min_pad: float = MIN_PAD
     max_depth: int = MAX_DEPTH
     compiled: bool = True
+    pieces: int = PIECES
 
 
 class SegmentCertifier:
@@ -89,7 +83,7 @@ class SegmentCertifier:
         options: CertifierOptions = CertifierOptions(),
     ) -> None:
         self.checker = checker
-        self.compiled = options.compiled
+        self.compiled, self.pieces = options.compiled, options.pieces
         self.robot = checker.robot
         self.clearance = checker.clearance
         self.narrow = checker.narrow
@@ -103,10 +97,11 @@ class SegmentCertifier:
         self._pair_coef, self._pair_whole = rg.pair_motion()
         self._allowed = checker._allowed
 
-    def certify(self, states: FloatArray) -> Finding:
-        """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it."""
+    def certify(self, states: FloatArray, *, cut: bool = True) -> Finding:
+        """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it.
+        With `cut`, open segments are cut into pieces before exact distances (`refine.py`)."""
         posed = Posed.build(self.robot, states)
-        delta = self._deltas(states)
+        delta = segment_deltas(states, base=self.base)
         step = self.robot.motion.steps(delta)
         if self.compiled:
             groups = self._compiled_levels(posed, step)
@@ -119,6 +114,9 @@ class SegmentCertifier:
         found = self._sample_collision(posed, groups)
         if found.status is SegmentStatus.COLLISION:
             return found
+        if cut and self.pieces > 1:
+            piece_fn = functools.partial(self.certify, cut=False)
+            return certify_in_pieces(piece_fn, states, delta, groups, self.pieces)
         probes = 0
         for group in (self._exact(posed, g) for g in groups):
             deeper = self.advancer.advance(states, delta, group)
@@ -128,15 +126,11 @@ class SegmentCertifier:
         found.subdivisions = probes
         return found
 
-    def _deltas(self, states: FloatArray) -> FloatArray:
-        """Differences of consecutive states, the base angle the short way."""
-        return segment_deltas(states, base=self.base)
-
     def settled_by_bounds(self, states: FloatArray) -> bool:
         """True when the compiled levels alone certify every segment of `states` (N ≥ 2); they
         stop at the first pair they leave open. A quick yes for planners' motion checks."""
         posed = Posed.build(self.robot, states)
-        step = self.robot.motion.steps(self._deltas(states))
+        step = self.robot.motion.steps(segment_deltas(states, base=self.base))
         return not any(len(g.rows) for g in self._compiled_levels(posed, step, first_only=True))
 
     def _compiled_levels(
@@ -214,7 +208,7 @@ class SegmentCertifier:
             masks = [pair_mask, pair_mask]
         whole = np.zeros(len(seg))
         for element, mask in zip(elements, masks, strict=True):
-            points = _Points(
+            points = MovingPoints(
                 posed.centres[seg, element][:, None],
                 posed.centres[seg + 1, element][:, None],
                 rg.centre_coef[element][:, None],
@@ -325,7 +319,7 @@ class SegmentCertifier:
         """Per cover ball (K, S): the motion of its centre, and of any of its points."""
         rg = self.robot
         width = centres_a.shape[1]
-        points = _Points(
+        points = MovingPoints(
             centres_a,
             centres_b,
             rg.sphere_coef[element, :width],
@@ -339,7 +333,7 @@ class SegmentCertifier:
         step: FloatArray,
         seg: IntArray,
         element: IntArray,
-        points: _Points,
+        points: MovingPoints,
         mask: FloatArray | None,
     ) -> tuple[FloatArray, FloatArray]:
         """Motion (K, S) over segments `seg` of `points` of `element`, and of any point within

@@ -38,8 +38,8 @@ def sample_counts(
     (`bench/certify_sampling.py`), a third of the step took a third less CPU time (whole paths
     3.6 against 5.5 ms at the median, a hit's two new end segments 0.92 against 1.40 ms); on
     the reference robot's open workload (`bench/validation.py --smoke`) it took more (1.74
-    against 1.34 ms per trajectory, 1.16 against 0.69 ms per workload motion). So it stays 1
-    until it is chosen where it pays, per segment."""
+    against 1.34 ms per trajectory, 1.16 against 0.69 ms per workload motion). So it stays 1;
+    the certifier cuts instead only the segments its bound levels leave open (`refine.py`)."""
     key = np.asarray(key_states, dtype=float)
     planar = model.base is BaseType.PLANAR
     delta = segment_deltas(key, base=model.base)

@@ -66,3 +66,13 @@ class OpenPairs:
         shift = np.zeros(self.rows.shape[1], dtype=np.int64)
         shift[0] = 1
         return self.rows + shift
+
+
+@dataclass(frozen=True)
+class MovingPoints:
+    """Points at_a → at_b (K, S, 3) of elements, their lever coefficients and ball radii."""
+
+    at_a: FloatArray
+    at_b: FloatArray
+    coef: FloatArray
+    radius: FloatArray
