@@ -12,15 +12,17 @@ with the motion of their centre; slabs with the motion of the whole element (its
 ball radius times the turn of the dofs that move it); every ball of the sphere covers with its own
 motion; the exact distance (coal, meshes as their triangles). The dense first level uses the
 configuration-independent motion bound (one matrix product); the configuration-dependent one
-is computed for the pairs it leaves. Before going further, FCL's collision test runs where a
-pair's bound at a sample is not positive: a colliding sample ends the search at once, as in the
-plain check. A pair no level settles is conservative advancement's job (`advance.py`), which
-ends in a certificate, a colliding state, or TOO_CLOSE.
+is computed for the pairs it leaves. A segment with a pair left open is cut into pieces, each
+certified the same way (`refine.py`). Then exact distances, and FCL's collision test where not
+even they are positive at a sample: a colliding sample ends the search at once, as in the plain
+check (a free one whose exact distance is positive needs no collision test). A pair no level
+settles is conservative advancement's job (`advance.py`), which ends in a certificate, a
+colliding state, or TOO_CLOSE.
 
 Every bound is a true bound (coal's exact distances less a margin for its tolerance; FCL
 supplies the collision test, never a distance), so a certified motion has no collision anywhere
-along it. A sample in collision always reaches FCL's collision test: there d = 0, the other
-end's d ≤ M, and no level certifies its segments.
+along it. A sample in collision always reaches FCL's collision test: there d = 0, its exact
+bound is not positive, the other end's d ≤ M, and no level certifies its segments.
 """
 
 from __future__ import annotations
@@ -111,14 +113,15 @@ class SegmentCertifier:
                 groups[1] = groups[1].take(np.zeros(len(groups[1].rows), dtype=bool))
         if not any(len(group.rows) for group in groups):
             return Finding(SegmentStatus.FREE)  # the usual case: every pair certified
-        found = self._sample_collision(posed, groups)
-        if found.status is SegmentStatus.COLLISION:
-            return found
-        if cut and self.pieces > 1:
+        if cut and self.pieces > 1:  # the pieces hold every sample of the open segments
             piece_fn = functools.partial(self.certify, cut=False)
             return certify_in_pieces(piece_fn, states, delta, groups, self.pieces)
+        groups = [self._exact(posed, g) for g in groups]
+        found = self._sample_collision(posed, groups)  # where not even they are positive
+        if found.status is SegmentStatus.COLLISION:
+            return found
         probes = 0
-        for group in (self._exact(posed, g) for g in groups):
+        for group in groups:
             deeper = self.advancer.advance(states, delta, group)
             probes += deeper.subdivisions
             if deeper.position < found.position:
