@@ -39,17 +39,16 @@ from rich.table import Table
 from scipy.spatial.transform import Rotation
 
 import pose_cartesian
+from harness.mbm_panda import register_panda
 from harness.service import running_service
 from mbm_check import SceneChecker, check_path, panda_description
 from mbm_problems import (
     ARM_JOINTS,
     DEFAULT_DATA,
     FAMILIES,
-    GROUP,
     allowed_pairs,
     clamp,
     load_problems,
-    mesh_archive,
     scene_objects,
     unpacked,
 )
@@ -98,11 +97,7 @@ class PoseRun:
         robot_dir = args.data / "robot"
         self.hand = HandPose(robot_dir)
         self.checker = SceneChecker(panda_description(robot_dir))
-        self.model_id = client.register_model(
-            (robot_dir / "panda.urdf").read_text(encoding="utf-8"),
-            srdf=(robot_dir / "panda.srdf").read_text(encoding="utf-8"),
-            group=GROUP, archive=mesh_archive(robot_dir), name="panda-mbm",
-        ).model_id  # fmt: skip
+        self.model_id = register_panda(client, robot_dir).model_id
         self.counts: Counter[str] = Counter()
         self.times: dict[str, list[float]] = {"plan": [], "ik": [], "hit": []}
 
