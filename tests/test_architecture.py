@@ -123,9 +123,6 @@ def test_geometry_imports_follow_its_pipeline(graph: Graph) -> None:
 
 
 MAX_PARAMETERS = 8  # more than this, and a request or options object is missing
-# Functions another change is reworking, allowed more parameters until it lands. Temporary:
-# each entry goes when its function takes a request object.
-TEMPORARY_PARAMETER_ALLOWLIST = {"trajcache.services.catalog.trajectories.store_trajectory"}
 JIT_DECORATORS = {"njit", "jit", "vectorize", "guvectorize", "cfunc"}  # numba's compilers
 
 
@@ -193,5 +190,4 @@ def test_no_function_outside_the_kernels_takes_more_than_eight_parameters() -> N
     for path in sorted(root.rglob("*.py")):
         module = ".".join((PACKAGE, *path.relative_to(root).with_suffix("").parts))
         found += long_parameter_lists(module, path.read_text(encoding="utf-8"))
-    allowed = {f for f in found if f.rsplit(" ", 1)[0] in TEMPORARY_PARAMETER_ALLOWLIST}
-    assert sorted(set(found) - allowed) == []
+    assert found == []

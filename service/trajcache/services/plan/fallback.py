@@ -26,6 +26,7 @@ from trajcache.planning.problem import (
 )
 from trajcache.services.catalog.models import model_source
 from trajcache.services.catalog.trajectories import (
+    NewTrajectory,
     quality_columns,
     set_parent,
     store_trajectory,
@@ -76,17 +77,19 @@ def store_and_answer(
     with attempt.clock.measure("db"):
         trajectory_id, created = store_trajectory(
             session=attempt.session,
-            model=model,
-            states=path,
-            source=attempt.origin.store_source,
             settings=settings,
-            robot_id=attempt.origin.store_robot_id,
-            scene_hash=scene.hash,
-            env=scene.env,
-            planning_time_ms=attempt.clock.seconds("plan") * 1e3,
-            max_states=settings.max_trajectory_states,
             compute_quality=False,  # computed after the answer, with the plan record
             commit=parent is None,
+            trajectory=NewTrajectory(
+                model=model,
+                states=path,
+                source=attempt.origin.store_source,
+                robot_id=attempt.origin.store_robot_id,
+                scene_hash=scene.hash,
+                env=scene.env,
+                planning_time_ms=attempt.clock.seconds("plan") * 1e3,
+                max_states=settings.max_trajectory_states,
+            ),
         )
         if parent is not None:
             set_parent(attempt.session, trajectory_id, parent)
