@@ -26,7 +26,8 @@ from trajcache.services.catalog.models import (
 )
 from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
-from trajcache.services.plan.quality import QualityLevel, TimingRequest, answer_details
+from trajcache.services.plan.quality import QualityLevel, answer_details
+from trajcache.services.quality import TimingRequest
 from trajcache.timing import PathShape, TimingMethod
 
 OTHER_URDF = two_joint_arm(name="other", elbow_limit=1.4)

@@ -42,7 +42,7 @@ from trajcache.api.moveit._schemas import ErrorCodeOut, RobotStateOut, RobotTraj
 from trajcache.api.moveit._state import held_targets
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.cartesian.path import CartesianAnswer, CartesianRequest
-from trajcache.services.plan.quality import TimingRequest
+from trajcache.services.quality import TimingRequest
 
 SAMPLE_PERIOD_S = 0.01  # the answer's points, as the MoveIt plan form samples them
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]

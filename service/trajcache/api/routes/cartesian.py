@@ -30,7 +30,7 @@ from trajcache.api.schemas.cartesian import (
 )
 from trajcache.services.cartesian.path import CartesianAnswer, CartesianRequest, answer_cartesian
 from trajcache.services.cartesian.store import CacheQuery
-from trajcache.services.catalog.robot_model import robot_model_and_held
+from trajcache.services.robot_model import robot_model_and_held
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
 

@@ -22,8 +22,8 @@ from trajcache.api.moveit import (
 )
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.ik import IK_EXAMPLES, IkBody, IkResponse
-from trajcache.services.catalog.robot_model import robot_model_and_held
 from trajcache.services.ik.solve import IkAnswer, IkRequest, answer_ik
+from trajcache.services.robot_model import robot_model_and_held
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
 

@@ -33,7 +33,7 @@ from trajcache.services.errors import (
     NotFoundError,
     PayloadTooLargeError,
 )
-from trajcache.services.plan.quality import trajectory_quality
+from trajcache.services.quality import trajectory_quality
 
 logger = logging.getLogger(__name__)
 

@@ -24,6 +24,7 @@ from trajcache.planning.problem import (
     SceneSource,
     fresh_seed,
 )
+from trajcache.services.bookkeeping.records import QualityJob
 from trajcache.services.catalog.models import model_source
 from trajcache.services.catalog.trajectories import (
     NewTrajectory,
@@ -35,7 +36,6 @@ from trajcache.services.errors import UnavailableError
 from trajcache.services.plan.answers import PlannedPath, answer_planned, answer_without_path
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
 from trajcache.services.plan.certified import certify_planned
-from trajcache.services.plan.records import QualityJob
 
 logger = logging.getLogger(__name__)
 
