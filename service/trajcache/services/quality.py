@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from trajcache.core.config import Settings
-from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import path_length
 from trajcache.geometry.path_quality import Quality, ee_path_length, min_clearance, motion_bound
@@ -65,7 +65,7 @@ def time_states(
 
     return time_trajectory(
         states,
-        planar=model.base is BaseType.PLANAR,
+        base=model.base,
         limits=limits,
         method=request.method,
         path=request.path,

@@ -313,7 +313,7 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
                 stored,
                 attempt.start,
                 attempt.goal,
-                arm_offset=attempt.model.arm_offset,
+                base=attempt.model.base,
                 reverse=match.reversed,
             )
             result = next((r for path, r in seen if np.array_equal(path, adapted)), None)
