@@ -25,7 +25,6 @@ instead (`pose_cartesian`: `cartesian_success_rate`, `cartesian_ms_median`,
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections import Counter
@@ -40,6 +39,7 @@ from scipy.spatial.transform import Rotation
 
 import pose_cartesian
 from harness.mbm_panda import register_panda
+from harness.report import print_checked
 from harness.service import running_service
 from mbm_check import SceneChecker, check_path, panda_description
 from mbm_problems import (
@@ -194,17 +194,8 @@ def main(argv: list[str] | None = None) -> int:
         "replay_hit_rate": round(hits / replays, 4) if replays else None,
         "replay_as_is_share": round(counts["as_is"] / hits, 4) if hits else None,
         "hit_server_ms_median": percentile(run.times["hit"]),
-        "pose_errors": counts["pose_errors"],
-        "collisions": counts["collisions"],
-        "self_collisions": counts["self_collisions"],
-        "http_4xx": counts["http_4xx"],
-        "http_5xx": counts["http_5xx"],
-        "wall_s": round(time.perf_counter() - began, 1),
-        "smoke": args.smoke,
     }
-    print(json.dumps(figures))
-    bad = figures["pose_errors"] or figures["collisions"] or figures["self_collisions"]
-    return 1 if bad or figures["http_5xx"] else 0
+    return print_checked(figures, counts, check="pose_errors", began=began, smoke=args.smoke)
 
 
 if __name__ == "__main__":
