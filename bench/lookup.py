@@ -25,8 +25,9 @@ import numpy as np
 
 from trajcache.cache.index import TrajectoryIndex
 from trajcache.cache.metric import state_distance, wrap_angle
+from trajcache.geometry.model.robot import BaseType
 
-DIM, ARM = 10, 3
+DIM, BASE = 10, BaseType.PLANAR
 LOW = np.r_[0.0, 0.0, -np.pi, np.full(7, -2.8)]
 HIGH = np.r_[6.0, 4.0, np.pi, np.full(7, 2.8)]
 THRESHOLD, LIMIT = 0.2, 3
@@ -80,8 +81,8 @@ def brute_force(
     """The top LIMIT (id, reversed) by a full numpy scan."""
     rows = []
     for rev, (first, second) in enumerate(((starts, goals), (goals, starts))):
-        b1, a1 = state_distance(first, s, arm_offset=ARM)
-        b2, a2 = state_distance(second, g, arm_offset=ARM)
+        b1, a1 = state_distance(first, s, base=BASE)
+        b2, a2 = state_distance(second, g, base=BASE)
         ok = (b1 < THRESHOLD) & (a1 < THRESHOLD) & (b2 < THRESHOLD) & (a2 < THRESHOLD)
         score = (b1 + a1 + b2 + a2)[ok]
         rows += [(float(c), int(i), rev) for c, i in zip(score, ids[ok], strict=True)]
@@ -201,7 +202,7 @@ def main() -> None:
     ids = np.arange(sizes[-1], dtype=np.int64) * 7 + 11  # not dense, not 0-based
     data = (ids, starts, goals)
     rss0 = rss_bytes()
-    index = TrajectoryIndex(DIM, arm_offset=ARM, background_rebuild=False)
+    index = TrajectoryIndex(DIM, base=BASE, background_rebuild=False)
     index.query(starts[0], goals[0], arm_only=True)  # arm-only tree is kept from now on
     header = (
         f"{'size':>9} {'delta':>6} {'grow s':>8} {'p50 ms':>7} {'p99 ms':>7} {'hits/q':>7}"

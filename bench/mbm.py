@@ -47,18 +47,17 @@ from rich.console import Console
 
 import mbm_check
 from dense_mesh import FloatArray
+from harness.mbm_panda import register_panda
 from harness.service import running_service
 from mbm_check import SceneChecker, check_path, panda_description, path_length
 from mbm_cross import CrossScenes
 from mbm_problems import (
     DEFAULT_DATA,
     FAMILIES,
-    GROUP,
     Problem,
     allowed_pairs,
     clamp,
     load_problems,
-    mesh_archive,
     scene_objects,
     unpacked,
 )
@@ -85,14 +84,7 @@ class ServiceRun:
         self.options: dict[str, Any] = {"fallback": True, "budget_s": args.budget}
         if args.planner:
             self.options["planner"] = args.planner
-        robot_dir = args.data / "robot"
-        model = client.register_model(
-            (robot_dir / "panda.urdf").read_text(encoding="utf-8"),
-            srdf=(robot_dir / "panda.srdf").read_text(encoding="utf-8"),
-            group=GROUP,
-            archive=mesh_archive(robot_dir),
-            name="panda-mbm",
-        )
+        model = register_panda(client, args.data / "robot")
         detail = client.get_model(model.model_id)
         if tuple(detail.joint_names) != tuple(checker.robot.joint_names):
             raise RuntimeError(f"the service plans {detail.joint_names}, not the arm joints")

@@ -17,12 +17,10 @@ Nothing here uses the service: the scene text is kept as sent to it, and read se
 from __future__ import annotations
 
 import hashlib
-import io
 import os
 import shutil
 import tarfile
 import tempfile
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,7 +34,6 @@ FloatArray = NDArray[np.float64]
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "mbm-panda"
 ARM_JOINTS = tuple(f"panda_joint{i}" for i in range(1, 8))
-GROUP = "panda_arm"
 FAMILIES = ("bookshelf_small", "bookshelf_tall", "bookshelf_thin", "box", "cage", "table_pick",
             "table_under_pick")  # fmt: skip
 
@@ -187,17 +184,6 @@ def allowed_pairs(scene: dict[str, Any]) -> set[frozenset[str]]:
 
 
 # --- the robot ---------------------------------------------------------------------------------
-
-
-def mesh_archive(robot_dir: Path) -> bytes:
-    """The robot's collision meshes as a zip, by their path below robot/ (`meshes/…`), as the
-    URDF's `package://meshes/…` URIs name them."""
-    buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
-        for path in sorted((robot_dir / "meshes").rglob("*")):
-            if path.is_file():
-                archive.writestr(str(path.relative_to(robot_dir)), path.read_bytes())
-    return buffer.getvalue()
 
 
 def clamp(state: FloatArray, lower: FloatArray, upper: FloatArray) -> tuple[FloatArray, bool]:

@@ -23,7 +23,6 @@ Prints a table and ends with one JSON line.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from collections import Counter
 from typing import Any
@@ -34,6 +33,7 @@ import pinocchio as pin
 from rich.console import Console
 from rich.table import Table
 
+from harness.report import print_checked
 from harness.service import running_service
 from mbm_check import SceneChecker, check_path
 from mbm_problems import FAMILIES, allowed_pairs, clamp, load_problems, scene_objects, unpacked
@@ -190,14 +190,5 @@ def main(args: argparse.Namespace, run_class: Any) -> int:
         "cartesian_hit_rate": round(counts["hits"] / repeats, 4) if repeats else None,
         "hit_ms_median": percentile(bench.times["hit"]),
         "repeat_start_shift_mm_max": round(max(bench.shifts, default=0.0) * 1e3, 2),
-        "line_errors": counts["line_errors"],
-        "collisions": counts["collisions"],
-        "self_collisions": counts["self_collisions"],
-        "http_4xx": counts["http_4xx"],
-        "http_5xx": counts["http_5xx"],
-        "wall_s": round(time.perf_counter() - began, 1),
-        "smoke": args.smoke,
     }
-    print(json.dumps(figures))
-    bad = figures["collisions"] or figures["self_collisions"] or figures["line_errors"]
-    return 1 if bad or figures["http_5xx"] else 0
+    return print_checked(figures, counts, check="line_errors", began=began, smoke=args.smoke)

@@ -25,7 +25,6 @@ instead (`pose_cartesian`: `cartesian_success_rate`, `cartesian_ms_median`,
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections import Counter
@@ -39,17 +38,17 @@ from rich.table import Table
 from scipy.spatial.transform import Rotation
 
 import pose_cartesian
+from harness.mbm_panda import register_panda
+from harness.report import print_checked
 from harness.service import running_service
 from mbm_check import SceneChecker, check_path, panda_description
 from mbm_problems import (
     ARM_JOINTS,
     DEFAULT_DATA,
     FAMILIES,
-    GROUP,
     allowed_pairs,
     clamp,
     load_problems,
-    mesh_archive,
     scene_objects,
     unpacked,
 )
@@ -98,11 +97,7 @@ class PoseRun:
         robot_dir = args.data / "robot"
         self.hand = HandPose(robot_dir)
         self.checker = SceneChecker(panda_description(robot_dir))
-        self.model_id = client.register_model(
-            (robot_dir / "panda.urdf").read_text(encoding="utf-8"),
-            srdf=(robot_dir / "panda.srdf").read_text(encoding="utf-8"),
-            group=GROUP, archive=mesh_archive(robot_dir), name="panda-mbm",
-        ).model_id  # fmt: skip
+        self.model_id = register_panda(client, robot_dir).model_id
         self.counts: Counter[str] = Counter()
         self.times: dict[str, list[float]] = {"plan": [], "ik": [], "hit": []}
 
@@ -199,17 +194,8 @@ def main(argv: list[str] | None = None) -> int:
         "replay_hit_rate": round(hits / replays, 4) if replays else None,
         "replay_as_is_share": round(counts["as_is"] / hits, 4) if hits else None,
         "hit_server_ms_median": percentile(run.times["hit"]),
-        "pose_errors": counts["pose_errors"],
-        "collisions": counts["collisions"],
-        "self_collisions": counts["self_collisions"],
-        "http_4xx": counts["http_4xx"],
-        "http_5xx": counts["http_5xx"],
-        "wall_s": round(time.perf_counter() - began, 1),
-        "smoke": args.smoke,
     }
-    print(json.dumps(figures))
-    bad = figures["pose_errors"] or figures["collisions"] or figures["self_collisions"]
-    return 1 if bad or figures["http_5xx"] else 0
+    return print_checked(figures, counts, check="pose_errors", began=began, smoke=args.smoke)
 
 
 if __name__ == "__main__":

@@ -41,7 +41,7 @@ from trajcache.planning.problem import ModelSource, PlanningProblem, SceneSource
 from trajcache.planning.run import run_planning
 from trajcache.reference.cleaning import CleaningRun, PlanCall, cleaning_run
 from trajcache.reference.robot import REFERENCE_BASE, reference_model, reference_urdf
-from trajcache.services.plan.quality import TimingRequest, time_states, trajectory_quality
+from trajcache.services.quality import TimingRequest, time_states, trajectory_quality
 from trajcache.timing import TimingError
 from trajcache_client import NO_RETRY, APIError, Client, PlanResult
 

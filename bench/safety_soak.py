@@ -59,7 +59,7 @@ from soak_geometry import (
 from soak_report import print_table
 from soak_scene import CHANGE_KINDS, SceneChanger, SoakRobot
 from trajcache.cache.adapt import adapt_trajectory
-from trajcache.cache.metric import PLANAR_ARM_OFFSET, wrap_angle
+from trajcache.cache.metric import wrap_angle
 from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import base_is_still
@@ -197,7 +197,7 @@ class Soak:
         obstacle = path_obstacle(self.checker, stored, oid, self.rng)
         if obstacle is None:
             return None
-        path = adapt_trajectory(stored, start, goal, arm_offset=PLANAR_ARM_OFFSET, reverse=reverse)
+        path = adapt_trajectory(stored, start, goal, base=BaseType.PLANAR, reverse=reverse)
         grazing = bool(self.rng.random() < GRAZING_SHARE)
         if grazing:  # moved off the link, then grown until both paths just reach into it
             direction = self.rng.normal(size=3)

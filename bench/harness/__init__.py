@@ -4,6 +4,7 @@
   printed tables and the chart (matplotlib, a development extra).
 - `caches`: warmed-up services side by side, one per cache; `replay`: a robot playing cleaning
   runs through the REST API; `dense`: the independent dense check of returned trajectories.
+- `mbm_panda`: the MotionBenchMaker Panda registered as shipped, for every MBM benchmark.
 - `service`: the server processes' CPU time, over `trajcache.cli.launch` (the one way a
   service is started for measurement, shared with `trajcache demo`).
 

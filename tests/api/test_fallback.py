@@ -324,7 +324,7 @@ def test_a_planned_trajectory_gets_its_quality_after_the_answer(
 def test_a_timing_failure_is_recorded_on_the_trajectory(
     client_factory: ClientFactory, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
-    from trajcache.services.plan import quality
+    from trajcache.services import quality
     from trajcache.timing import TimingError
 
     def fails(*args: Any, **kwargs: Any) -> Any:

@@ -19,8 +19,8 @@ from yourdfpy.urdf import filename_handler_null
 from tests.api.conftest import assert_detail, ctx_of, register
 from trajcache.geometry.validation.validator import validator_for
 from trajcache.reference.robot import ARM_JOINT_NAMES, STOWED_ARM, reference_urdf
-from trajcache.services.catalog.robot_model import robot_model
 from trajcache.services.catalog.robots import robot_scene
+from trajcache.services.robot_model import robot_model
 
 BASE = [0.5, -0.2, 0.4]
 SEED = [*BASE, *STOWED_ARM]

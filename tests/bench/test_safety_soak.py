@@ -15,7 +15,7 @@ from harness.dense import DenseChecker, reference_checker
 from safety_soak import SMOKE_PLANS, Request, Soak
 from soak_geometry import grazing_radius, judge, path_obstacle, sphere
 from trajcache.cache.adapt import adapt_trajectory
-from trajcache.cache.metric import PLANAR_ARM_OFFSET
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.scene.payload import apply_patch
 from trajcache.geometry.scene.scene import Scene
 from trajcache.reference.restroom import restroom_scene
@@ -105,7 +105,7 @@ def test_answers_off_the_request_or_out_of_limits_are_unsafe(checker: DenseCheck
 def test_adaptation_keeps_a_still_base_and_reverses() -> None:
     path = np.array([[0.0] * 10, [0.5, 0.0, 0.0, *[0.3] * 7], [0.0, 0.0, 0.0, *[0.6] * 7]])
     start, goal = np.full(10, 0.01), np.r_[0.01, 0.01, 0.01, [0.02] * 7]
-    out = adapt_trajectory(path, start, goal, arm_offset=PLANAR_ARM_OFFSET, reverse=True)
+    out = adapt_trajectory(path, start, goal, base=BaseType.PLANAR, reverse=True)
     assert np.allclose(out[0], start) and np.allclose(out[-1], goal)
     assert np.allclose(out[1], [0.01, 0.01, 0.01, *[0.3] * 7])
 

@@ -9,6 +9,7 @@ import pytest
 
 from trajcache.cache.index import Match, TrajectoryIndex
 from trajcache.cache.metric import state_distance
+from trajcache.geometry.model.robot import BaseType
 
 D = 6  # planar base + 3 joints
 Expected = list[tuple[int, bool, float]]
@@ -21,15 +22,15 @@ def brute_force(
     start: np.ndarray,
     goal: np.ndarray,
     *,
-    arm_offset: int = 3,
+    base: BaseType = BaseType.PLANAR,
     threshold: float = 0.2,
     arm_only: bool = False,
 ) -> Expected:
     """All relevant (id, reversed, score), best orientation per id, sorted by (score, id)."""
     best: dict[int, tuple[float, bool]] = {}
     for rev, (first, second) in enumerate(((starts, goals), (goals, starts))):
-        b1, a1 = state_distance(first, start, arm_offset=arm_offset)
-        b2, a2 = state_distance(second, goal, arm_offset=arm_offset)
+        b1, a1 = state_distance(first, start, base=base)
+        b2, a2 = state_distance(second, goal, base=base)
         if arm_only:
             b1, b2 = 0 * b1, 0 * b2
         ok = (b1 < threshold) & (a1 < threshold) & (b2 < threshold) & (a2 < threshold)
@@ -76,7 +77,7 @@ def test_matches_brute_force_main_and_delta(arm_only: bool) -> None:
     rng = np.random.default_rng(0)
     starts, goals = clustered(rng, 3000)
     ids = rng.permutation(10_000)[:3000]
-    index = TrajectoryIndex(D, arm_offset=3, rebuild_min=100_000, background_rebuild=False)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR, rebuild_min=100_000, background_rebuild=False)
     index.add(ids[:2000], starts[:2000], goals[:2000])
     index.rebuild()
     index.add(ids[2000:], starts[2000:], goals[2000:])  # stays in the delta
@@ -94,7 +95,7 @@ def test_removals_and_rebuild_keep_results_exact() -> None:
     rng = np.random.default_rng(1)
     starts, goals = clustered(rng, 2000)
     ids = np.arange(2000) * 3
-    index = TrajectoryIndex(D, arm_offset=3, rebuild_min=256, background_rebuild=False)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR, rebuild_min=256, background_rebuild=False)
     for lo in range(0, 2000, 250):  # crosses several automatic rebuilds
         index.add(ids[lo : lo + 250], starts[lo : lo + 250], goals[lo : lo + 250])
     gone = rng.choice(ids, 700, replace=False)
@@ -132,7 +133,7 @@ def test_threshold_boundary(offset: dict[int, float], relevant: bool, in_delta: 
     cached = goal.copy()
     for col, value in offset.items():
         cached[col] += value
-    index = TrajectoryIndex(D, arm_offset=3, background_rebuild=False)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR, background_rebuild=False)
     index.add([7], [start], [cached])
     if not in_delta:
         index.rebuild()
@@ -144,7 +145,7 @@ def test_threshold_boundary(offset: dict[int, float], relevant: bool, in_delta: 
 def test_heading_wraps_around_pi(in_delta: bool) -> None:
     start = np.array([1.0, 1.0, np.pi - 0.05, 0.0, 0.0, 0.0])
     goal = np.array([1.0, 1.0, -np.pi + 0.02, 0.5, 0.0, 0.0])
-    index = TrajectoryIndex(D, arm_offset=3, background_rebuild=False)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR, background_rebuild=False)
     near = start.copy()
     near[2] = -np.pi + 0.05  # 0.1 away across the wrap
     far = start.copy()
@@ -163,7 +164,7 @@ def test_heading_wraps_around_pi(in_delta: bool) -> None:
 def test_reversed_match_reports_request_oriented_distances() -> None:
     a = np.array([0.0, 0.0, 0.0, 0.1, 0.1, 0.1])
     b = np.array([3.0, 2.0, 1.0, 1.0, 1.0, 1.0])
-    index = TrajectoryIndex(D, arm_offset=3)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR)
     index.add([5], [a], [b])
     request_start = b + np.array([0.05, 0, 0, 0, 0, 0])
     (match,) = index.query(request_start, a)
@@ -174,7 +175,7 @@ def test_reversed_match_reports_request_oriented_distances() -> None:
 
 def test_palindrome_prefers_forward_and_appears_once() -> None:
     a = np.array([0.0, 0.0, 0.0, 0.1, 0.1, 0.1])
-    index = TrajectoryIndex(D, arm_offset=3)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR)
     index.add([9], [a], [a + 0.01])
     matches = index.query(a + 0.005, a + 0.005)
     assert len(matches) == 1 and not matches[0].reversed
@@ -183,7 +184,7 @@ def test_palindrome_prefers_forward_and_appears_once() -> None:
 def test_arm_only_ignores_base() -> None:
     start = np.array([0.0, 0.0, 0.0, 0.1, 0.2, 0.3])
     goal = np.array([0.0, 0.0, 0.0, 1.1, 0.2, -0.3])
-    index = TrajectoryIndex(D, arm_offset=3)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR)
     moved = np.array([4.0, 3.0, 2.5, 0, 0, 0])  # learned at another station
     bent = np.array([0, 0, 0, 0.25, 0, 0])
     index.add([1, 2], [start + moved] * 2, [goal + moved, goal + moved + bent])
@@ -198,11 +199,11 @@ def test_fixed_base_layout() -> None:
     rng = np.random.default_rng(2)
     starts, goals = rng.uniform(-1, 1, (500, 4)), rng.uniform(-1, 1, (500, 4))
     ids = np.arange(500)
-    index = TrajectoryIndex(4, arm_offset=0, rebuild_min=100, background_rebuild=False)
+    index = TrajectoryIndex(4, base=BaseType.FIXED, rebuild_min=100, background_rebuild=False)
     index.add(ids, starts, goals)
     for i in range(0, 500, 25):
         s, g = starts[i] + 0.05, goals[i] - 0.05
-        want = brute_force(ids, starts, goals, s, g, arm_offset=0)
+        want = brute_force(ids, starts, goals, s, g, base=BaseType.FIXED)
         assert_same(index.query(s, g, limit=100), want)
         assert int(i) in {row[0] for row in want}
         assert index.query(s, g, arm_only=True) == index.query(s, g)
@@ -211,7 +212,7 @@ def test_fixed_base_layout() -> None:
 def test_limit_and_ties_by_id() -> None:
     a = np.array([0.0, 0.0, 0.0, 0.1, 0.1, 0.1])
     b = a + 1
-    index = TrajectoryIndex(D, arm_offset=3)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR)
     index.add([30, 10, 20, 40], [a, a, a, a + 0.01], [b, b, b, b])
     assert [m.trajectory_id for m in index.query(a, b)] == [10, 20, 30]
     assert [m.trajectory_id for m in index.query(a, b, limit=5)] == [10, 20, 30, 40]
@@ -222,7 +223,7 @@ def test_limit_and_ties_by_id() -> None:
 def test_add_replaces_existing_id_and_clear() -> None:
     a = np.zeros(D)
     b = np.ones(D)
-    index = TrajectoryIndex(D, arm_offset=3)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR)
     index.add([1], [a], [b])
     index.rebuild()
     index.add([1], [b], [a + 5])  # same id, new endpoints
@@ -233,7 +234,7 @@ def test_add_replaces_existing_id_and_clear() -> None:
 
 
 def test_rejects_bad_input() -> None:
-    index = TrajectoryIndex(D, arm_offset=3)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR)
     with pytest.raises(ValueError):
         index.add([1, 2], np.zeros((2, D)), np.zeros((2, D + 1)))
     with pytest.raises(ValueError):
@@ -243,7 +244,7 @@ def test_rejects_bad_input() -> None:
     with pytest.raises(ValueError):
         index.query(np.zeros(D), np.zeros(D), threshold=0)
     with pytest.raises(ValueError):
-        TrajectoryIndex(5, arm_offset=2)
+        TrajectoryIndex(2, base=BaseType.PLANAR)  # too short for x, y, θ
     assert len(index) == 0
 
 
@@ -251,7 +252,7 @@ def test_concurrent_mutations_and_queries_stay_consistent() -> None:
     rng = np.random.default_rng(3)
     starts, goals = clustered(rng, 6000)
     ids = np.arange(6000)
-    index = TrajectoryIndex(D, arm_offset=3, rebuild_min=200, background_rebuild=True)
+    index = TrajectoryIndex(D, base=BaseType.PLANAR, rebuild_min=200, background_rebuild=True)
     errors: list[BaseException] = []
     stop = threading.Event()
     qs = queries(rng, starts, goals, 50)
@@ -296,7 +297,7 @@ def test_concurrent_mutations_and_queries_stay_consistent() -> None:
 
 
 def test_endpoints_are_every_start_and_goal_oldest_first() -> None:
-    index = TrajectoryIndex(4, arm_offset=3, rebuild_min=2, background_rebuild=False)
+    index = TrajectoryIndex(4, base=BaseType.PLANAR, rebuild_min=2, background_rebuild=False)
     starts = np.array([[0.0, 1.0, 3.0, 0.1], [2.0, 0.0, -3.0, 0.2], [1.0, 1.0, 0.5, 0.3]])
     goals = starts + 0.5
     index.add([5, 3], starts[:2], goals[:2])

@@ -21,7 +21,7 @@ from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import Trajectory, TrajectoryTombstone, utcnow
 from trajcache.services.catalog.models import ModelRegistration, register_model
-from trajcache.services.catalog.trajectories import store_trajectory
+from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
 
 
@@ -41,9 +41,11 @@ def source_url(tmp_path: Path) -> Iterator[str]:
             new_id, _ = store_trajectory(
                 session=session,
                 settings=Settings(),
-                model=model,
-                states=[[0.0, 0.0], [0.1 * k, 0.5]],
-                source="sim" if k < 2 else "real",
+                trajectory=NewTrajectory(
+                    model=model,
+                    states=[[0.0, 0.0], [0.1 * k, 0.5]],
+                    source="sim" if k < 2 else "real",
+                ),
             )
             if k == 0:
                 session.execute(

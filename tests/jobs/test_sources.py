@@ -7,8 +7,7 @@ import pytest
 from tests.faults.support import ROBOT, app_client, setup_robot, unique_scene
 from tests.robots import TWO_JOINT_URDF
 from trajcache.geometry.scene.parse import parse_scene
-from trajcache.jobs.sources import WorkerSources
-from trajcache.services.errors import NotFoundError
+from trajcache.jobs.sources import MissingSourceError, WorkerSources
 
 
 def test_a_worker_reads_a_model_and_a_stored_scene_once(database_url: str) -> None:
@@ -33,7 +32,7 @@ def test_what_the_database_lacks_is_not_found(database_url: str) -> None:
     with app_client(database_url):
         pass  # migrated, empty
     sources = WorkerSources(database_url)
-    with pytest.raises(NotFoundError, match="robot model 'nope' not found"):
+    with pytest.raises(MissingSourceError, match="robot model 'nope' not found"):
         sources.model("nope")
-    with pytest.raises(NotFoundError, match="scene 'f00d' not found"):
+    with pytest.raises(MissingSourceError, match="scene 'f00d' not found"):
         sources.scene("f00d", None)

@@ -14,7 +14,7 @@ from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.catalog.models import ModelRegistration, register_model
-from trajcache.services.catalog.trajectories import store_trajectory
+from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
 
 
@@ -46,10 +46,10 @@ def store(ctx: ServiceContext, model: RobotModel, states: list[list[float]]) -> 
         trajectory_id, _ = store_trajectory(
             session=session,
             settings=Settings(),
-            model=model,
-            states=np.asarray(states, dtype=float),
-            source="sim",
             compute_quality=False,
+            trajectory=NewTrajectory(
+                model=model, states=np.asarray(states, dtype=float), source="sim"
+            ),
         )
     return trajectory_id
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from tests.timing.conftest import arm_move
+from trajcache.geometry.model.robot import BaseType
 from trajcache.timing import KinematicLimits, PathShape, TimingMethod, time_trajectory
 
 
@@ -12,7 +13,7 @@ def test_jerk_limited_motion_respects_all_limits_and_rests_at_key_states(
     limits: KinematicLimits, corner_path: np.ndarray
 ) -> None:
     timed = time_trajectory(
-        corner_path, planar=True, limits=limits, method=TimingMethod.JERK_LIMITED
+        corner_path, base=BaseType.PLANAR, limits=limits, method=TimingMethod.JERK_LIMITED
     )
     assert timed.method is TimingMethod.JERK_LIMITED and timed.path is PathShape.LINEAR
     period = 1e-3
@@ -36,6 +37,8 @@ def test_jerk_limited_motion_respects_all_limits_and_rests_at_key_states(
 
 def test_jerk_limited_is_never_faster_than_time_optimal(limits: KinematicLimits) -> None:
     states = arm_move([0, -0.5, 0, 0.8, 0, 1.0, 0], [0.8, 0.2, -0.3, 1.4, 0.5, 1.5, 0.9])
-    jerk = time_trajectory(states, planar=True, limits=limits, method=TimingMethod.JERK_LIMITED)
-    optimal = time_trajectory(states, planar=True, limits=limits, path=PathShape.LINEAR)
+    jerk = time_trajectory(
+        states, base=BaseType.PLANAR, limits=limits, method=TimingMethod.JERK_LIMITED
+    )
+    optimal = time_trajectory(states, base=BaseType.PLANAR, limits=limits, path=PathShape.LINEAR)
     assert optimal.duration <= jerk.duration < 1.5 * optimal.duration

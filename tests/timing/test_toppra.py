@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tests.timing.conftest import arm_move
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.path_quality import motion_bound
 from trajcache.timing import (
     KinematicLimits,
@@ -66,7 +66,7 @@ def straight_line_optimum(delta: np.ndarray, limits: KinematicLimits) -> float:
 def test_straight_motion_is_time_optimal_within_limits(
     model: RobotModel, limits: KinematicLimits, states: np.ndarray
 ) -> None:
-    timed = time_trajectory(states, planar=True, limits=limits, path=PathShape.LINEAR)
+    timed = time_trajectory(states, base=BaseType.PLANAR, limits=limits, path=PathShape.LINEAR)
     over_v, over_a = limit_ratios(timed, limits)
     assert over_v <= 1 + TOL and over_a <= 1 + TOL
     optimum = straight_line_optimum(states[1] - states[0], limits)
@@ -79,7 +79,7 @@ def test_timed_path_passes_every_key_state_at_rest_at_the_ends(
     for path in (PathShape.LINEAR, PathShape.SPLINE):
         timed = time_trajectory(
             corner_path,
-            planar=True,
+            base=BaseType.PLANAR,
             limits=limits,
             path=path,
             certify_fn=lambda _: True,
@@ -95,7 +95,7 @@ def test_timed_path_passes_every_key_state_at_rest_at_the_ends(
 def test_linear_path_follows_the_segments_exactly_and_stops_at_corners(
     limits: KinematicLimits, corner_path: np.ndarray
 ) -> None:
-    timed = time_trajectory(corner_path, planar=True, limits=limits, path=PathShape.LINEAR)
+    timed = time_trajectory(corner_path, base=BaseType.PLANAR, limits=limits, path=PathShape.LINEAR)
     assert timed.path is PathShape.LINEAR and not timed.revalidated
     assert on_polyline(timed, corner_path) < 1e-9
     np.testing.assert_allclose(timed.sample().velocities[1], 0.0, atol=1e-9)
@@ -106,7 +106,7 @@ def test_linear_path_follows_the_segments_exactly_and_stops_at_corners(
 def test_collinear_key_states_do_not_stop_the_motion(limits: KinematicLimits) -> None:
     a, b = np.array([0, -0.5, 0, 0.8, 0, 1.0, 0.0]), np.array([1.2, 0.1, 0.6, 1.4, 0.3, 1.6, 0.9])
     states = arm_move(list(a), list(a + 0.4 * (b - a)), list(b))
-    timed = time_trajectory(states, planar=True, limits=limits, path=PathShape.LINEAR)
+    timed = time_trajectory(states, base=BaseType.PLANAR, limits=limits, path=PathShape.LINEAR)
     assert np.max(np.abs(timed.sample().velocities[1])) > 0.1
     optimum = straight_line_optimum(states[-1] - states[0], limits)
     assert optimum <= timed.duration <= optimum * 1.03
@@ -128,12 +128,14 @@ def test_certified_spline_is_faster_and_keeps_limits(
 
     spline = time_trajectory(
         corner_path,
-        planar=True,
+        base=BaseType.PLANAR,
         limits=limits,
         certify_fn=certify_fn,
         motion_bound=motion_bound(model),
     )
-    linear = time_trajectory(corner_path, planar=True, limits=limits, path=PathShape.LINEAR)
+    linear = time_trajectory(
+        corner_path, base=BaseType.PLANAR, limits=limits, path=PathShape.LINEAR
+    )
     assert spline.path is PathShape.SPLINE and spline.revalidated and len(seen) == 1
     assert spline.duration < 0.9 * linear.duration
     assert np.max(np.abs(spline.sample().velocities[1])) > 0.1  # no stop at the corner
@@ -149,12 +151,12 @@ def test_spline_falls_back_to_the_exact_path_when_not_certified(
 ) -> None:
     refused = time_trajectory(
         corner_path,
-        planar=True,
+        base=BaseType.PLANAR,
         limits=limits,
         certify_fn=lambda _: False,
         motion_bound=motion_bound(model),
     )
-    uncertified = time_trajectory(corner_path, planar=True, limits=limits)
+    uncertified = time_trajectory(corner_path, base=BaseType.PLANAR, limits=limits)
     for timed in (refused, uncertified):
         assert timed.path is PathShape.LINEAR and not timed.revalidated
         assert on_polyline(timed, corner_path) < 1e-9
@@ -162,7 +164,7 @@ def test_spline_falls_back_to_the_exact_path_when_not_certified(
 
 def test_base_angle_takes_the_short_way_and_stays_continuous(limits: KinematicLimits) -> None:
     states = np.array([[0.0, 0.0, 3.1, *[0.0] * 7], [0.0, 0.0, -3.1, *[0.0] * 7]])
-    timed = time_trajectory(states, planar=True, limits=limits)
+    timed = time_trajectory(states, base=BaseType.PLANAR, limits=limits)
     _, q, _, _ = dense(timed)
     assert np.all(np.diff(q[:, 2]) >= -1e-12)  # turning one way, no jump
     end = timed.sample().positions[-1, 2]
@@ -173,19 +175,19 @@ def test_base_angle_takes_the_short_way_and_stays_continuous(limits: KinematicLi
 def test_repeated_and_identical_key_states(limits: KinematicLimits) -> None:
     a = [0.0, -0.5, 0.0, 0.8, 0.0, 1.0, 0.0]
     b = [0.5, -0.5, 0.0, 0.8, 0.0, 1.0, 0.0]
-    timed = time_trajectory(arm_move(a, a, b, b), planar=True, limits=limits)
+    timed = time_trajectory(arm_move(a, a, b, b), base=BaseType.PLANAR, limits=limits)
     assert timed.waypoint_times[0] == timed.waypoint_times[1] == 0.0
     assert timed.waypoint_times[2] == timed.waypoint_times[3] == pytest.approx(timed.duration)
-    still = time_trajectory(arm_move(a, a), planar=True, limits=limits)
+    still = time_trajectory(arm_move(a, a), base=BaseType.PLANAR, limits=limits)
     assert still.duration == 0.0
     np.testing.assert_allclose(still.sample(0.1).velocities, 0.0)
 
 
 def test_bad_calls_are_refused(limits: KinematicLimits, corner_path: np.ndarray) -> None:
     with pytest.raises(ValueError, match="none"):
-        time_trajectory(corner_path, planar=True, limits=limits, method=TimingMethod.NONE)
+        time_trajectory(corner_path, base=BaseType.PLANAR, limits=limits, method=TimingMethod.NONE)
     with pytest.raises(TimingError, match="do not match"):
-        time_trajectory(corner_path[:, :5], planar=True, limits=limits)
+        time_trajectory(corner_path[:, :5], base=BaseType.PLANAR, limits=limits)
 
 
 def test_a_profile_with_nan_speeds_is_not_returned_a_jerk_limited_one_is(
@@ -202,7 +204,7 @@ def test_a_profile_with_nan_speeds_is_not_returned_a_jerk_limited_one_is(
         return sdd, sd, v
 
     monkeypatch.setattr(toppra.algorithm.TOPPRA, "compute_parameterization", with_a_nan)
-    timed = time_trajectory(corner_path, planar=True, limits=limits)
+    timed = time_trajectory(corner_path, base=BaseType.PLANAR, limits=limits)
     # toppra failed on the spline and on the polyline: rest to rest along each segment instead
     assert timed.method is TimingMethod.JERK_LIMITED and timed.path is PathShape.LINEAR
     _, q, v, a = dense(timed)

@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 
 from tests.timing.conftest import arm_move
+from trajcache.geometry.model.robot import BaseType
 from trajcache.timing import KinematicLimits, TimedTrajectory, TimingError, time_trajectory
 
 
 @pytest.fixture
 def timed(limits: KinematicLimits) -> TimedTrajectory:
     states = arm_move([0, -0.5, 0, 0.8, 0, 1.0, 0], [0.8, 0.2, -0.3, 1.4, 0.5, 1.5, 0.9])
-    return time_trajectory(states, planar=True, limits=limits)
+    return time_trajectory(states, base=BaseType.PLANAR, limits=limits)
 
 
 def test_periodic_samples_end_exactly_at_the_duration(timed: TimedTrajectory) -> None:

@@ -8,7 +8,8 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from trajcache.core.request_model import RequestModel
-from trajcache.services.plan.quality import AnswerDetails, AnswerExtras, QualityLevel, TimingRequest
+from trajcache.services.plan.quality import AnswerDetails, AnswerExtras, QualityLevel
+from trajcache.services.quality import TimingRequest
 from trajcache.timing import PathShape, TimingMethod
 
 Scaling = Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)]

@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from trajcache.cache.metric import PLANAR_ARM_OFFSET, THETA, TWO_PI, base_type, check_arm_offset
+from trajcache.cache.metric import THETA, TWO_PI, check_dimension
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import BASE_STILL_TOLERANCE, base_is_still
 
@@ -35,7 +36,7 @@ def adapt_trajectory(
     start: npt.ArrayLike,
     goal: npt.ArrayLike,
     *,
-    arm_offset: int,
+    base: BaseType,
     reverse: bool = False,
 ) -> FloatArray:
     """Return a new (n, D) trajectory from ``states`` that runs exactly from start to goal."""
@@ -47,14 +48,14 @@ def adapt_trajectory(
     dim = path.shape[1]
     if s.shape != (dim,) or g.shape != (dim,):
         raise ValueError(f"start/goal must have shape ({dim},); got {s.shape} and {g.shape}")
-    check_arm_offset(arm_offset, dim)
+    check_dimension(base, dim)
     if reverse:
         path = path[::-1].copy()
-    if base_is_still(s, g, base_type(arm_offset)):
-        path[1:-1, :PLANAR_ARM_OFFSET] = s[:PLANAR_ARM_OFFSET]
+    if base_is_still(s, g, base):
+        path[1:-1, : base.arm_offset] = s[: base.arm_offset]
     path[0] = s
     path[-1] = g
-    if arm_offset == PLANAR_ARM_OFFSET:
+    if base is BaseType.PLANAR:
         if len(path) > 2:
             path[0, THETA] = _nearest_turn(s[THETA], path[1, THETA])
         path[-1, THETA] = _nearest_turn(g[THETA], path[-2, THETA])

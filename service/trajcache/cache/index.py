@@ -35,13 +35,8 @@ from trajcache.cache.index_state import (
     with_added,
     with_removed,
 )
-from trajcache.cache.metric import (
-    PLANAR_ARM_OFFSET,
-    THETA,
-    TWO_PI,
-    check_arm_offset,
-    state_distance,
-)
+from trajcache.cache.metric import THETA, TWO_PI, check_dimension, state_distance
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 
 __all__ = ["Match", "TrajectoryIndex"]
@@ -72,18 +67,18 @@ class TrajectoryIndex:
         self,
         dim: int,
         *,
-        arm_offset: int,
+        base: BaseType,
         rebuild_min: int = 1024,
         background_rebuild: bool = True,
         leafsize: int = 16,
     ) -> None:
-        check_arm_offset(arm_offset, dim)
+        check_dimension(base, dim)
         self.dim = dim
-        self.arm_offset = arm_offset
+        self.base = base
         self.rebuild_min = rebuild_min
         self.background_rebuild = background_rebuild
         self._leafsize = leafsize
-        planar = arm_offset == PLANAR_ARM_OFFSET
+        planar, arm_offset = base is BaseType.PLANAR, base.arm_offset
         self._theta_cols = np.array([THETA, dim + THETA] if planar else [], dtype=np.intp)
         # arm columns of start and goal, interleaved; then the base x, y (θ is left to the metric)
         self._arm_cols = np.stack([np.arange(arm_offset, dim), np.arange(arm_offset, dim) + dim], 1)
@@ -212,8 +207,8 @@ class TrajectoryIndex:
         if not threshold > 0:
             raise ValueError(f"threshold must be positive, not {threshold}")
         q = self._keys(start, goal)[0]
-        arm_only = arm_only and self.arm_offset == PLANAR_ARM_OFFSET
-        if arm_only and self.dim == self.arm_offset:
+        arm_only = arm_only and self.base is BaseType.PLANAR
+        if arm_only and self.dim == self.base.arm_offset:
             raise ValueError("arm_only queries need arm joints")
         if limit <= 0:
             return []
@@ -265,10 +260,10 @@ class TrajectoryIndex:
         arm_only: bool,
     ) -> list[Match]:
         """Exact metric on the candidates, best orientation per id, top ``limit`` by score."""
-        d, off = self.dim, self.arm_offset
+        d = self.dim
         qk = queries[rev.astype(np.intp)]
         # both ends at once: (m, 2, D) start/goal pairs
-        base, arm = state_distance(keys.reshape(-1, 2, d), qk.reshape(-1, 2, d), arm_offset=off)
+        base, arm = state_distance(keys.reshape(-1, 2, d), qk.reshape(-1, 2, d), base=self.base)
         if arm_only:
             base = np.zeros_like(base)
         ok = ((base < threshold) & (arm < threshold)).all(axis=1)

@@ -27,7 +27,7 @@ from redis.exceptions import RedisError
 
 from trajcache.core.config import Settings, get_settings
 from trajcache.jobs.backend import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
-from trajcache.jobs.sources import WorkerSources
+from trajcache.jobs.sources import MissingSourceError, WorkerSources
 from trajcache.jobs.threads import pin_one_thread
 from trajcache.jobs.wire import (
     problem_from_message,
@@ -37,7 +37,6 @@ from trajcache.jobs.wire import (
 )
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 from trajcache.planning.warm import warm
-from trajcache.services.errors import NotFoundError
 
 PLAN_TASK = "trajcache.plan"
 PLAN_QUEUE = "plan"
@@ -94,7 +93,7 @@ def plan(message: dict[str, Any]) -> dict[str, Any]:
     sources = worker_sources()
     try:
         problem = problem_from_message(message, model_fn=sources.model, scene_fn=sources.scene)
-    except NotFoundError as exc:
+    except MissingSourceError as exc:
         reason = f"{exc} in the worker's database (it needs the service's TRAJCACHE_DATABASE_URL)"
         return result_message(error_result(reason))
     return result_message(worker_task_fn()(problem))

@@ -16,16 +16,19 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from trajcache.core.lru import LRU
 from trajcache.db.session import make_engine, make_sessionmaker
+from trajcache.db.sources import read_model_source, read_scene_payload
 from trajcache.planning.problem import ModelSource, SceneSource
-from trajcache.services.catalog.models import model_source
-from trajcache.services.catalog.robots import stored_scene_payload
 
-__all__ = ["WorkerSources"]
+__all__ = ["MissingSourceError", "WorkerSources"]
 
 T = TypeVar("T")
 
 MODELS_KEPT = 8  # as many as `run_planning` keeps built (planning.run.MODEL_CACHE_SIZE)
 SCENES_KEPT = 64
+
+
+class MissingSourceError(LookupError):
+    """The worker's database holds no model or scene of that name."""
 
 
 class WorkerSources:
@@ -46,9 +49,13 @@ class WorkerSources:
         self.reads = 0  # database reads so far
 
     def model(self, model_id: str) -> ModelSource:
-        """The source of model `model_id` (NotFoundError if the database lacks it)."""
+        """The source of model `model_id` (MissingSourceError if the database lacks it)."""
         return self._models.get_or_build(
-            model_id, lambda: self._read(lambda s: model_source(session=s, model_id=model_id))
+            model_id,
+            lambda: _found(
+                self._read(lambda s: read_model_source(s, model_id)),
+                f"robot model {model_id!r} not found",
+            ),
         )
 
     def scene(self, scene_hash: str, payload: dict[str, Any] | None) -> SceneSource:
@@ -59,7 +66,10 @@ class WorkerSources:
             scene_hash,
             lambda: SceneSource(
                 scene_hash,
-                self._read(lambda s: stored_scene_payload(session=s, scene_hash=scene_hash)),
+                _found(
+                    self._read(lambda s: read_scene_payload(s, scene_hash)),
+                    f"scene {scene_hash!r} not found",
+                ),
                 stored=True,
             ),
         )
@@ -72,3 +82,9 @@ class WorkerSources:
             self.reads += 1
         with sessions() as session:
             return read_fn(session)
+
+
+def _found(value: T | None, missing: str) -> T:
+    if value is None:
+        raise MissingSourceError(missing)
+    return value

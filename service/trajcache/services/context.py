@@ -21,14 +21,14 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.variant import VariantCache, variant_cache
 from trajcache.geometry.validation.validator import ValidatorCache
 from trajcache.jobs.pool import PlannerPool, make_pool
+from trajcache.services.bookkeeping.ranking_facts import RankingFactsCache
+from trajcache.services.bookkeeping.records import PlanRecorder
 from trajcache.services.catalog.certificates import CertificateStore
 from trajcache.services.catalog.index_store import IndexStore
 from trajcache.services.catalog.keys import KeyCache
 from trajcache.services.catalog.models import ModelRegistry
 from trajcache.services.catalog.scene_cache import SceneCache
 from trajcache.services.errors import DATABASE_UNAVAILABLE, UnavailableError
-from trajcache.services.plan.ranking_facts import RankingFactsCache
-from trajcache.services.plan.records import PlanRecorder
 
 _log = logging.getLogger(__name__)
 KINEMATICS_CACHE_SIZE = 64  # models (as robots hold them) whose Pinocchio kinematics are kept

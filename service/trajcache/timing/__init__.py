@@ -22,8 +22,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.model.space import wrap_angle
+from trajcache.geometry.model.space import THETA, wrap_angle
 from trajcache.timing._jerk import jerk_limited
 from trajcache.timing._limits import KinematicLimits, TimingSettings, kinematic_limits
 from trajcache.timing._paths import (
@@ -70,7 +71,7 @@ CertifyFn = Callable[[FloatArray], bool]
 def time_trajectory(
     states: FloatArray,
     *,
-    planar: bool,
+    base: BaseType,
     limits: KinematicLimits,
     method: TimingMethod = TimingMethod.TOPPRA,
     path: PathShape = PathShape.SPLINE,
@@ -86,7 +87,7 @@ def time_trajectory(
     """
     if method is TimingMethod.NONE:
         raise ValueError("method 'none' asks for no timing")
-    q = unwrap_states(np.asarray(states, dtype=float), planar=planar)
+    q = unwrap_states(np.asarray(states, dtype=float), base=base)
     if q.ndim != 2 or len(q) < 1 or q.shape[1] != len(limits.velocity):
         raise TimingError(f"states of shape {q.shape} do not match {len(limits.velocity)} limits")
     points, ss, index = distinct(q, path_positions(q, limits.velocity))
@@ -103,8 +104,8 @@ def time_trajectory(
         candidate = SplinePath(ss, points)
         positions = certification_positions(candidate, motion_bound, CHORD_TOLERANCE_M)
         samples = candidate(positions)
-        if planar:
-            samples[:, 2] = wrap_angle(samples[:, 2])
+        if base is BaseType.PLANAR:
+            samples[:, THETA] = wrap_angle(samples[:, THETA])
         if certify_fn(samples):
             spline, revalidated = candidate, True
     return _time_optimal_or_rest_to_rest(

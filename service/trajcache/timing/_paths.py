@@ -19,16 +19,18 @@ from toppra.constraint import (
 from toppra.constraint.linear_constraint import LinearConstraint
 from toppra.interpolator import AbstractGeometricPath
 
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.model.space import THETA
 
 _SAME = 1e-12  # key states closer than this (in s) are one waypoint
 
 
-def unwrap_states(states: FloatArray, *, planar: bool) -> FloatArray:
+def unwrap_states(states: FloatArray, *, base: BaseType) -> FloatArray:
     """A copy of `states` with the base angle made continuous (each step the short way)."""
     out = np.array(states, dtype=float, copy=True)
-    if planar and len(out):
-        out[:, 2] = np.unwrap(out[:, 2])
+    if base is BaseType.PLANAR and len(out):
+        out[:, THETA] = np.unwrap(out[:, THETA])
     return out
 
 

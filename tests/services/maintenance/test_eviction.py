@@ -18,7 +18,7 @@ from trajcache.db.models import Trajectory, TrajectoryTombstone
 from trajcache.geometry.model.robot import BaseType
 from trajcache.services.background import start_background
 from trajcache.services.catalog.models import ModelRegistration, get_model, register_model
-from trajcache.services.catalog.trajectories import store_trajectory
+from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError, NotFoundError
 from trajcache.services.maintenance.eviction import PruneReport, prune
@@ -40,9 +40,9 @@ def add(ctx: ServiceContext, model_id: str, k: int, **values: Any) -> int:
         new_id, _ = store_trajectory(
             session=session,
             settings=Settings(),
-            model=model,
-            states=[[0.0] * model.dof, [0.01 * (k + 1)] * model.dof],
-            source="sim",
+            trajectory=NewTrajectory(
+                model=model, states=[[0.0] * model.dof, [0.01 * (k + 1)] * model.dof], source="sim"
+            ),
         )
         session.execute(sa.update(Trajectory).where(Trajectory.id == new_id).values(**values))
         session.commit()

@@ -24,7 +24,7 @@ from trajcache.services.catalog.models import (
     get_model,
     register_model,
 )
-from trajcache.services.catalog.trajectories import store_trajectory
+from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import ConflictError, InvalidInputError, NotFoundError
 from trajcache.services.maintenance.importer import ImportFormatError, import_lines
@@ -82,21 +82,21 @@ def fill(ctx: ServiceContext) -> dict[str, Any]:
             new_id, _ = store_trajectory(
                 session=session,
                 settings=Settings(),
-                model=arm,
-                states=[[0.0, 0.0], [0.1 * k, 0.2], [0.5, 0.5 + 0.1 * k]],
-                source=source,
-                robot_id="robot-1" if source == "real" else None,
-                scene_hash="ab" * 32,
-                env={"door": 0.1 * k},
-                planning_time_ms=12.5,
+                trajectory=NewTrajectory(
+                    model=arm,
+                    states=[[0.0, 0.0], [0.1 * k, 0.2], [0.5, 0.5 + 0.1 * k]],
+                    source=source,
+                    robot_id="robot-1" if source == "real" else None,
+                    scene_hash="ab" * 32,
+                    env={"door": 0.1 * k},
+                    planning_time_ms=12.5,
+                ),
             )
             ids.append(new_id)
         lift_id, _ = store_trajectory(
             session=session,
             settings=Settings(),
-            model=lift,
-            states=[[0.0], [0.4]],
-            source="planner",
+            trajectory=NewTrajectory(model=lift, states=[[0.0], [0.4]], source="planner"),
         )
         session.execute(
             sa.update(Trajectory)
@@ -341,7 +341,9 @@ def test_a_model_with_an_srdf_and_held_joints_keeps_its_id(
             ),
         )
         store_trajectory(
-            session=session, settings=Settings(), model=model, states=[[0.0], [0.4]], source="sim"
+            session=session,
+            settings=Settings(),
+            trajectory=NewTrajectory(model=model, states=[[0.0], [0.4]], source="sim"),
         )
     lines = export_lines(source_ctx)
     (record,) = [json.loads(line) for line in lines if json.loads(line)["type"] == "model"]

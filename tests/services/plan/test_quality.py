@@ -24,9 +24,10 @@ from trajcache.services.catalog.models import (
     get_model,
     register_model,
 )
-from trajcache.services.catalog.trajectories import store_trajectory
+from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
-from trajcache.services.plan.quality import QualityLevel, TimingRequest, answer_details
+from trajcache.services.plan.quality import QualityLevel, answer_details
+from trajcache.services.quality import TimingRequest
 from trajcache.timing import PathShape, TimingMethod
 
 OTHER_URDF = two_joint_arm(name="other", elbow_limit=1.4)
@@ -56,18 +57,13 @@ def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
         with_scene, _ = store_trajectory(
             session=session,
             settings=Settings(),
-            model=model,
-            states=states,
-            source="sim",
-            scene=SCENE,
+            trajectory=NewTrajectory(model=model, states=states, source="sim", scene=SCENE),
         )
         plain, _ = store_trajectory(
             session=session,
             settings=Settings(),
-            model=model,
-            states=states[:2],
-            source="sim",
             compute_quality=False,
+            trajectory=NewTrajectory(model=model, states=states[:2], source="sim"),
         )
         row = session.get(Trajectory, with_scene)
         assert row is not None

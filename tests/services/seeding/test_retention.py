@@ -6,11 +6,9 @@ from datetime import UTC, datetime, timedelta
 
 import sqlalchemy as sa
 
-from tests.robots import TWO_JOINT_URDF
-from trajcache.core.config import Settings
+from tests.services.seeding.conftest import register_two_joint
 from trajcache.db.models import SeedJob, SeedJobScene
-from trajcache.services.catalog.models import ModelRegistration, register_model
-from trajcache.services.catalog.trajectories import store_trajectory
+from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.seeding.retention import prune_seed_scenes
 from trajcache.services.seeding.scheduler import SeedScheduler
@@ -47,66 +45,43 @@ def scenes(ctx: ServiceContext) -> set[tuple[int, str]]:
         }
 
 
-def test_old_scenes_go_unless_a_trajectory_names_them(migrated_url: str) -> None:
-    ctx = ServiceContext.create(Settings(database_url=migrated_url, worker_backend="none"))
-    try:
-        with ctx.sessions() as session:
-            model, _ = register_model(
-                session=session,
-                registry=ctx.models,
-                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
-            )
-            store_trajectory(
-                session=session,
-                settings=ctx.settings,
-                model=model,
-                states=[[0.0, 0.0], [0.5, 0.5]],
-                source="sim",
-                scene_hash="used",
-            )
-        old = add_job(ctx, model.model_id, finished=NOW - 2 * WEEK, hashes=["used", "unused"])
-        recent = add_job(ctx, model.model_id, finished=NOW - timedelta(days=1), hashes=["new"])
-        running = add_job(ctx, model.model_id, finished=None, hashes=["live"])
-        with ctx.sessions() as session:
-            assert prune_seed_scenes(session, retention=WEEK, now=NOW) == 1
-        kept = {(old, "used"), (recent, "new"), (running, "live")}
-        assert scenes(ctx) == kept
-        with ctx.sessions() as session:  # nothing more to prune: the rest is used or recent
-            assert prune_seed_scenes(session, retention=WEEK, now=NOW) == 0
-            session.execute(sa.text("DELETE FROM trajectories"))
-            session.commit()
-            # once its trajectory is gone, the old scene goes at the next prune
-            assert prune_seed_scenes(session, retention=WEEK, now=NOW) == 1
-        assert scenes(ctx) == kept - {(old, "used")}
-    finally:
-        ctx.close()
+def test_old_scenes_go_unless_a_trajectory_names_them(ctx: ServiceContext) -> None:
+    model = register_two_joint(ctx)
+    with ctx.sessions() as session:
+        store_trajectory(
+            session=session,
+            settings=ctx.settings,
+            trajectory=NewTrajectory(
+                model=model, states=[[0.0, 0.0], [0.5, 0.5]], source="sim", scene_hash="used"
+            ),
+        )
+    old = add_job(ctx, model.model_id, finished=NOW - 2 * WEEK, hashes=["used", "unused"])
+    recent = add_job(ctx, model.model_id, finished=NOW - timedelta(days=1), hashes=["new"])
+    running = add_job(ctx, model.model_id, finished=None, hashes=["live"])
+    with ctx.sessions() as session:
+        assert prune_seed_scenes(session, retention=WEEK, now=NOW) == 1
+    kept = {(old, "used"), (recent, "new"), (running, "live")}
+    assert scenes(ctx) == kept
+    with ctx.sessions() as session:  # nothing more to prune: the rest is used or recent
+        assert prune_seed_scenes(session, retention=WEEK, now=NOW) == 0
+        session.execute(sa.text("DELETE FROM trajectories"))
+        session.commit()
+        # once its trajectory is gone, the old scene goes at the next prune
+        assert prune_seed_scenes(session, retention=WEEK, now=NOW) == 1
+    assert scenes(ctx) == kept - {(old, "used")}
 
 
-def test_the_scheduler_prunes_with_the_retention_setting(migrated_url: str) -> None:
-    settings = Settings(database_url=migrated_url, worker_backend="none")
-    ctx = ServiceContext.create(settings)
-    try:
-        with ctx.sessions() as session:
-            model, _ = register_model(
-                session=session,
-                registry=ctx.models,
-                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
-            )
-        now = datetime.now(UTC)
-        add_job(ctx, model.model_id, finished=now - timedelta(days=3), hashes=["a"])
-        assert SeedScheduler(ctx).prune_scenes() == 0  # within the default week
-        keep_all = settings.model_copy(update={"seed_scene_retention_days": 0})
-        keep_ctx = ServiceContext.create(keep_all)
+def test_the_scheduler_prunes_with_the_retention_setting(
+    ctx: ServiceContext, model_id: str
+) -> None:
+    now = datetime.now(UTC)
+    add_job(ctx, model_id, finished=now - timedelta(days=3), hashes=["a"])
+    assert SeedScheduler(ctx).prune_scenes() == 0  # within the default week
+    for days, pruned in ((0, 0), (1, 1)):  # 0 days: kept forever
+        settings = ctx.settings.model_copy(update={"seed_scene_retention_days": days})
+        other = ServiceContext.create(settings)
         try:
-            assert SeedScheduler(keep_ctx).prune_scenes() == 0  # 0 days: kept forever
+            assert SeedScheduler(other).prune_scenes() == pruned
         finally:
-            keep_ctx.close()
-        short = settings.model_copy(update={"seed_scene_retention_days": 1})
-        short_ctx = ServiceContext.create(short)
-        try:
-            assert SeedScheduler(short_ctx).prune_scenes() == 1
-        finally:
-            short_ctx.close()
-        assert scenes(ctx) == set()
-    finally:
-        ctx.close()
+            other.close()
+    assert scenes(ctx) == set()

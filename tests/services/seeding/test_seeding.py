@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Iterator
 from datetime import timedelta
 from pathlib import Path
 from typing import Any
@@ -15,13 +14,13 @@ import sqlalchemy as sa
 from pydantic import ValidationError
 
 from tests.robots import TWO_JOINT_URDF
+from tests.services.seeding.conftest import register_two_joint
 from tests.waiting import SOLVABLE, wait_until
 from trajcache.core.config import Settings
 from trajcache.db.models import PlanEvent, SeedJob, Trajectory, utcnow
 from trajcache.reference.cleaning import cleaning_run
 from trajcache.reference.robot import reference_model
-from trajcache.services.catalog.models import ModelRegistration, register_model
-from trajcache.services.catalog.trajectories import store_trajectory
+from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import (
     ConflictError,
@@ -312,32 +311,6 @@ def test_progress_counts_only_a_finished_prefix() -> None:
 # --- jobs in the database -------------------------------------------------------------------
 
 
-@pytest.fixture
-def ctx(migrated_url: str) -> Iterator[ServiceContext]:
-    context = ServiceContext.create(
-        Settings(
-            database_url=migrated_url,
-            worker_backend="none",
-            seed_heartbeat_s=0.1,
-            seed_lease_s=5.0,
-            seed_poll_interval_s=0.1,
-        )
-    )
-    yield context
-    context.close()
-
-
-@pytest.fixture
-def model_id(ctx: ServiceContext) -> str:
-    with ctx.sessions() as session:
-        model, _ = register_model(
-            session=session,
-            registry=ctx.models,
-            registration=ModelRegistration(urdf=TWO_JOINT_URDF),
-        )
-    return model.model_id
-
-
 def arm_job(model_id: str, goals: list[list[float]], **fields: Any) -> SeedJobSpec:
     scene = {
         "objects": [
@@ -456,9 +429,7 @@ def test_a_job_runs_hits_and_misses(ctx: ServiceContext, model_id: str) -> None:
         store_trajectory(
             session=session,
             settings=Settings(),
-            model=model,
-            states=[[0.0, 0.0], [0.5, 0.5]],
-            source="real",
+            trajectory=NewTrajectory(model=model, states=[[0.0, 0.0], [0.5, 0.5]], source="real"),
         )
     goals = [[0.5, 0.5], [0.52, 0.48], [-1.0, 1.0]]  # two near the stored one, one far away
     job_id = queue(ctx, arm_job(model_id, goals))
@@ -525,12 +496,7 @@ def test_planned_results_are_stored_as_sim_with_scene_and_env(
         Settings(database_url=migrated_url, worker_processes=1, seed_heartbeat_s=0.1, **SOLVABLE)
     )
     try:
-        with context.sessions() as session:
-            model, _ = register_model(
-                session=session,
-                registry=context.models,
-                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
-            )
+        model = register_two_joint(context)
         scene = {
             "objects": [
                 {
@@ -598,12 +564,7 @@ def test_misses_go_through_celery_workers_when_configured(
         )
     )
     try:
-        with context.sessions() as session:
-            model, _ = register_model(
-                session=session,
-                registry=context.models,
-                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
-            )
+        model = register_two_joint(context)
         job_id = queue_of(context, model.model_id)
         scheduler = SeedScheduler(context).start()
         try:
@@ -635,12 +596,7 @@ def queue_of(ctx: ServiceContext, model_id: str) -> int:
 def test_a_stop_during_retries_leaves_the_item_to_be_run_again(migrated_url: str) -> None:
     context = ServiceContext.create(Settings(database_url=migrated_url, worker_processes=1))
     try:
-        with context.sessions() as session:
-            model, _ = register_model(
-                session=session,
-                registry=context.models,
-                registration=ModelRegistration(urdf=TWO_JOINT_URDF),
-            )
+        model = register_two_joint(context)
         pool = context.planner_pool()
         assert pool is not None
         pool.close()  # every miss now ends with status `error`, which is retried
@@ -651,8 +607,7 @@ def test_a_stop_during_retries_leaves_the_item_to_be_run_again(migrated_url: str
                 "queries": [{"start": [0, 0], "goal": [1, 1]}],
             }
         )
-        with context.sessions() as session:
-            work = expand(job, model=model, settings=context.settings)
+        work = expand(job, model=model, settings=context.settings)
         run = JobRun(context, 1, "me", on_exit=lambda _i: None)
         attempts: list[Outcome] = []
         attempted = threading.Event()

@@ -30,6 +30,7 @@ from trajcache.api.moveit._codes import (
     answer_code,
     state_error_code,
 )
+from trajcache.api.moveit._either import answer_either, either_body
 from trajcache.api.moveit._ik import (
     GetPositionIKIn,
     GetPositionIKOut,
@@ -65,9 +66,11 @@ __all__ = [
     "RawBodyDep",
     "Vector3",
     "answer_code",
+    "answer_either",
     "answered_body",
     "cartesian_query",
     "cartesian_response",
+    "either_body",
     "ik_answer_code",
     "ik_query",
     "ik_response",

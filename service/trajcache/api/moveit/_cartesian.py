@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, Field
 
 from trajcache.api.answer_extras import extras_body
 from trajcache.api.moveit._codes import MotionPlanError, MoveItErrorCode
@@ -30,10 +30,11 @@ from trajcache.api.moveit._messages import (
     Constraints,
     Finite,
     Name,
+    NoCartesianSpeed,
+    NoPathConstraints,
     Pose,
     RobotState,
     _Message,
-    _not_supported,
 )
 from trajcache.api.moveit._request import read_start_state
 from trajcache.api.moveit._response import robot_state_body, robot_trajectory_body
@@ -41,7 +42,7 @@ from trajcache.api.moveit._schemas import ErrorCodeOut, RobotStateOut, RobotTraj
 from trajcache.api.moveit._state import held_targets
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.cartesian.path import CartesianAnswer, CartesianRequest
-from trajcache.services.plan.quality import TimingRequest
+from trajcache.services.quality import TimingRequest
 
 SAMPLE_PERIOD_S = 0.01  # the answer's points, as the MoveIt plan form samples them
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -63,29 +64,11 @@ class GetCartesianPathIn(_Message):
     avoid_collisions: bool = Field(
         default=False, description="Read as true: every motion is certified collision-free."
     )
-    path_constraints: Constraints = Field(
-        default_factory=Constraints, description="Not supported: must be empty."
-    )
+    path_constraints: NoPathConstraints = Field(default_factory=Constraints)
     max_velocity_scaling_factor: Scaling = 0.0
     max_acceleration_scaling_factor: Scaling = 0.0
     cartesian_speed_limited_link: Name = ""
-    max_cartesian_speed: Finite = Field(
-        default=0.0, description="Not supported: a Cartesian speed limit must be ≤ 0 (off)."
-    )
-
-    @field_validator("path_constraints")
-    @classmethod
-    def _no_path_constraints(cls, value: Constraints) -> Constraints:
-        if not value.is_empty():
-            raise ValueError(_not_supported("path constraints"))
-        return value
-
-    @field_validator("max_cartesian_speed")
-    @classmethod
-    def _no_cartesian_speed_limit(cls, value: float) -> float:
-        if value > 0:
-            raise ValueError(_not_supported("Cartesian speed limits"))
-        return value
+    max_cartesian_speed: NoCartesianSpeed = 0.0
 
 
 class TrajcacheCartesianOut(BaseModel):

@@ -34,9 +34,9 @@ BASE_VARIABLES = {"x": "base_x", "y": "base_y", "theta": "base_theta"}
 _GOAL = MoveItErrorCode.INVALID_GOAL_CONSTRAINTS
 
 
-def state_variable(name: str, state_names: Collection[str], planar: bool) -> str:
+def state_variable(name: str, state_names: Collection[str], base: BaseType) -> str:
     """The state name a joint name stands for: a planar joint's `<joint>/x` is `base_x`."""
-    if planar and name not in state_names:
+    if base is BaseType.PLANAR and name not in state_names:
         head, slash, tail = name.rpartition("/")
         if slash and head and tail in BASE_VARIABLES:
             return BASE_VARIABLES[tail]
@@ -52,11 +52,11 @@ def goal_values(
     warnings: list[str],
 ) -> dict[str, float]:
     """The positions of the first goal that covers every planning joint (see the module)."""
-    planar = model.base is BaseType.PLANAR
     mixed: list[int] = []
     for index, goal in enumerate(goals):
         named = {
-            state_variable(c.joint_name, model.state_names, planar) for c in goal.joint_constraints
+            state_variable(c.joint_name, model.state_names, model.base)
+            for c in goal.joint_constraints
         }
         if not goal.joint_constraints or not named.issuperset(model.joint_names):
             continue
@@ -65,7 +65,7 @@ def goal_values(
             continue
         where = f"goal_constraints[{index}]"
         values = _joint_goal(goal.joint_constraints, where, model, held, warnings)
-        if planar:
+        if model.base is BaseType.PLANAR:
             for key, value in zip(BASE_STATE_NAMES, start[:3], strict=True):
                 values.setdefault(key, float(value))
         return values
@@ -79,7 +79,6 @@ def _joint_goal(
     held: Mapping[str, float],
     warnings: list[str],
 ) -> dict[str, float]:
-    planar = model.base is BaseType.PLANAR
     fixed, mimics = fixed_joints(model), planning_mimics(model)
     values: dict[str, float] = {}
     ignored: list[str] = []
@@ -89,7 +88,7 @@ def _joint_goal(
     for c in constraints:
         if c.tolerance_above < 0 or c.tolerance_below < 0:
             raise MotionPlanError(_GOAL, f"{where}: {c.joint_name!r} has a negative tolerance")
-        key = state_variable(c.joint_name, model.state_names, planar)
+        key = state_variable(c.joint_name, model.state_names, model.base)
         if key in model.state_names:
             position, warning, refusal = clamp_goal(
                 model, key, c.position, (c.tolerance_below, c.tolerance_above)
@@ -166,9 +165,9 @@ def _why_no_goal(goals: Sequence[Constraints], model: RobotModel, mixed: list[in
         return (
             f"goal_constraints is empty: give joint constraints on every planning joint ({joints})"
         )
-    planar = model.base is BaseType.PLANAR
     named = {
-        state_variable(c.joint_name, model.state_names, planar) for c in goals[0].joint_constraints
+        state_variable(c.joint_name, model.state_names, model.base)
+        for c in goals[0].joint_constraints
     }
     missing = [n for n in model.joint_names if n not in named]
     return (

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from trajcache.api.moveit._messages import MotionPlanRequestIn, known_planner
 from trajcache.core.config import Settings
+from trajcache.geometry.model.robot import BaseType
 
 
 def planner_and_budget(
@@ -35,7 +36,7 @@ def planner_and_budget(
     return planner or None, budget
 
 
-def ignored_fields(message: MotionPlanRequestIn, planar: bool) -> list[str]:
+def ignored_fields(message: MotionPlanRequestIn, base: BaseType) -> list[str]:
     """A warning for each field the request gives that is not used."""
     joints = message.start_state.joint_state
     multi_dof = message.start_state.multi_dof_joint_state
@@ -52,7 +53,7 @@ def ignored_fields(message: MotionPlanRequestIn, planar: bool) -> list[str]:
     out = [f"{name} is ignored" for name, present in given.items() if present]
     if message.num_planning_attempts > 1:
         out[out.index("num_planning_attempts is ignored")] += " (one attempt plans)"
-    if not planar and multi_dof.joint_names:
+    if base is BaseType.FIXED and multi_dof.joint_names:
         out.append("start_state.multi_dof_joint_state is ignored: the robot's base is fixed")
     if message.group_name:
         out.append(

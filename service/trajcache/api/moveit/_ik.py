@@ -37,7 +37,7 @@ from trajcache.api.moveit._request import read_start_state
 from trajcache.api.moveit._response import robot_state_body
 from trajcache.api.moveit._schemas import ErrorCodeOut, RobotStateOut
 from trajcache.api.moveit._state import held_targets
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import pose_matrix
 from trajcache.geometry.scene.fields import unit_quaternion
 from trajcache.services.ik.solve import IK_BUDGET_MAX_S, IkAnswer, IkRequest, IkStatus
@@ -198,7 +198,7 @@ def pose_in_base_frame(
     o = pose.orientation
     orientation = (o.x, o.y, o.z, o.w)
     root = model.link_names[0]
-    if frame in WORLD_FRAMES or (frame == root and not model.arm_offset):
+    if frame in WORLD_FRAMES or (frame == root and model.base is BaseType.FIXED):
         return position, orientation
     if frame != root:
         raise MotionPlanError(

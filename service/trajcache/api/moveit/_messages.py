@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from pydantic import ConfigDict, Field, field_validator, model_validator
+from pydantic import AfterValidator, ConfigDict, Field, field_validator, model_validator
 
 from trajcache.core.planners import PLANNER_NAMES
 from trajcache.core.request_model import RequestModel
@@ -179,6 +179,31 @@ class Constraints(_Message):
         return not self.joint_constraints and not self.other_kinds()
 
 
+def _empty_path_constraints(value: Constraints) -> Constraints:
+    if not value.is_empty():
+        raise ValueError(_not_supported("path constraints"))
+    return value
+
+
+def _no_cartesian_speed_limit(value: float) -> float:
+    if value > 0:
+        raise ValueError(_not_supported("Cartesian speed limits"))
+    return value
+
+
+# The fields every MoveIt request that moves a link carries and trajcache cannot honour.
+NoPathConstraints = Annotated[
+    Constraints,
+    AfterValidator(_empty_path_constraints),
+    Field(description="Not supported: must be empty."),
+]
+NoCartesianSpeed = Annotated[
+    Finite,
+    AfterValidator(_no_cartesian_speed_limit),
+    Field(description="Not supported: a Cartesian speed limit must be ≤ 0 (off)."),
+]
+
+
 class TrajectoryConstraints(_Message):
     """`moveit_msgs/TrajectoryConstraints`."""
 
@@ -223,9 +248,7 @@ class MotionPlanRequestIn(_Message):
         default=[],
         description="The first whose joint constraints cover every planning joint is the goal.",
     )
-    path_constraints: Constraints = Field(
-        default_factory=Constraints, description="Not supported: must be empty."
-    )
+    path_constraints: NoPathConstraints = Field(default_factory=Constraints)
     trajectory_constraints: TrajectoryConstraints = Field(
         default_factory=TrajectoryConstraints, description="Not supported: must be empty."
     )
@@ -254,9 +277,7 @@ class MotionPlanRequestIn(_Message):
     )
     cartesian_speed_limited_link: Name = ""
     cartesian_speed_end_effector_link: Name = ""
-    max_cartesian_speed: Finite = Field(
-        default=0.0, description="Not supported: a Cartesian speed limit must be ≤ 0 (off)."
-    )
+    max_cartesian_speed: NoCartesianSpeed = 0.0
 
     @model_validator(mode="before")
     @classmethod
@@ -266,13 +287,6 @@ class MotionPlanRequestIn(_Message):
             if key in WRAPPERS:
                 return inner
         return data
-
-    @field_validator("path_constraints")
-    @classmethod
-    def _no_path_constraints(cls, value: Constraints) -> Constraints:
-        if not value.is_empty():
-            raise ValueError(_not_supported("path constraints"))
-        return value
 
     @field_validator("trajectory_constraints")
     @classmethod
@@ -286,13 +300,6 @@ class MotionPlanRequestIn(_Message):
     def _no_reference_trajectories(cls, value: list[dict[str, Any]]) -> list[dict[str, Any]]:
         if value:
             raise ValueError(_not_supported("reference trajectories"))
-        return value
-
-    @field_validator("max_cartesian_speed")
-    @classmethod
-    def _no_cartesian_speed_limit(cls, value: float) -> float:
-        if value > 0:
-            raise ValueError(_not_supported("Cartesian speed limits"))
         return value
 
     @field_validator("pipeline_id")

@@ -71,7 +71,6 @@ def motion_plan_query(
 ) -> MotionPlanQuery:
     """The native plan request of `message` for a robot of `model` holding its joints outside
     the planning joints at `held` (default: the model's held values)."""
-    planar = model.base is BaseType.PLANAR
     targets = held_targets(model, held or {})
     warnings: list[str] = []
     start = read_start_state(message.start_state, model, targets, warnings)
@@ -98,8 +97,10 @@ def motion_plan_query(
         acceleration_scaling=message.max_acceleration_scaling_factor or 1.0,
         sample_period_s=SAMPLE_PERIOD_S,
     )
-    base_joint = _base_joint(message) if planar else DEFAULT_BASE_JOINT
-    warnings += ignored_fields(message, planar)
+    base_joint = DEFAULT_BASE_JOINT
+    if model.base is BaseType.PLANAR:
+        base_joint = _base_joint(message)
+    warnings += ignored_fields(message, model.base)
     return MotionPlanQuery(request, start, timing, base_joint, tuple(warnings))
 
 
@@ -144,12 +145,11 @@ def read_start_state(
 def _read_joint_state(
     state: RobotState, model: RobotModel, targets: Mapping[str, float]
 ) -> JointReading:
-    planar = model.base is BaseType.PLANAR
     fixed, mimics = fixed_joints(model), planning_mimics(model)
     reading = JointReading()
     joints = state.joint_state
     for name, position in zip(joints.name, joints.position, strict=True):
-        key = state_variable(name, model.state_names, planar)
+        key = state_variable(name, model.state_names, model.base)
         if key in reading.values or name in reading.others:
             raise MotionPlanError(_START, f"start_state.joint_state names {key!r} twice")
         if key in model.state_names:

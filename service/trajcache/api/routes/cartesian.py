@@ -4,10 +4,8 @@ certified joint path, natively or as MoveIt's GetCartesianPath, answered by
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
-import pydantic_core
 from fastapi import APIRouter, Response
 
 from trajcache.api.answer_extras import answer_extras, extras_body
@@ -18,11 +16,10 @@ from trajcache.api.moveit import (
     GetCartesianPathOut,
     MotionPlanError,
     RawBodyDep,
+    answer_either,
     cartesian_query,
     cartesian_response,
-    inlined_schema,
-    read_document,
-    validated,
+    either_body,
 )
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.cartesian import (
@@ -33,12 +30,11 @@ from trajcache.api.schemas.cartesian import (
 )
 from trajcache.services.cartesian.path import CartesianAnswer, CartesianRequest, answer_cartesian
 from trajcache.services.cartesian.store import CacheQuery
-from trajcache.services.catalog.robot_model import robot_model_and_held
+from trajcache.services.robot_model import robot_model_and_held
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
 
 MOVEIT_KEYS = ("start_state", "link_name", "group_name", "header")  # a GetCartesianPath body
-_SCHEMA = {"oneOf": [inlined_schema(CartesianBody), inlined_schema(GetCartesianPathIn)]}
 _WAYPOINT = {"position": [0.307, 0.0, 0.49], "orientation": [1.0, 0.0, 0.0, 0.0]}
 _NATIVE = {"start": READY, "link": "panda_hand", "waypoints": [_WAYPOINT], "max_step": 0.01}
 _MOVEIT = {
@@ -57,15 +53,7 @@ _EXAMPLES = {
     "native": {"summary": "The native form", "value": _NATIVE},
     "moveit": {"summary": "MoveIt's GetCartesianPath request", "value": _MOVEIT},
 }
-_BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSON one
-    "requestBody": {
-        "required": True,
-        "content": {
-            "application/json": {"schema": _SCHEMA, "examples": _EXAMPLES},
-            "application/yaml": {"schema": _SCHEMA, "example": _MOVEIT},
-        },
-    }
-}
+_BODY = either_body(CartesianBody, GetCartesianPathIn, _EXAMPLES, _MOVEIT)
 _ANSWERS = {"native": {"summary": "The native answer", "value": CARTESIAN_EXAMPLE}}
 
 
@@ -102,13 +90,16 @@ _ANSWERS = {"native": {"summary": "The native answer", "value": CARTESIAN_EXAMPL
 )
 def cartesian_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> Response:
     """Compute (or serve from the cache) a Cartesian path for a robot in its current scene."""
-    began = time.perf_counter()
-    document = read_document(body.media_type, body.data)
-    if isinstance(document, dict) and any(key in document for key in MOVEIT_KEYS):
-        return _json(_moveit(ctx, robot_id, validated(GetCartesianPathIn, document), began))
-    native = validated(CartesianBody, document)
-    answer = answer_cartesian(ctx=ctx, robot_id=robot_id, request=_request(native))
-    return _json(_native_body(answer))
+    return answer_either(
+        body,
+        native=CartesianBody,
+        native_fn=lambda native: _native_body(
+            answer_cartesian(ctx=ctx, robot_id=robot_id, request=_request(native))
+        ),
+        moveit=GetCartesianPathIn,
+        moveit_keys=MOVEIT_KEYS,
+        moveit_fn=lambda message, began: _moveit(ctx, robot_id, message, began),
+    )
 
 
 def _request(body: CartesianBody) -> CartesianRequest:
@@ -166,7 +157,3 @@ def _native_body(answer: CartesianAnswer) -> dict[str, Any]:
         **extras_body(answer.details),
         "timings_ms": answer.timings_ms,
     }
-
-
-def _json(content: dict[str, Any]) -> Response:
-    return Response(pydantic_core.to_json(content), media_type="application/json")

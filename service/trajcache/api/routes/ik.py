@@ -3,10 +3,8 @@ GetPositionIK (a body with `ik_request`), answered by `services.ik.solve`."""
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
-import pydantic_core
 from fastapi import APIRouter, Response
 
 from trajcache.api.bounded import BoundedBodyRoute
@@ -16,21 +14,19 @@ from trajcache.api.moveit import (
     GetPositionIKOut,
     MotionPlanError,
     RawBodyDep,
+    answer_either,
+    either_body,
     ik_answer_code,
     ik_query,
     ik_response,
-    inlined_schema,
-    read_document,
-    validated,
 )
 from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.ik import IK_EXAMPLES, IkBody, IkResponse
-from trajcache.services.catalog.robot_model import robot_model_and_held
 from trajcache.services.ik.solve import IkAnswer, IkRequest, answer_ik
+from trajcache.services.robot_model import robot_model_and_held
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
 
-_SCHEMA = {"oneOf": [inlined_schema(IkBody), inlined_schema(GetPositionIKIn)]}
 _NATIVE = {
     "link": "panda_hand",
     "position": [0.4, 0.1, 0.5],
@@ -76,15 +72,7 @@ _ANSWERS = {
     "native": {"summary": "The native answer", "value": IK_EXAMPLES[0]},
     "moveit": {"summary": "MoveIt's GetPositionIK response", "value": _MOVEIT_ANSWER},
 }
-_BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSON one
-    "requestBody": {
-        "required": True,
-        "content": {
-            "application/json": {"schema": _SCHEMA, "examples": _EXAMPLES},
-            "application/yaml": {"schema": _SCHEMA, "example": _MOVEIT},
-        },
-    }
-}
+_BODY = either_body(IkBody, GetPositionIKIn, _EXAMPLES, _MOVEIT)
 
 
 @router.post(
@@ -117,13 +105,16 @@ _BODY: dict[str, Any] = {  # a YAML body is read into the same document as a JSO
 )
 def ik_route(ctx: CtxDep, body: RawBodyDep, robot_id: RobotIdPath) -> Response:
     """Solve inverse kinematics for a robot in its current scene."""
-    began = time.perf_counter()
-    document = read_document(body.media_type, body.data)
-    if isinstance(document, dict) and "ik_request" in document:
-        return _json(_moveit(ctx, robot_id, validated(GetPositionIKIn, document), began))
-    native = validated(IkBody, document)
-    answer = answer_ik(ctx=ctx, robot_id=robot_id, request=_request(native))
-    return _json(_native_body(answer))
+    return answer_either(
+        body,
+        native=IkBody,
+        native_fn=lambda native: _native_body(
+            answer_ik(ctx=ctx, robot_id=robot_id, request=_request(native))
+        ),
+        moveit=GetPositionIKIn,
+        moveit_keys=("ik_request",),
+        moveit_fn=lambda message, began: _moveit(ctx, robot_id, message, began),
+    )
 
 
 def _request(body: IkBody) -> IkRequest:
@@ -168,7 +159,3 @@ def _native_body(answer: IkAnswer) -> dict[str, Any]:
         "message": answer.message,
         "timings_ms": answer.timings_ms,
     }
-
-
-def _json(content: dict[str, Any]) -> Response:
-    return Response(pydantic_core.to_json(content), media_type="application/json")

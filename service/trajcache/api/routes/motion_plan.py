@@ -33,9 +33,9 @@ from trajcache.api.moveit import (
 )
 from trajcache.api.responses import COMMON, errors
 from trajcache.geometry.errors import StateError
-from trajcache.services.catalog.robot_model import robot_model_and_held
 from trajcache.services.errors import SceneRequiredError
 from trajcache.services.plan.flow import answer_request
+from trajcache.services.robot_model import robot_model_and_held
 
 router = APIRouter(tags=["plan"], responses=COMMON, route_class=BoundedBodyRoute)
 

@@ -19,6 +19,7 @@ from trajcache.api.schemas.trajectories import (
 )
 from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.trajectories import (
+    NewTrajectory,
     delete_trajectory,
     get_trajectory,
     list_trajectories,
@@ -81,18 +82,20 @@ def store_trajectory_route(
     model = get_model(session=session, registry=ctx.models, model_id=body.model_id)
     trajectory_id, created = store_trajectory(
         session=session,
-        model=model,
-        states=body.states,
-        source=body.source,
         settings=ctx.settings,
-        robot_id=body.robot_id,
-        scene_hash=body.scene_hash,
-        env=body.env,
-        planning_time_ms=body.planning_time_ms,
-        max_states=ctx.settings.max_trajectory_states,
-        require_robot=True,
         scenes=ctx.scenes,
         validators=ctx.validators,
+        trajectory=NewTrajectory(
+            model=model,
+            states=body.states,
+            source=body.source,
+            robot_id=body.robot_id,
+            scene_hash=body.scene_hash,
+            env=body.env,
+            planning_time_ms=body.planning_time_ms,
+            max_states=ctx.settings.max_trajectory_states,
+            require_robot=True,
+        ),
     )
     if not created:
         response.status_code = 200

@@ -20,6 +20,11 @@ class BaseType(str, Enum):
     FIXED = "fixed"
     PLANAR = "planar"
 
+    @property
+    def arm_offset(self) -> int:
+        """Index of the first arm joint in a state vector: after a planar base's x, y, θ."""
+        return 3 if self is BaseType.PLANAR else 0
+
 
 @dataclass(frozen=True, eq=False)
 class CollisionElement:
@@ -128,7 +133,7 @@ class RobotModel:
     @property
     def arm_offset(self) -> int:
         """Index of the first arm joint in a state vector."""
-        return 3 if self.base is BaseType.PLANAR else 0
+        return self.base.arm_offset
 
     def geometric_links(self) -> np.ndarray:
         """Indices of links that carry at least one collision element."""

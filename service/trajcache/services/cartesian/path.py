@@ -47,12 +47,8 @@ from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.ik.solve import link_of
-from trajcache.services.plan.quality import (
-    AnswerDetails,
-    QualityLevel,
-    TimingRequest,
-    answer_details,
-)
+from trajcache.services.plan.quality import AnswerDetails, QualityLevel, answer_details
+from trajcache.services.quality import TimingRequest
 
 __all__ = ["CartesianAnswer", "CartesianRequest", "Waypoint", "answer_cartesian"]
 

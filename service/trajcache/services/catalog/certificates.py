@@ -5,7 +5,7 @@ A certificate only ever grows (more object digests) or disappears (with its traj
 the certifier or the settings change its stamp), and every digest in it was proved, so a copy
 that is older than the table is still true: the LRU needs no invalidation. The plan flow reads
 one when the validation memo does not already know a candidate's interior, and writes them
-through the plan records (`services.plan.record_batch`), after the answer has gone out.
+through the plan records (`services.bookkeeping.record_batch`), after the answer has gone out.
 
 Bounds: at most `MAX_OBJECTS` digests per certificate, `PER_TRAJECTORY` certificates per
 trajectory (the most recently written), and only the current stamp's.

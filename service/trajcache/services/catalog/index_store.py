@@ -226,7 +226,7 @@ class IndexStore:
                 Trajectory.model_id == model.model_id, Trajectory.id <= self._rows.hwm
             )
         ).all()
-        index = TrajectoryIndex(model.dof, arm_offset=model.arm_offset)
+        index = TrajectoryIndex(model.dof, base=model.base)
         _add_rows(index, rows)
         self._indexes[model.model_id] = index
         return index

@@ -14,6 +14,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
 from trajcache.db import models as tables
+from trajcache.db.sources import read_model_source, stored_files
 from trajcache.geometry.errors import RobotModelError
 from trajcache.geometry.model.files import MeshResolver, unpack_archive
 from trajcache.geometry.model.robot import BASE_STATE_NAMES, BaseType, RobotModel
@@ -311,7 +312,7 @@ def get_model(*, session: Session, registry: ModelRegistry, model_id: str) -> Ro
     semantics = row.config or {}
     model = load_robot_model(
         row.urdf,
-        files=_stored_files(session, model_id),
+        files=stored_files(session, model_id),
         base=row.base,
         joint_names=row.joint_names,
         srdf=semantics.get("srdf"),
@@ -331,28 +332,10 @@ def model_source(
     is given)."""
     if registry is not None and (cached := registry.get_source(model_id)) is not None:
         return cached
-    row = session.get(tables.RobotModel, model_id)
-    if row is None:
+    source = read_model_source(session, model_id)
+    if source is None:
         raise NotFoundError(f"robot model {model_id!r} not found")
-    source = ModelSource(
-        model_id=row.id,
-        urdf=row.urdf,
-        base=row.base,
-        joint_names=tuple(row.joint_names),
-        files=_stored_files(session, model_id),
-        srdf=(row.config or {}).get("srdf"),
-        joint_values=(row.config or {}).get("joint_values"),
-    )
     return registry.put_source(source) if registry is not None else source
-
-
-def _stored_files(session: Session, model_id: str) -> dict[str, bytes]:
-    rows = session.execute(
-        sa.select(tables.ModelFile.path, tables.ModelFile.data).where(
-            tables.ModelFile.model_id == model_id
-        )
-    )
-    return {path: data for path, data in rows}
 
 
 def get_model_row(*, session: Session, model_id: str) -> tables.RobotModel:

@@ -14,6 +14,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from trajcache.db import models as tables
+from trajcache.db.sources import read_scene_payload
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.payload import scene_to_payload
@@ -255,11 +256,10 @@ def _resolve_scene(
 
 def stored_scene_payload(*, session: Session, scene_hash: str) -> dict[str, Any]:
     """The stored payload of the scene with hash `scene_hash` (whichever robot uploaded it)."""
-    query = sa.select(tables.SceneVersion.payload).where(tables.SceneVersion.hash == scene_hash)
-    payload = session.scalar(query.limit(1))
+    payload = read_scene_payload(session, scene_hash)
     if payload is None:
         raise NotFoundError(f"scene {scene_hash!r} not found")
-    return dict(payload)
+    return payload
 
 
 def get_scene(*, session: Session, scenes: SceneCache, robot_id: str) -> SceneInfo:

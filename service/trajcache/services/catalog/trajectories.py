@@ -33,7 +33,7 @@ from trajcache.services.errors import (
     NotFoundError,
     PayloadTooLargeError,
 )
-from trajcache.services.plan.quality import trajectory_quality
+from trajcache.services.quality import trajectory_quality
 
 logger = logging.getLogger(__name__)
 
@@ -41,58 +41,72 @@ SOURCES = ("real", "sim", "import", "planner")
 _COLUMNS = tuple(attr.key for attr in sa.inspect(tables.Trajectory).column_attrs)
 
 
+@dataclasses.dataclass(frozen=True)
+class NewTrajectory:
+    """A trajectory to store: `model`'s states, where they come from and where they were planned.
+
+    With `require_robot`, `robot_id` must name a robot of this model. `scene`, when given, is
+    the parsed scene of `scene_hash` (it spares reading the stored version). At most
+    `max_states` states, when set.
+    """
+
+    model: RobotModel
+    states: npt.ArrayLike
+    source: str
+    robot_id: str | None = None
+    scene_hash: str | None = None
+    scene: Scene | None = None
+    env: Mapping[str, Any] | None = None
+    planning_time_ms: float | None = None
+    max_states: int | None = None
+    require_robot: bool = False
+
+
 def store_trajectory(
     *,
     session: Session,
-    model: RobotModel,
-    states: npt.ArrayLike,
-    source: str,
     settings: Settings,
-    robot_id: str | None = None,
-    scene_hash: str | None = None,
-    env: Mapping[str, Any] | None = None,
-    planning_time_ms: float | None = None,
-    max_states: int | None = None,
-    require_robot: bool = False,
+    trajectory: NewTrajectory,
     commit: bool = True,
-    scene: Scene | None = None,
     compute_quality: bool = True,
     scenes: SceneCache | None = None,
     validators: ValidatorCache | None = None,
 ) -> tuple[int, bool]:
-    """Store a trajectory of `model`; an identical one already stored is returned, not copied.
+    """Store `trajectory`; an identical one already stored is returned, not copied.
 
     States are checked for length, finiteness and joint limits (StateError names the joint).
-    With `require_robot`, `robot_id` must name a robot of this model. With `commit=False` the
-    row is only flushed, so the caller can commit it together with other writes.
+    With `commit=False` the row is only flushed, so the caller can commit it together with
+    other writes.
 
     A new row gets its quality columns (`compute_quality`) under the caller's `settings` (the
     app's, never the process environment's): path lengths, duration after time-optimal timing
-    and, in `scene` or else the stored scene version with `scene_hash`, the minimum clearance.
-    A metric that cannot be computed is left empty; the store proceeds. `scenes` and
-    `validators` (the service's caches) spare parsing the scene and building its validator
-    again.
+    and, in the trajectory's scene or else the stored scene version with its `scene_hash`, the
+    minimum clearance. A metric that cannot be computed is left empty; the store proceeds.
+    `scenes` and `validators` (the service's caches) spare parsing the scene and building its
+    validator again.
     """
+    t, model = trajectory, trajectory.model
     array = _validated(
         session,
         model,
-        states,
-        source=source,
-        robot_id=robot_id,
-        scene_hash=scene_hash,
-        max_states=max_states,
-        require_robot=require_robot,
+        t.states,
+        source=t.source,
+        robot_id=t.robot_id,
+        scene_hash=t.scene_hash,
+        max_states=t.max_states,
+        require_robot=t.require_robot,
     )
-    row = tables.Trajectory(model_id=model.model_id, source=source, robot_id=robot_id)
-    row.scene_hash, row.env = scene_hash, parse_env(dict(env or {}))
-    row.planning_time_ms = planning_time_ms
+    row = tables.Trajectory(model_id=model.model_id, source=t.source, robot_id=t.robot_id)
+    row.scene_hash, row.env = t.scene_hash, parse_env(dict(t.env or {}))
+    row.planning_time_ms = t.planning_time_ms
     row.set_states(array)
     existing = _find(session, model.model_id, row.content_hash)
     if existing is not None:
         return existing, False
     if compute_quality:
-        if scene is None and scene_hash is not None:
-            scene = scene_with_hash(session, scene_hash, scenes)
+        scene = t.scene
+        if scene is None and t.scene_hash is not None:
+            scene = scene_with_hash(session, t.scene_hash, scenes)
         _fill_quality(row, model, array, settings, scene, validators)
     new_id = _insert_unless_present(session, row)
     if new_id is None:  # stored concurrently by another request or replica

@@ -28,7 +28,7 @@ from trajcache.geometry.model.kinematics import (
     resolve_state,
 )
 from trajcache.geometry.model.pin_kinematics import PinKinematics
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray, pose_matrix
 from trajcache.geometry.model.srdf import parse_srdf
 from trajcache.geometry.path_quality import end_effector_link
@@ -186,7 +186,7 @@ def cached_starts(
     if len(endpoints) == 0:
         return []
     states = np.array(endpoints, dtype=float)
-    if model.arm_offset and not move_base:
+    if model.base is BaseType.PLANAR and not move_base:
         states[:, : model.arm_offset] = seed[: model.arm_offset]
     link = model.link_names.index(target.link)
     positions = forward_kinematics(model, states)[:, link, :3, 3]

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import logging
 import math
-import threading
 import time
 
 import sqlalchemy as sa
@@ -28,6 +27,7 @@ from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.trajectories import quality_columns, scene_with_hash
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import NotFoundError
+from trajcache.services.maintenance.loop import BackgroundLoop
 
 _log = logging.getLogger(__name__)
 _T = tables.Trajectory
@@ -76,39 +76,29 @@ def _quality(ctx: ServiceContext, session: Session, row: tables.Trajectory) -> d
     )
 
 
-class QualityBackfill:
-    """The background thread of one service process (see the module docstring)."""
+class QualityBackfill(BackgroundLoop):
+    """The background thread of one service process (see the module docstring); it looks for
+    pending rows at once (work left before a restart)."""
+
+    thread_name = "quality-backfill"
+    step_name = "background quality"
 
     def __init__(self, ctx: ServiceContext) -> None:
-        self.ctx = ctx
+        super().__init__(ctx)
         self.done = 0
-        self._stopping = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name="quality-backfill", daemon=True)
+        self._rate = ctx.settings.quality_backfill_per_s
 
-    def start(self) -> QualityBackfill:
-        """Start the thread; it looks for pending rows at once (work left before a restart)."""
-        self._thread.start()
-        return self
+    def first_pause_s(self) -> float:
+        return 0.0
 
-    def stop(self, timeout_s: float | None = None) -> None:
-        """Stop the thread (a batch under way finishes first)."""
-        self._stopping.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout_s)
+    def step(self) -> float:
+        started = time.monotonic()
+        done = backfill_batch(self.ctx, batch_size(self._rate))
+        self.done += done
+        return pause_after(done, self._rate, time.monotonic() - started)
 
-    def _loop(self) -> None:
-        rate = self.ctx.settings.quality_backfill_per_s
-        batch = batch_size(rate)
-        pause = 0.0
-        while not self._stopping.wait(pause):
-            started = time.monotonic()
-            try:
-                done = backfill_batch(self.ctx, batch)
-            except Exception as exc:  # the database may be away; try again later
-                _log.warning("background quality failed: %s", exc)
-                done = 0
-            self.done += done
-            pause = pause_after(done, rate, time.monotonic() - started)
+    def failure_pause_s(self) -> float:
+        return pause_after(0, self._rate, 0.0)
 
 
 def batch_size(rate: float) -> int:

@@ -27,6 +27,7 @@ from sqlalchemy.orm import Session
 from trajcache.db.models import RobotModel, Trajectory, TrajectoryTombstone
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError, NotFoundError
+from trajcache.services.maintenance.loop import BackgroundLoop
 
 __all__ = ["POLICIES", "EvictionTimer", "ModelPrune", "PruneReport", "prune"]
 
@@ -152,39 +153,33 @@ def prune(
     return report
 
 
-class EvictionTimer:
-    """Prunes every `eviction_interval_s` while `cache_max_per_model` is set."""
+class EvictionTimer(BackgroundLoop):
+    """Prunes every `eviction_interval_s` while `cache_max_per_model` is set (the first prune
+    is one interval after the start)."""
+
+    thread_name = "eviction"
+    step_name = "eviction"
 
     def __init__(self, ctx: ServiceContext) -> None:
-        self.ctx = ctx
+        super().__init__(ctx)
         self.runs = 0
-        self._stopping = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name="eviction", daemon=True)
 
-    def start(self) -> EvictionTimer:
-        """Start the timer (the first prune is one interval after the start)."""
-        self._thread.start()
-        return self
+    def first_pause_s(self) -> float:
+        return self.ctx.settings.eviction_interval_s
 
-    def stop(self, timeout_s: float | None = None) -> None:
-        """Stop the timer (a prune under way finishes first)."""
-        self._stopping.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout_s)
-
-    def _loop(self) -> None:
+    def step(self) -> float:
         settings = self.ctx.settings
-        while not self._stopping.wait(settings.eviction_interval_s):
-            try:
-                with self.ctx.sessions() as session:
-                    report = prune(
-                        session=session,
-                        cap=settings.cache_max_per_model,
-                        policy=settings.eviction_policy,
-                        dry_run=False,
-                    )
-                self.runs += 1
-                if report.deleted:
-                    _log.info("evicted %d trajectories beyond the cap", report.deleted)
-            except Exception as exc:  # the database may be away; try again next time
-                _log.warning("eviction failed: %s", exc)
+        with self.ctx.sessions() as session:
+            report = prune(
+                session=session,
+                cap=settings.cache_max_per_model,
+                policy=settings.eviction_policy,
+                dry_run=False,
+            )
+        self.runs += 1
+        if report.deleted:
+            _log.info("evicted %d trajectories beyond the cap", report.deleted)
+        return settings.eviction_interval_s
+
+    def failure_pause_s(self) -> float:
+        return self.ctx.settings.eviction_interval_s

@@ -6,7 +6,7 @@
 - `answers`: the answers of an attempt, each recorded through the record writer;
 - `fallback`: planning in the worker pool, validating and storing what it finds;
 - `options`: plan options resolved against the settings (defaults and limits);
-- `quality`: store-time and answer-time quality and timing;
-- `records`, `record_batch`: the ordered writer of usage counters and plan events;
-- `ranking_facts`: ranking facts kept in memory briefly.
+- `quality`: answer-time quality and timing (store-time quality is `services.quality`).
+
+What an answer leaves behind is recorded through `services.bookkeeping`.
 """

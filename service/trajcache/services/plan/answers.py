@@ -1,12 +1,12 @@
 """The answers of a plan attempt, each with its bookkeeping: a record and the metrics.
 
-Whatever the outcome — a hit, a miss, a planner failure, a planned trajectory — the usage
-counters of the candidates and the plan event go to `ctx.records` (`services.plan.records`) as
-one :class:`PlanRecord`, stamped with the writer's clock, and the answer is counted in the
-Prometheus metrics (`services.prometheus.record_plan`) with the same status, source, requester and
-timings as its plan event: `_record` is the one place of the plan flow that does both, whoever
-asked (a robot or a seed job), so `/metrics` and `/v1/stats` count the same requests. Nothing
-here writes to the database.
+Whatever the outcome — a hit, a miss, a planner failure, a planned trajectory — the usage counters
+of the candidates and the plan event go to `ctx.records` (`services.bookkeeping.records`) as one
+:class:`PlanRecord`, stamped with the writer's clock, and the answer is counted in the Prometheus
+metrics (`services.prometheus.record_plan`) with the same status, source, requester and timings as
+its plan event: `_record` is the one place of the plan flow that does both, whoever asked (a robot
+or a seed job), so `/metrics` and `/v1/stats` count the same requests. Nothing here writes to the
+database.
 """
 
 from __future__ import annotations
@@ -19,12 +19,12 @@ import numpy as np
 from trajcache.cache.memo import MemoUse
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.scene import Scene
+from trajcache.services.bookkeeping.record_batch import EventDetails
+from trajcache.services.bookkeeping.records import PlanRecord, QualityJob
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
 from trajcache.services.plan.quality import AnswerExtras, answer_details
-from trajcache.services.plan.record_batch import EventDetails
-from trajcache.services.plan.records import PlanRecord, QualityJob
 from trajcache.services.plan.rejections import rejection_entries
 from trajcache.services.prometheus import record_plan
 from trajcache.timing import TimingError

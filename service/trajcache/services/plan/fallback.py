@@ -24,8 +24,10 @@ from trajcache.planning.problem import (
     SceneSource,
     fresh_seed,
 )
+from trajcache.services.bookkeeping.records import QualityJob
 from trajcache.services.catalog.models import model_source
 from trajcache.services.catalog.trajectories import (
+    NewTrajectory,
     quality_columns,
     set_parent,
     store_trajectory,
@@ -34,7 +36,6 @@ from trajcache.services.errors import UnavailableError
 from trajcache.services.plan.answers import PlannedPath, answer_planned, answer_without_path
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
 from trajcache.services.plan.certified import certify_planned
-from trajcache.services.plan.records import QualityJob
 
 logger = logging.getLogger(__name__)
 
@@ -76,17 +77,19 @@ def store_and_answer(
     with attempt.clock.measure("db"):
         trajectory_id, created = store_trajectory(
             session=attempt.session,
-            model=model,
-            states=path,
-            source=attempt.origin.store_source,
             settings=settings,
-            robot_id=attempt.origin.store_robot_id,
-            scene_hash=scene.hash,
-            env=scene.env,
-            planning_time_ms=attempt.clock.seconds("plan") * 1e3,
-            max_states=settings.max_trajectory_states,
             compute_quality=False,  # computed after the answer, with the plan record
             commit=parent is None,
+            trajectory=NewTrajectory(
+                model=model,
+                states=path,
+                source=attempt.origin.store_source,
+                robot_id=attempt.origin.store_robot_id,
+                scene_hash=scene.hash,
+                env=scene.env,
+                planning_time_ms=attempt.clock.seconds("plan") * 1e3,
+                max_states=settings.max_trajectory_states,
+            ),
         )
         if parent is not None:
             set_parent(attempt.session, trajectory_id, parent)

@@ -12,7 +12,7 @@ A cache hit, the hot path, reads the database once: the robot with its current s
 stored or deleted since the last sync; with `index_sync_interval_s=0` a sync that began after the
 request arrived).
 Candidates' key states come from a per-process cache (stored states never change), and so do
-their ranking facts while less than a second old (`services.plan.ranking_facts`). The read
+their ranking facts while less than a second old (`services.bookkeeping.ranking_facts`). The read
 transaction ends before validation, so no connection is held while checking collisions.
 
 Validation memo (`cache.memo`). A cached trajectory's verdict depends on its key states, the
@@ -35,7 +35,7 @@ path as one already rejected in this request (two-state trajectories all become 
 line from start to goal) reuse that verdict.
 
 Bookkeeping of every answer (usage counters of the served and the rejected candidates, the plan
-event) goes to `ctx.records` (`services.plan.records`), the only writer of those counters and
+event) goes to `ctx.records` (`services.bookkeeping.records`), the only writer of those counters and
 events: written in order by a background writer, many per transaction, flushed at shutdown. The
 HTTP layer keeps the request's cycle open, after sending the answer, until its record is
 committed. The same step counts the answer in the Prometheus metrics (`services.plan.answers`),
@@ -313,7 +313,7 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
                 stored,
                 attempt.start,
                 attempt.goal,
-                arm_offset=attempt.model.arm_offset,
+                base=attempt.model.base,
                 reverse=match.reversed,
             )
             result = next((r for path, r in seen if np.array_equal(path, adapted)), None)

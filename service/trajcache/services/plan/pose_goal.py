@@ -25,6 +25,7 @@ import numpy as np
 from trajcache.geometry.model.ik import IkProblem, IkStatus, PoseTarget, solve_ik
 from trajcache.geometry.model.kinematics import forward_kinematics
 from trajcache.geometry.model.pin_kinematics import PinKinematics
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray, pose_matrix
 from trajcache.geometry.scene.fields import unit_quaternion
 from trajcache.geometry.validation.validator import validator_for
@@ -97,7 +98,7 @@ def _cached_as_is(
     """The cached end state within the tolerances, free, whose trajectory's other end is
     nearest the request's start (endpoints come in pairs: start, goal of one trajectory)."""
     model = attempt.checked
-    if len(endpoints) == 0 or model.arm_offset:
+    if len(endpoints) == 0 or model.base is BaseType.PLANAR:
         return None  # a planar base's cached ends stand elsewhere: IK places the arm
     frames = forward_kinematics(model, endpoints)[:, model.link_names.index(target.link)]
     gap = np.linalg.norm(frames[:, :3, 3] - target.pose[:3, 3], axis=1)

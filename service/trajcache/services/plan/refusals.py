@@ -18,9 +18,9 @@ from __future__ import annotations
 import sqlalchemy as sa
 
 from trajcache.db.models import Robot
+from trajcache.services.bookkeeping.records import PlanRecord
 from trajcache.services.context import ServiceContext
 from trajcache.services.plan.attempt import Requester
-from trajcache.services.plan.records import PlanRecord
 from trajcache.services.prometheus import record_refusal as count_refusal
 
 __all__ = ["REFUSED", "record_refusal"]

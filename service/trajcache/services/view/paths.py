@@ -198,7 +198,7 @@ def _candidate_states(
         stored,
         entry["start"],
         entry["goal"],
-        arm_offset=model.arm_offset,
+        base=model.base,
         reverse=bool(entry.get("reversed")),
     )
 

@@ -6,7 +6,7 @@ newly planned trajectory its quality metrics and timing, a :class:`QualityJob` t
 computes just before the record's transaction) and gets a sequence number; one writer thread
 per process commits records in submission order, many per transaction: counter updates grouped
 per trajectory (in id order, so replicas writing the same rows cannot deadlock), the events as
-one multi-row insert, and the quality columns of new trajectories (`services.plan.record_batch`).
+one multi-row insert, and the quality columns of new trajectories (`record_batch`).
 Records are stamped by the recorder's clock (`now`, injectable) when the plan is answered, not
 when they are written. Every answer of the plan flow — hit, miss, failure, planned — is recorded
 here, and nothing else writes those counters or plan events.
@@ -50,9 +50,9 @@ from sqlalchemy import Engine
 from sqlalchemy.exc import DataError, IntegrityError, SQLAlchemyError
 
 from trajcache.db.models import utcnow
-from trajcache.services.plan.record_batch import PlanRecord, QualityJob
-from trajcache.services.plan.record_batch import committed as _committed
-from trajcache.services.plan.record_batch import write_records as _write
+from trajcache.services.bookkeeping.record_batch import PlanRecord, QualityJob
+from trajcache.services.bookkeeping.record_batch import committed as _committed
+from trajcache.services.bookkeeping.record_batch import write_records as _write
 
 __all__ = ["PlanRecord", "PlanRecorder", "QualityJob", "RecorderStats"]
 

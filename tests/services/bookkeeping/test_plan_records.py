@@ -14,8 +14,8 @@ from tests.waiting import wait_until
 from trajcache.db import migrate
 from trajcache.db.models import PlanEvent, RobotModel, Trajectory, utcnow
 from trajcache.db.session import make_engine, make_sessionmaker
-from trajcache.services.plan import records as plan_records
-from trajcache.services.plan.records import PlanRecord, PlanRecorder
+from trajcache.services.bookkeeping import records as plan_records
+from trajcache.services.bookkeeping.records import PlanRecord, PlanRecorder
 
 
 def seeded(url: str) -> tuple[sa.Engine, sessionmaker[Session]]:

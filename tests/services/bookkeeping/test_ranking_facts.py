@@ -6,7 +6,7 @@ from datetime import UTC, datetime
 
 from tests.waiting import FakeClock
 from trajcache.cache.ranking import CandidateFacts
-from trajcache.services.plan.ranking_facts import RankingFactsCache
+from trajcache.services.bookkeeping.ranking_facts import RankingFactsCache
 
 
 def test_facts_are_served_while_fresh_and_read_again_after_the_ttl() -> None:

@@ -2,7 +2,7 @@
 certificates they write.
 
 The only statements that write trajectories' usage counters (hits, failures, failure streaks,
-real-robot validations) and plan events; `services.plan.records` runs them in submission order.
+real-robot validations) and plan events; `records` runs them in submission order.
 """
 
 from __future__ import annotations
