@@ -102,7 +102,11 @@ def test_miss_is_planned_stored_and_then_served_from_cache(client_factory: Clien
     body = _plan(client)
     assert (body["status"], body["source"]) == ("success", "planner"), body
     _assert_safe(client, body["states"])
-    assert body["timings_ms"]["plan"] > 0
+    timings = body["timings_ms"]
+    assert timings["plan"] > 0
+    phases = ("setup", "search", "simplify", "certify", "repair")
+    assert all(timings[k] >= 0 for k in phases) and timings["search"] > 0, timings
+    assert sum(timings[k] for k in phases) <= timings["worker"] <= timings["plan"], timings
 
     stored = client.get(f"/v1/trajectories/{body['trajectory_id']}").json()
     scene_hash = client.get("/v1/robots/r1/scene").json()["hash"]

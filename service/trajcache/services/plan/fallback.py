@@ -115,13 +115,16 @@ def store_and_answer(
 
 
 def planner_phases(stats: Mapping[str, float], plan_ms: float) -> dict[str, float]:
-    """Where a planned answer's planning time went, from the worker's counters: the search,
-    the simplification (compiled, then shortcutting), the worker's certification and repair,
-    the worker's whole run, and the pool's round trip around it."""
+    """Where a planned answer's planning time went, from the worker's counters: the setup of
+    the scene for it (parsed, the model's variant, the planner's sphere tables and endpoints;
+    cached per scene), the search, the simplification (compiled, then shortcutting), the
+    worker's certification and repair, the worker's whole run, and the pool's round trip."""
     search = stats.get("search_ms", stats.get("plan_ms", 0.0))
     simplify = stats.get("simplify_ms", 0.0) + stats.get("shortcut_ms", 0.0)
     run = stats.get("run_ms", 0.0)
+    setup = sum(stats.get(k, 0.0) for k in ("setup_ms", "endpoints_ms", "tables_ms"))
     return {
+        "setup": round(setup, 3),
         "search": round(search, 3),
         "simplify": round(simplify, 3),
         "certify": round(stats.get("validate_ms", 0.0), 3),
