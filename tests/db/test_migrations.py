@@ -12,13 +12,14 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
 
-from trajcache.db import cartesian, migrate  # noqa: F401  (cartesian: registers its table)
+from trajcache.db import cartesian, end_poses, migrate  # noqa: F401  (registers their tables)
 from trajcache.db.base import Base
 from trajcache.db.models import Trajectory
 
 TABLES = {
     "api_keys",
     "cartesian_paths",
+    "end_pose_backlog",
     "model_files",
     "plan_event_rollup_state",
     "plan_event_rollups",
@@ -30,6 +31,7 @@ TABLES = {
     "seed_jobs",
     "trajectories",
     "trajectory_certificates",
+    "trajectory_end_poses",
     "trajectory_tombstones",
 }
 
