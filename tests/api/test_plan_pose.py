@@ -80,6 +80,17 @@ def test_a_pose_goal_is_planned_then_found_in_the_cache(robot: TestClient, arm: 
     assert within(arm, again["states"][-1], goal)
 
 
+def test_a_posted_trajectory_is_found_by_the_pose_of_its_end(robot: TestClient, arm: Any) -> None:
+    """Stored through POST /v1/trajectories: its end poses are indexed as it is stored."""
+    model_id = robot.get("/v1/robots/r1").json()["model_id"]
+    body = {"model_id": model_id, "states": [START, [0.5, 0.2], GOAL], "source": "real"}
+    posted = robot.post("/v1/trajectories", json=body)
+    assert posted.status_code == 201, posted.text
+    answer = plan(robot, target(arm, GOAL), fallback=False)
+    assert answer["source"] == "cache" and answer["goal_found_by"] == "cached"
+    assert answer["trajectory_id"] == posted.json()["trajectory_id"]
+
+
 def test_a_pose_near_a_cached_end_is_solved_from_it(robot: TestClient, arm: Any) -> None:
     """The second pose is the forearm's at a state 0.02 rad away: IK from the cached end finds
     a state next to it, within the lookup threshold, and the cache answers."""

@@ -208,3 +208,40 @@ def test_postgres_version_table_lands_in_search_path_schema(postgres_url: str) -
         engine.dispose()
     assert {name for _, name in rows} == {"alembic_version", "trajectories"}
     assert version == head_revision()
+
+
+def test_trajectories_stored_before_the_end_pose_index_wait_in_its_backlog(
+    database_url: str,
+) -> None:
+    migrate.upgrade(database_url, "0015")
+    engine = sa.create_engine(database_url)
+    try:
+        metadata = sa.MetaData()
+        metadata.reflect(engine, only=["robot_models", "trajectories"])
+        t = metadata.tables
+        now = datetime.now(UTC)
+        with engine.begin() as conn:
+            conn.execute(
+                sa.insert(t["robot_models"]),
+                {"id": "m", "name": "m", "base": "fixed", "joint_names": ["j"],
+                 "urdf": "<robot/>", "allowed_pairs": [], "config": {}, "created_at": now},
+            )  # fmt: skip
+            states = {
+                "states": b"", "n_states": 2, "dof": 1, "start": [0.0], "goal": [1.0],
+                "start_x": 0.0, "start_y": 0.0, "goal_x": 1.0, "goal_y": 0.0, "env": {},
+                "hits": 0, "failures": 0, "consecutive_failures": 0, "real_validations": 0,
+                "created_at": now, "quality_pending": False,
+            }  # fmt: skip
+            conn.execute(
+                sa.insert(t["trajectories"]),
+                [{**states, "model_id": "m", "source": "sim", "content_hash": h} for h in "ab"],
+            )
+        migrate.upgrade(database_url)
+        with engine.connect() as conn:
+            backlog = conn.execute(sa.text("SELECT trajectory_id FROM end_pose_backlog")).all()
+            kinds = conn.execute(sa.text("SELECT goal_kind FROM plan_events")).all()
+        assert len(backlog) == 2 and kinds == []
+        migrate.downgrade(database_url, "0015")
+        assert "end_pose_backlog" not in sa.inspect(engine).get_table_names()
+    finally:
+        engine.dispose()
