@@ -15,7 +15,11 @@ class TrajectoryEndPose(Base):
 
     __tablename__ = "trajectory_end_poses"
     __table_args__ = (
-        Index("ix_trajectory_end_poses_model_id_link_xyz", "model_id", "link", "x", "y", "z"),
+        # covering a search by position: no table row is read for an end outside the radius
+        Index(
+            "ix_trajectory_end_poses_model_id_link_xyz",
+            *("model_id", "link", "x", "y", "z", "end", "trajectory_id"),
+        ),
         {"sqlite_autoincrement": True},
     )
 

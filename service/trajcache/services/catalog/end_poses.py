@@ -16,14 +16,16 @@ a hundred trajectories as for a hundred thousand and sees every one of them.
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import sqlalchemy as sa
-from scipy.spatial.transform import Rotation
 from sqlalchemy.orm import Session
 
 from trajcache.db import models as tables
@@ -94,42 +96,58 @@ def ends_near(
     link: str,
     pose: FloatArray,
     *,
-    radius: float | None,
+    radius: float,
     orientation_tolerance: float | None = None,
     limit: int,
 ) -> EndsNear:
-    """The ends (at most `limit`) whose `link` lies within `radius` of `pose`'s position (None:
-    anywhere) and, given a tolerance, whose orientation is within it, nearest first and then
-    the best oriented; `pose` is a 4×4 transform relative to the root link."""
+    """The ends (at most `limit`) whose `link` lies within `radius` of `pose`'s position and,
+    given a tolerance, whose orientation is within it, nearest first and then the best
+    oriented; `pose` is a 4×4 transform relative to the root link."""
     x, y, z = (float(v) for v in pose[:3, 3])
-    gap2 = (_E.x - x) * (_E.x - x) + (_E.y - y) * (_E.y - y) + (_E.z - z) * (_E.z - z)
-    qx, qy, qz, qw = _quaternion(pose)
-    dot = sa.func.abs(_E.qx * qx + _E.qy * qy + _E.qz * qz + _E.qw * qw)
-    conditions = [_E.model_id == model_id, _E.link == link]
-    if radius is not None:
-        conditions += [_E.x.between(x - radius, x + radius), gap2 <= radius * radius]
-        conditions += [_E.y.between(y - radius, y + radius), _E.z.between(z - radius, z + radius)]
-    if orientation_tolerance is not None and orientation_tolerance < math.pi:
-        conditions.append(dot >= math.cos(orientation_tolerance / 2.0))
-    T = tables.Trajectory
-    rows = session.execute(
-        sa.select(_E.end, gap2, T.start, T.goal)
-        .join(T, T.id == _E.trajectory_id)
-        .where(*conditions)
-        .order_by(gap2, dot.desc(), _E.id)
-        .limit(limit)
-    ).all()
+    qx, qy, qz, qw = (float(v) for v in pin.Quaternion(pose[:3, :3]).coeffs())
+    cos_min = -1.0  # |q·q*| ≥ cos(tolerance / 2): the rotation between them within it
+    if orientation_tolerance is not None:
+        cos_min = math.cos(min(orientation_tolerance, math.pi) / 2.0)
+    params = {"model_id": model_id, "link": link, "x": x, "y": y, "z": z, "r": radius}
+    params |= {"qx": qx, "qy": qy, "qz": qz, "qw": qw, "cos_min": cos_min, "limit": limit}
+    statement = _ends_near_statement(orientation_tolerance is not None)
+    rows = session.execute(statement, params).all()
     if not rows:
         return EndsNear(np.empty((0, 0)), np.empty((0, 0)), np.empty(0))
     ends = [(r.goal, r.start) if r.end else (r.start, r.goal) for r in rows]
     return EndsNear(
         np.array([e[0] for e in ends], dtype=float),
         np.array([e[1] for e in ends], dtype=float),
-        np.sqrt(np.maximum(np.array([r[1] for r in rows], dtype=float), 0.0)),
+        np.sqrt(np.maximum(np.array([r.gap2 for r in rows], dtype=float), 0.0)),
     )
 
 
-def _quaternion(pose: FloatArray) -> tuple[float, float, float, float]:
-    """The unit quaternion (x, y, z, w) of a 4×4 transform's rotation."""
-    qx, qy, qz, qw = Rotation.from_matrix(pose[:3, :3]).as_quat()
-    return float(qx), float(qy), float(qz), float(qw)
+@functools.cache
+def _ends_near_statement(oriented: bool) -> sa.Select[Any]:
+    """`ends_near`'s query, built once: the index rows in the box around the position, within
+    the radius (and the orientation), nearest first; then the trajectories of those only. By
+    position alone, the index is read without its table."""
+    p = sa.bindparam
+    x, y, z, r = (p(name, type_=sa.Float) for name in ("x", "y", "z", "r"))
+    gap2 = (_E.x - x) * (_E.x - x) + (_E.y - y) * (_E.y - y) + (_E.z - z) * (_E.z - z)
+    conditions = [_E.model_id == p("model_id"), _E.link == p("link")]
+    conditions += [_E.x.between(x - r, x + r), _E.y.between(y - r, y + r)]
+    conditions += [_E.z.between(z - r, z + r), gap2 <= r * r]
+    ranked: sa.ColumnElement[Any] = sa.literal(1.0)
+    if oriented:
+        qx, qy, qz, qw = (p(name, type_=sa.Float) for name in ("qx", "qy", "qz", "qw"))
+        ranked = sa.func.abs(_E.qx * qx + _E.qy * qy + _E.qz * qz + _E.qw * qw)
+        conditions.append(ranked >= p("cos_min", type_=sa.Float))
+    nearest = (
+        sa.select(_E.id, _E.trajectory_id, _E.end, gap2.label("gap2"), ranked.label("dot"))
+        .where(*conditions)
+        .order_by(gap2, ranked.desc(), _E.id)
+        .limit(p("limit", type_=sa.Integer))
+        .subquery()
+    )
+    T = tables.Trajectory
+    return (
+        sa.select(nearest.c.end, nearest.c.gap2, T.start, T.goal)
+        .join(T, T.id == nearest.c.trajectory_id)
+        .order_by(nearest.c.gap2, nearest.c.dot.desc(), nearest.c.id)
+    )

@@ -13,7 +13,8 @@ seed and restarts instead).
   forward kinematics of the link on the model as the robot holds its joints; the index only
   narrows the search and never decides.
 - `nearest_starts`: the ends whose link lies nearest the target's position (IK starts), in
-  widening radii until enough are found.
+  widening radii until enough are found (none farther than the last: a start that far away is
+  no better than a random restart).
 """
 
 from __future__ import annotations
@@ -32,7 +33,9 @@ __all__ = ["AS_IS_POOL", "CACHED_STARTS", "ends_within", "nearest_starts"]
 
 CACHED_STARTS = 3  # cached end states tried as IK starts after the seed
 AS_IS_POOL = 64  # the most ends within the tolerances read for one pose goal
-_SEARCH_RADII = (0.05, 0.2, None)  # m: IK starts are looked for ever wider (None: anywhere)
+# m: IK starts are looked for ever wider, no farther (the search reads every indexed end in a
+# slab of twice the radius, so the first radius is small)
+_SEARCH_RADII = (0.03, 0.1, 0.3)
 _NONE = EndsNear(np.empty((0, 0)), np.empty((0, 0)), np.empty(0))
 
 
@@ -74,11 +77,10 @@ def nearest_starts(
     found = _anchor_target(session, model, checked, target, base)
     if found is None:
         return []
-    anchor, pose, reach = found
+    anchor, pose, _ = found
     ends = _NONE
-    for radius in _SEARCH_RADII:
-        wider = None if radius is None else radius + reach
-        ends = ends_near(session, model.model_id, anchor, pose, radius=wider, limit=CACHED_STARTS)
+    for radius in _SEARCH_RADII:  # of the anchor: the link's nearest if oriented as asked
+        ends = ends_near(session, model.model_id, anchor, pose, radius=radius, limit=CACHED_STARTS)
         if len(ends.gaps) >= CACHED_STARTS:
             break
     return list(_on_base(checked, ends.states, base))

@@ -48,7 +48,7 @@ def upgrade() -> None:
     op.create_index(
         "ix_trajectory_end_poses_model_id_link_xyz",
         "trajectory_end_poses",
-        ["model_id", "link", "x", "y", "z"],
+        ["model_id", "link", "x", "y", "z", "end", "trajectory_id"],
     )
     op.create_index(
         op.f("ix_trajectory_end_poses_trajectory_id"), "trajectory_end_poses", ["trajectory_id"]
