@@ -175,3 +175,18 @@ def test_moveit_pose_goals_that_cannot_be_read_or_reached(robot: TestClient, arm
     offset = moveit_request(target(arm, GOAL), target_point_offset=[0.0, 0.0, 0.1])
     refused = robot.post("/v1/robots/r1/motion-plan", json=offset)
     assert "target_point_offset" in refused.text
+
+
+def test_events_and_statistics_tell_pose_goals_from_joint_goals(
+    robot: TestClient, arm: Any
+) -> None:
+    plan(robot, target(arm, GOAL), fallback=True)
+    joint = robot.post("/v1/robots/r1/plan", json={"start": START, "goal": GOAL})
+    assert joint.status_code == 200, joint.text
+    poses = robot.get("/v1/plan-events", params={"goal_kind": "pose"}).json()["items"]
+    assert [e["goal_kind"] for e in poses] == ["pose"]
+    events = robot.get("/v1/plan-events").json()["items"]
+    assert [e["goal_kind"] for e in events] == ["joint", "pose"]  # newest first
+    stats = robot.get("/v1/stats", params={"window": "1h"}).json()
+    assert stats["goal_kinds"] == {"joint": 1, "pose": 1}
+    assert_detail(robot.get("/v1/plan-events", params={"goal_kind": "cartesian"}), 422, "goal_kind")

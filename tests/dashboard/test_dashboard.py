@@ -262,6 +262,7 @@ def test_dashboard_shows_the_seeded_runs(page: tuple[Any, list[str]], seeded: Se
     assert refused == {"cleaner-1": "0", "cleaner-2": "1"}
     events = _rows(tab, "events-table")
     assert len(events) == 15
+    assert {row[3] for row in events} == {"joint"}  # the goal kind: every goal here is a state
     asked = {row[1] for row in events}  # the seed job ran last: it is among the latest
     assert f"seed job #{job['job_id']}" in asked and asked <= {
         *seeded.robots,

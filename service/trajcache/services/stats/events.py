@@ -1,4 +1,5 @@
-"""Plan events, newest first: filtered pages with a keyset cursor, and a trajectory's usage.
+"""Plan events, newest first: filtered pages with a keyset cursor, a trajectory's usage, and
+the requests of a window by goal kind.
 
 Pages are ordered by (created_at, id) descending and continue after the last row of the
 previous page (`cursor`), so rows written meanwhile never shift or repeat a page, and a page
@@ -23,6 +24,7 @@ from trajcache.services.stats.event_rows import EventFilter
 STATUSES = ("success", "miss", "failure", "error", "refused")  # refused: no answer (4xx)
 SOURCES = ("cache", "planner", "none")  # none: no trajectory was returned
 REQUESTERS = ("robot", "seed_job")  # who asked: a robot, or a seed job
+GOAL_KINDS = ("joint", "pose", "unknown")  # unknown: recorded before the kind was
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
@@ -64,6 +66,7 @@ class PlanEventFilter(EventFilter):
     trajectory_id: int | None = None
     since: datetime | None = None
     until: datetime | None = None
+    goal_kind: str | None = None  # "joint", "pose", or "unknown"
 
 
 def list_plan_events(
@@ -87,6 +90,8 @@ def list_plan_events(
         raise InvalidInputError(
             f"query.requester: {requester!r} is not one of {', '.join(REQUESTERS)}"
         )
+    if f.goal_kind is not None:
+        conditions.append(_goal_kind_is(f.goal_kind))
     if status is not None:
         conditions.append(e.status == status)
     if source is not None:
@@ -111,6 +116,29 @@ def list_plan_events(
     more = len(rows) > limit
     items = rows[:limit]
     return PlanEventPage(items=items, next_cursor=encode_cursor(items[-1]) if more else None)
+
+
+def _goal_kind_is(kind: str) -> sa.ColumnElement[bool]:
+    """The condition that an event's goal was of `kind`; InvalidInputError names a wrong one."""
+    if kind not in GOAL_KINDS:
+        raise InvalidInputError(f"query.goal_kind: {kind!r} is not one of {', '.join(GOAL_KINDS)}")
+    column = PlanEvent.goal_kind
+    return column.is_(None) if kind == "unknown" else column == kind
+
+
+def goal_kind_counts(
+    *, session: Session, since: datetime, until: datetime, filters: EventFilter
+) -> dict[str, int]:
+    """The answered requests of `[since, until)` by goal kind (refusals are not requests)."""
+    e = PlanEvent
+    kind = sa.func.coalesce(e.goal_kind, "unknown")
+    rows = session.execute(
+        sa.select(kind, sa.func.count())
+        .where(*filters.conditions(e), e.created_at >= since, e.created_at < until)
+        .where(e.status != "refused")
+        .group_by(kind)
+    ).all()
+    return {str(k): int(n) for k, n in rows}
 
 
 def trajectory_usage(*, session: Session, trajectory_id: int, limit: int = 20) -> list[PlanEvent]:
