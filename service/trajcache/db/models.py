@@ -286,6 +286,7 @@ class PlanEventRollup(Base):
     model_id: Mapped[str] = mapped_column(String(64))
     source: Mapped[str | None] = mapped_column(String(16))
     status: Mapped[str] = mapped_column(String(32))
+    goal_kind: Mapped[str | None] = mapped_column(String(16))  # as plan_events.goal_kind
     requests: Mapped[int] = mapped_column(Integer)
     lookup_ms: Mapped[float] = mapped_column(Float)
     validate_ms: Mapped[float] = mapped_column(Float)

@@ -11,15 +11,17 @@ from __future__ import annotations
 
 import base64
 import binascii
+from collections import Counter
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, defer
 
-from trajcache.db.models import PlanEvent, Trajectory
+from trajcache.db.models import PlanEvent, PlanEventRollup, PlanEventRollupState, Trajectory
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.stats.event_rows import EventFilter
+from trajcache.services.stats.rollups import ROLLUP_S, floor_hour
 
 STATUSES = ("success", "miss", "failure", "error", "refused")  # refused: no answer (4xx)
 SOURCES = ("cache", "planner", "none")  # none: no trajectory was returned
@@ -129,16 +131,41 @@ def _goal_kind_is(kind: str) -> sa.ColumnElement[bool]:
 def goal_kind_counts(
     *, session: Session, since: datetime, until: datetime, filters: EventFilter
 ) -> dict[str, int]:
-    """The answered requests of `[since, until)` by goal kind (refusals are not requests)."""
-    e = PlanEvent
-    kind = sa.func.coalesce(e.goal_kind, "unknown")
+    """The answered requests of `[since, until)` by goal kind (refusals are not requests): the
+    whole hours already rolled up from their rollups, the rest from the events."""
+    rolled = session.scalar(sa.select(PlanEventRollupState.rolled_until))
+    first = floor_hour(since)
+    first += timedelta(seconds=ROLLUP_S) if first < since else timedelta(0)
+    last = min(floor_hour(until), rolled) if rolled is not None else first
+    counts: Counter[str] = Counter()
+    spans = [(since, until)]
+    if first < last:
+        counts += _kinds(session, PlanEventRollup, first, last, filters)
+        spans = [(since, first), (last, until)]
+    for begin, end in spans:
+        counts += _kinds(session, PlanEvent, begin, end, filters)
+    return dict(counts)
+
+
+def _kinds(
+    session: Session,
+    table: type[PlanEvent] | type[PlanEventRollup],
+    begin: datetime,
+    end: datetime,
+    filters: EventFilter,
+) -> Counter[str]:
+    """The requests of `table` (events, or hourly rollups) in `[begin, end)` by goal kind."""
+    count: sa.ColumnElement[int] = sa.func.count()
+    at = PlanEvent.created_at
+    if table is PlanEventRollup:
+        count, at = sa.func.sum(PlanEventRollup.requests), PlanEventRollup.bucket_start
+    kind = sa.func.coalesce(table.goal_kind, "unknown")
     rows = session.execute(
-        sa.select(kind, sa.func.count())
-        .where(*filters.conditions(e), e.created_at >= since, e.created_at < until)
-        .where(e.status != "refused")
+        sa.select(kind, count)
+        .where(*filters.conditions(table), at >= begin, at < end, table.status != "refused")
         .group_by(kind)
     ).all()
-    return {str(k): int(n) for k, n in rows}
+    return Counter({str(name): int(n or 0) for name, n in rows})
 
 
 def trajectory_usage(*, session: Session, trajectory_id: int, limit: int = 20) -> list[PlanEvent]:

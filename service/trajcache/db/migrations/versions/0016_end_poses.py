@@ -1,4 +1,5 @@
-"""The index of trajectories' end poses, its backlog, and the goal kind of plan events.
+"""The index of trajectories' end poses, its backlog, and the goal kind of plan events (and of
+their hourly rollups).
 
 Revision ID: 0016
 Revises: 0015
@@ -69,11 +70,13 @@ def upgrade() -> None:
     op.execute("INSERT INTO end_pose_backlog (trajectory_id) SELECT id FROM trajectories")
     # The goal kind of earlier plan events was not recorded: it stays null ("unknown").
     op.add_column("plan_events", sa.Column("goal_kind", sa.String(length=16), nullable=True))
+    op.add_column("plan_event_rollups", sa.Column("goal_kind", sa.String(length=16), nullable=True))
 
 
 def downgrade() -> None:
-    with op.batch_alter_table("plan_events") as batch:
-        batch.drop_column("goal_kind")
+    for table in ("plan_event_rollups", "plan_events"):
+        with op.batch_alter_table(table) as batch:
+            batch.drop_column("goal_kind")
     op.drop_table("end_pose_backlog")
     op.drop_index(op.f("ix_trajectory_end_poses_trajectory_id"), table_name="trajectory_end_poses")
     op.drop_index("ix_trajectory_end_poses_model_id_link_xyz", table_name="trajectory_end_poses")
