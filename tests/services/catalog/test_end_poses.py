@@ -140,18 +140,20 @@ def test_a_trajectory_older_than_any_pool_is_found_by_its_tool_pose(
             )  # fmt: skip
         session.commit()
         target = tool_target(tooled, [1.2, -0.7])
-        fore = tooled.link_names.index("fore")
-        at_oldest = link_transforms(tooled, np.array([1.2, -0.7]))[0, fore, :3, 3]
         base = np.zeros(2)
         found = ends_within(session, tooled, tooled, target, base)
         np.testing.assert_allclose(found.states, [[1.2, -0.7]])
         np.testing.assert_allclose(found.partners, [[0.0, 0.0]])
         target.pose[0, 3] += 0.005
+        goal = target.pose[:3, 3]
         assert len(ends_within(session, tooled, tooled, target, base).gaps) == 0
-        starts = nearest_starts(session, tooled, tooled, target, base)
+        starts = nearest_starts(session, tooled, tooled, target, base, stored=300)
+        widening = nearest_starts(session, tooled, tooled, target, base, stored=10**6)
+        np.testing.assert_allclose(widening, starts)  # searched in widening radii
     np.testing.assert_allclose(starts[0], [1.2, -0.7])  # the nearest start, the others beyond
-    gaps = [np.linalg.norm(link_transforms(tooled, s)[0, fore, :3, 3] - at_oldest) for s in starts]
-    assert gaps == sorted(gaps) and gaps[-1] <= 0.3
+    tool = tooled.link_names.index("tool")  # ranked by the tool's own distance from its target
+    gaps = [np.linalg.norm(link_transforms(tooled, s)[0, tool, :3, 3] - goal) for s in starts]
+    assert gaps == sorted(gaps) and len(starts) == 3
     assert oldest == min(r.trajectory_id for r in rows_of(ctx))
 
 

@@ -111,7 +111,7 @@ def ends_near(
     params = {"model_id": model_id, "link": link, "x": x, "y": y, "z": z, "r": radius}
     params |= {"qx": qx, "qy": qy, "qz": qz, "qw": qw, "cos_min": cos_min, "limit": limit}
     statement = _ends_near_statement(orientation_tolerance is not None)
-    rows = session.execute(statement, params).all()
+    rows = session.connection().execute(statement, params).all()  # core rows: no ORM overhead
     if not rows:
         return EndsNear(np.empty((0, 0)), np.empty((0, 0)), np.empty(0))
     ends = [(r.goal, r.start) if r.end else (r.start, r.goal) for r in rows]

@@ -12,12 +12,15 @@ seed and restarts instead).
   and the two orientation errors are equal. Each end found is then checked exactly, by
   forward kinematics of the link on the model as the robot holds its joints; the index only
   narrows the search and never decides.
-- `nearest_starts`: the ends whose link lies nearest the target's position (IK starts), in
-  widening radii until enough are found (none farther than the last: a start that far away is
-  no better than a random restart).
+- `nearest_starts`: the ends whose link lies nearest the target's position (IK starts): the
+  ends nearest by the anchor within the first of the widening radii that holds enough of them
+  (a shortlist), ranked by the link's own position by forward kinematics. A start that misses
+  the target helps too: when IK from the nearest end lands in collision, the next one seeds it.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from sqlalchemy.orm import Session
@@ -33,9 +36,11 @@ __all__ = ["AS_IS_POOL", "CACHED_STARTS", "ends_within", "nearest_starts"]
 
 CACHED_STARTS = 3  # cached end states tried as IK starts after the seed
 AS_IS_POOL = 64  # the most ends within the tolerances read for one pose goal
-# m: IK starts are looked for ever wider, no farther (the search reads every indexed end in a
-# slab of twice the radius, so the first radius is small)
-_SEARCH_RADII = (0.03, 0.1, 0.3)
+# m: IK starts are looked for ever wider (the search reads every indexed end in a slab of twice
+# the radius, so the first radius is small; the last reads them all, where the cache is sparse)
+_SEARCH_RADII = (0.03, 0.1, 0.3, math.inf)
+_FEW = 2_000  # trajectories whose ends one scan of the index reads faster than several searches
+_SHORTLIST = 4 * CACHED_STARTS  # ends nearest by the anchor, ranked again by the link itself
 _NONE = EndsNear(np.empty((0, 0)), np.empty((0, 0)), np.empty(0))
 
 
@@ -70,20 +75,32 @@ def ends_within(
 
 
 def nearest_starts(
-    session: Session, model: RobotModel, checked: RobotModel, target: PoseTarget, base: FloatArray
+    session: Session,
+    model: RobotModel,
+    checked: RobotModel,
+    target: PoseTarget,
+    base: FloatArray,
+    *,
+    stored: int,
 ) -> list[FloatArray]:
     """The CACHED_STARTS cached end states whose link lies nearest the target's position (the
-    base at `base`'s)."""
+    base at `base`'s), among the `stored` trajectories of the model."""
     found = _anchor_target(session, model, checked, target, base)
     if found is None:
         return []
     anchor, pose, _ = found
     ends = _NONE
-    for radius in _SEARCH_RADII:  # of the anchor: the link's nearest if oriented as asked
-        ends = ends_near(session, model.model_id, anchor, pose, radius=radius, limit=CACHED_STARTS)
+    radii = _SEARCH_RADII if stored > _FEW else _SEARCH_RADII[-1:]
+    for radius in radii:  # the anchor's nearest: the link's if oriented as asked
+        ends = ends_near(session, model.model_id, anchor, pose, radius=radius, limit=_SHORTLIST)
         if len(ends.gaps) >= CACHED_STARTS:
             break
-    return list(_on_base(checked, ends.states, base))
+    states = _on_base(checked, ends.states, base)
+    if len(states) == 0:
+        return []
+    links = forward_kinematics(checked, states)[:, checked.link_names.index(target.link), :3, 3]
+    nearest = np.argsort(np.linalg.norm(links - target.pose[:3, 3], axis=1), kind="stable")
+    return list(states[nearest[:CACHED_STARTS]])
 
 
 def _anchor_target(

@@ -87,7 +87,8 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         checked = model_in_scene(model, robot.scene, robot.joint_values, cache=ctx.variants)
         seed = _seed(checked, request)
         target = _target(link_of(checked, source.srdf, request.link, request.names), request)
-        starts = nearest_starts(session, model, checked, target, seed)
+        stored = len(ctx.indexes.index(session, model))
+        starts = nearest_starts(session, model, checked, target, seed, stored=stored)
     read = time.perf_counter()
     kinematics = ctx.kinematics.get_or_build(
         checked, lambda: PinKinematics.build(checked, source.urdf)

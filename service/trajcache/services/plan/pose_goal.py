@@ -69,7 +69,8 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
     as_is = _cached_as_is(attempt, target, free)
     if as_is is not None:
         return PoseGoalFound(as_is, "cached")
-    starts = nearest_starts(session, attempt.model, checked, target, attempt.start)
+    stored = len(ctx.indexes.index(session, attempt.model))
+    starts = nearest_starts(session, attempt.model, checked, target, attempt.start, stored=stored)
     seeds = [(starts[0], starts[1:]), (attempt.start, starts)] if starts else [(attempt.start, [])]
     budget = POSE_IK_BUDGET_S / len(seeds)
     for seed, others in seeds:
