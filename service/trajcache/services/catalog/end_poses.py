@@ -10,8 +10,8 @@ an eviction: the foreign key cascades) and with their model.
 
 A lookup (`ends_near`) reads the rows of one link within a radius of a position, nearest
 first, and optionally within an orientation tolerance (|q·q*| ≥ cos(tol/2)), with the states
-of the ends they belong to; the database does the search, so it costs the same for a cache of
-a hundred trajectories as for a hundred thousand and sees every one of them.
+of the ends they belong to. The database does the search on a covering index: its cost grows
+with the ends in a slab around the position, not with the whole cache, and it sees them all.
 """
 
 from __future__ import annotations
