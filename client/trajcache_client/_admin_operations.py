@@ -21,7 +21,7 @@ from trajcache_client._admin_models import (
     SeedJobState,
 )
 from trajcache_client._exceptions import UnexpectedResponseError
-from trajcache_client._models import Page
+from trajcache_client._models import GoalKind, Page
 from trajcache_client._operations import Operation, _query, _reader, _segment
 from trajcache_client._stats_models import (
     EventSource,
@@ -134,6 +134,7 @@ def plan_events(
     trajectory_id: int | None = None,
     since: datetime | str | None = None,
     until: datetime | str | None = None,
+    goal_kind: GoalKind | None = None,
 ) -> Operation[PlanEventPage]:
     """GET /v1/plan-events, newest first; `since` is inclusive, `until` exclusive."""
     params = _query(
@@ -145,6 +146,7 @@ def plan_events(
         source=source,
         requester=requester,
         trajectory_id=trajectory_id,
+        goal_kind=goal_kind,
         since=_instant(since),
         until=_instant(until),
     )

@@ -16,6 +16,7 @@ SkipReason = Literal["adjacent", "rigid", "proven", "srdf"]
 PlanStatus = Literal["success", "miss", "failure", "error"]
 PlanSource = Literal["cache", "planner", "repaired"]
 Requester = Literal["robot", "seed_job"]  # who asked for a plan
+GoalKind = Literal["joint", "pose", "unknown"]  # a plan's goal; unknown: recorded before kinds
 
 
 class _Answer(BaseModel):
@@ -371,6 +372,7 @@ class PlanEvent(_Answer):
     total_ms: float
     error: str | None
     seed: int | None = None
+    goal_kind: GoalKind | None = None  # None: recorded before the kind was, or a refusal
     rejections: list[RejectedCandidate] = Field(default_factory=list)
 
 

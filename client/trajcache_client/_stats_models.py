@@ -73,6 +73,7 @@ class Stats(_Answer):
     group_by: GroupBy | str
     percentile_max_relative_error: float
     totals: Metrics
+    goal_kinds: dict[str, int]  # the requests by goal kind (GoalKind)
     groups: list[StatsGroup]
     series: list[StatsBucket]
     time_saved_basis: list[ModelBasis]

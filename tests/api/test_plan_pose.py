@@ -80,6 +80,17 @@ def test_a_pose_goal_is_planned_then_found_in_the_cache(robot: TestClient, arm: 
     assert within(arm, again["states"][-1], goal)
 
 
+def test_a_posted_trajectory_is_found_by_the_pose_of_its_end(robot: TestClient, arm: Any) -> None:
+    """Stored through POST /v1/trajectories: its end poses are indexed as it is stored."""
+    model_id = robot.get("/v1/robots/r1").json()["model_id"]
+    body = {"model_id": model_id, "states": [START, [0.5, 0.2], GOAL], "source": "real"}
+    posted = robot.post("/v1/trajectories", json=body)
+    assert posted.status_code == 201, posted.text
+    answer = plan(robot, target(arm, GOAL), fallback=False)
+    assert answer["source"] == "cache" and answer["goal_found_by"] == "cached"
+    assert answer["trajectory_id"] == posted.json()["trajectory_id"]
+
+
 def test_a_pose_near_a_cached_end_is_solved_from_it(robot: TestClient, arm: Any) -> None:
     """The second pose is the forearm's at a state 0.02 rad away: IK from the cached end finds
     a state next to it, within the lookup threshold, and the cache answers."""
@@ -164,3 +175,18 @@ def test_moveit_pose_goals_that_cannot_be_read_or_reached(robot: TestClient, arm
     offset = moveit_request(target(arm, GOAL), target_point_offset=[0.0, 0.0, 0.1])
     refused = robot.post("/v1/robots/r1/motion-plan", json=offset)
     assert "target_point_offset" in refused.text
+
+
+def test_events_and_statistics_tell_pose_goals_from_joint_goals(
+    robot: TestClient, arm: Any
+) -> None:
+    plan(robot, target(arm, GOAL), fallback=True)
+    joint = robot.post("/v1/robots/r1/plan", json={"start": START, "goal": GOAL})
+    assert joint.status_code == 200, joint.text
+    poses = robot.get("/v1/plan-events", params={"goal_kind": "pose"}).json()["items"]
+    assert [e["goal_kind"] for e in poses] == ["pose"]
+    events = robot.get("/v1/plan-events").json()["items"]
+    assert [e["goal_kind"] for e in events] == ["joint", "pose"]  # newest first
+    stats = robot.get("/v1/stats", params={"window": "1h"}).json()
+    assert stats["goal_kinds"] == {"joint": 1, "pose": 1}
+    assert_detail(robot.get("/v1/plan-events", params={"goal_kind": "cartesian"}), 422, "goal_kind")

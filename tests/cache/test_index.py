@@ -294,18 +294,3 @@ def test_concurrent_mutations_and_queries_stay_consistent() -> None:
     for s, g in qs[:20]:
         want = brute_force(ids[keep], starts[keep], goals[keep], s, g)
         assert_same(index.query(s, g, limit=100), want[:100])
-
-
-def test_endpoints_are_every_start_and_goal_oldest_first() -> None:
-    index = TrajectoryIndex(4, base=BaseType.PLANAR, rebuild_min=2, background_rebuild=False)
-    starts = np.array([[0.0, 1.0, 3.0, 0.1], [2.0, 0.0, -3.0, 0.2], [1.0, 1.0, 0.5, 0.3]])
-    goals = starts + 0.5
-    index.add([5, 3], starts[:2], goals[:2])
-    index.rebuild()
-    index.add([9], starts[2:], goals[2:])  # in the delta
-    index.remove([3])
-    expected = np.array([starts[0], goals[0], starts[2], goals[2]])
-    expected[:, 2] = np.remainder(expected[:, 2] + np.pi, 2 * np.pi) - np.pi  # θ wrapped
-    np.testing.assert_allclose(index.endpoints(10), expected, atol=1e-12)
-    np.testing.assert_allclose(index.endpoints(1), expected[2:], atol=1e-12)  # the latest
-    assert index.endpoints(0).shape == (0, 4)

@@ -262,6 +262,8 @@ def test_dashboard_shows_the_seeded_runs(page: tuple[Any, list[str]], seeded: Se
     assert refused == {"cleaner-1": "0", "cleaner-2": "1"}
     events = _rows(tab, "events-table")
     assert len(events) == 15
+    goals = {(row[2] == "refused", row[3]) for row in events}  # every goal here is a state
+    assert goals <= {(False, "joint"), (True, "–")} and (False, "joint") in goals
     asked = {row[1] for row in events}  # the seed job ran last: it is among the latest
     assert f"seed job #{job['job_id']}" in asked and asked <= {
         *seeded.robots,

@@ -12,13 +12,14 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
 
-from trajcache.db import cartesian, migrate  # noqa: F401  (cartesian: registers its table)
+from trajcache.db import cartesian, end_poses, migrate  # noqa: F401  (registers their tables)
 from trajcache.db.base import Base
 from trajcache.db.models import Trajectory
 
 TABLES = {
     "api_keys",
     "cartesian_paths",
+    "end_pose_backlog",
     "model_files",
     "plan_event_rollup_state",
     "plan_event_rollups",
@@ -30,6 +31,7 @@ TABLES = {
     "seed_jobs",
     "trajectories",
     "trajectory_certificates",
+    "trajectory_end_poses",
     "trajectory_tombstones",
 }
 
@@ -206,3 +208,40 @@ def test_postgres_version_table_lands_in_search_path_schema(postgres_url: str) -
         engine.dispose()
     assert {name for _, name in rows} == {"alembic_version", "trajectories"}
     assert version == head_revision()
+
+
+def test_trajectories_stored_before_the_end_pose_index_wait_in_its_backlog(
+    database_url: str,
+) -> None:
+    migrate.upgrade(database_url, "0015")
+    engine = sa.create_engine(database_url)
+    try:
+        metadata = sa.MetaData()
+        metadata.reflect(engine, only=["robot_models", "trajectories"])
+        t = metadata.tables
+        now = datetime.now(UTC)
+        with engine.begin() as conn:
+            conn.execute(
+                sa.insert(t["robot_models"]),
+                {"id": "m", "name": "m", "base": "fixed", "joint_names": ["j"],
+                 "urdf": "<robot/>", "allowed_pairs": [], "config": {}, "created_at": now},
+            )  # fmt: skip
+            states = {
+                "states": b"", "n_states": 2, "dof": 1, "start": [0.0], "goal": [1.0],
+                "start_x": 0.0, "start_y": 0.0, "goal_x": 1.0, "goal_y": 0.0, "env": {},
+                "hits": 0, "failures": 0, "consecutive_failures": 0, "real_validations": 0,
+                "created_at": now, "quality_pending": False,
+            }  # fmt: skip
+            conn.execute(
+                sa.insert(t["trajectories"]),
+                [{**states, "model_id": "m", "source": "sim", "content_hash": h} for h in "ab"],
+            )
+        migrate.upgrade(database_url)
+        with engine.connect() as conn:
+            backlog = conn.execute(sa.text("SELECT trajectory_id FROM end_pose_backlog")).all()
+            kinds = conn.execute(sa.text("SELECT goal_kind FROM plan_events")).all()
+        assert len(backlog) == 2 and kinds == []
+        migrate.downgrade(database_url, "0015")
+        assert "end_pose_backlog" not in sa.inspect(engine).get_table_names()
+    finally:
+        engine.dispose()

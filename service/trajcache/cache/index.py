@@ -164,20 +164,6 @@ class TrajectoryIndex:
         snap = self._snap
         return np.sort(np.concatenate([snap.main.ids[snap.alive], snap.delta_ids]))
 
-    def endpoints(self, latest: int) -> FloatArray:
-        """The start and goal states of the `latest` most recently stored trajectories (highest
-        ids), (2n, D), oldest first (θ in [−π, π)); without reading the rest of the index."""
-        snap = self._snap
-        tail = max(0, len(snap.main.ids) - latest)
-        rows = np.flatnonzero(snap.alive[tail:]) + tail  # the main block is sorted by id
-        keys = np.concatenate([snap.main.keys[rows], snap.delta_keys])
-        ids = np.concatenate([snap.main.ids[rows], snap.delta_ids])
-        keys = keys[np.argsort(ids, kind="stable")][-latest:] if latest > 0 else keys[:0]
-        states = np.stack([keys[:, : self.dim], keys[:, self.dim :]], axis=1).reshape(-1, self.dim)
-        if len(self._theta_cols):
-            states[:, THETA] -= np.pi
-        return states
-
     @property
     def delta_size(self) -> int:
         """Entries waiting in the unsorted delta buffer."""

@@ -316,7 +316,7 @@ class Settings(BaseSettings):
         "(0 = only on demand: `trajcache prune`, POST /v1/admin/prune).",
     )
     quality_backfill_per_s: float = Field(
-        default=50.0, ge=0, description="Quality computations per second after an import (0: off)."
+        default=50.0, ge=0, description="Background quality and end-pose rows per second (0: off)."
     )
 
     @field_validator("database_url")

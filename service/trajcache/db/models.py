@@ -265,6 +265,8 @@ class PlanEvent(Base):
     # Set by the background bookkeeping writer: a write retried after its COMMIT reached the
     # database (only the answer was lost) is recognised by it instead of being counted twice.
     record_key: Mapped[str | None] = mapped_column(String(32))
+    # What the goal was: "joint" (a state), "pose" (a link's pose); None: not recorded (older).
+    goal_kind: Mapped[str | None] = mapped_column(String(16))
 
 
 class PlanEventRollup(Base):
@@ -284,6 +286,7 @@ class PlanEventRollup(Base):
     model_id: Mapped[str] = mapped_column(String(64))
     source: Mapped[str | None] = mapped_column(String(16))
     status: Mapped[str] = mapped_column(String(32))
+    goal_kind: Mapped[str | None] = mapped_column(String(16))  # as plan_events.goal_kind
     requests: Mapped[int] = mapped_column(Integer)
     lookup_ms: Mapped[float] = mapped_column(Float)
     validate_ms: Mapped[float] = mapped_column(Float)

@@ -21,6 +21,7 @@ import sqlalchemy as sa
 from tests.services.hit_setup import context, store, two_joint
 from tests.services.plan.test_flow import FakePlanner, WorkerPlanner, use_planner
 from tests.waiting import NEVER_BINDS_S
+from trajcache.db.end_poses import TrajectoryEndPose
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
@@ -100,7 +101,13 @@ def test_the_failing_stretch_is_planned_and_the_rest_kept(
         row = session.get(Trajectory, answer.trajectory_id)
         assert row is not None and row.parent_id == parent
         sources = session.scalars(sa.select(PlanEvent.source)).all()
+        ends = session.scalars(
+            sa.select(TrajectoryEndPose.end).where(
+                TrajectoryEndPose.trajectory_id == answer.trajectory_id
+            )
+        ).all()
     assert sources == ["repaired"]
+    assert sorted(ends) == [0, 1]  # its end poses are indexed
 
 
 def test_a_repair_that_does_not_certify_falls_back_to_planning(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import math
 import threading
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
@@ -18,7 +19,8 @@ from trajcache.db.models import PlanEvent, PlanEventRollup
 from trajcache.db.session import make_engine
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.stats import histograms
-from trajcache.services.stats.event_rows import EventFilter
+from trajcache.services.stats.event_rows import ANY, EventFilter
+from trajcache.services.stats.events import goal_kind_counts
 from trajcache.services.stats.rollups import floor_hour, refresh_rollups
 from trajcache.services.stats.window import bucket_seconds, parse_window, plan_stats
 
@@ -357,3 +359,30 @@ def test_replicas_refreshing_at_once_summarise_each_hour_once(
         assert session.scalar(sa.select(sa.func.sum(PlanEventRollup.requests))) == rolled
     assert rolled == sum(e.at < horizon for e in events)
     assert again == horizon
+
+
+def test_requests_by_goal_kind_from_events_and_rollups(sessions: sessionmaker[Session]) -> None:
+    """Every third event a pose goal, every third of unknown kind (recorded before kinds were):
+    the counts over windows read from events only, and mostly from rollups, match."""
+    now = datetime.now(UTC)
+    with sessions() as session:
+        store(session, make_events(now, 900, hours=30, seed=5))
+        kind = sa.case((PlanEvent.id % 3 == 0, "pose"), (PlanEvent.id % 3 == 1, "joint"))
+        session.execute(sa.update(PlanEvent).values(goal_kind=kind))
+        session.execute(sa.update(PlanEvent).where(PlanEvent.id % 7 == 0).values(status="refused"))
+        session.commit()
+        rows = session.execute(
+            sa.select(PlanEvent.created_at, PlanEvent.goal_kind, PlanEvent.status)
+        ).all()
+        for window in ("3h", "24h", "2d"):
+            stats = plan_stats(session=session, window_s=parse_window(window), now=now)
+            want = Counter(
+                k or "unknown"
+                for at, k, status in rows
+                if stats.since <= at < stats.until and status != "refused"
+            )
+            got = goal_kind_counts(
+                session=session, since=stats.since, until=stats.until, filters=ANY
+            )
+            assert got == dict(want) and set(got) == {"joint", "pose", "unknown"}, window
+        assert session.scalar(sa.select(sa.func.count()).where(PlanEventRollup.goal_kind == "pose"))

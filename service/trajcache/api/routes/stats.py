@@ -16,6 +16,7 @@ from trajcache.api.schemas.stats import (
     BucketOut,
     EventSource,
     EventStatus,
+    GoalKind,
     GroupBy,
     GroupOut,
     MetricsOut,
@@ -27,7 +28,12 @@ from trajcache.api.schemas.stats import (
     TopTrajectoryOut,
 )
 from trajcache.services.stats.event_rows import EventFilter
-from trajcache.services.stats.events import PlanEventFilter, list_plan_events, top_trajectories
+from trajcache.services.stats.events import (
+    PlanEventFilter,
+    goal_kind_counts,
+    list_plan_events,
+    top_trajectories,
+)
 from trajcache.services.stats.histograms import MAX_RELATIVE_ERROR
 from trajcache.services.stats.window import WINDOW_PATTERN, parse_window, plan_stats
 
@@ -70,6 +76,9 @@ class PlanEventQuery(BaseModel):
         None, description="Only the requests of robots, or of seed jobs."
     )
     trajectory_id: int | None = Field(None, ge=1, le=2**63 - 1)
+    goal_kind: GoalKind | None = Field(
+        None, description="Only requests to a goal state (`joint`) or pose (`pose`)."
+    )
     since: IsoDateTime | None = Field(None, description=_ISO)
     until: IsoDateTime | None = Field(None, description=_ISO)
 
@@ -92,14 +101,13 @@ class PlanEventQuery(BaseModel):
 def stats_route(session: SessionDep, query: Annotated[StatsQuery, Query()]) -> StatsOut:
     """Statistics of the plan requests of the last `window`."""
     window, group_by = query.window, query.group_by
-    stats = plan_stats(
-        session=session,
-        window_s=parse_window(window),
-        group_by=group_by,
-        filters=EventFilter(
-            robot_id=query.robot_id, model_id=query.model_id, requester=query.requester
-        ),
+    filters = EventFilter(
+        robot_id=query.robot_id, model_id=query.model_id, requester=query.requester
     )
+    stats = plan_stats(
+        session=session, window_s=parse_window(window), group_by=group_by, filters=filters
+    )
+    kinds = goal_kind_counts(session=session, since=stats.since, until=stats.until, filters=filters)
     return StatsOut(
         window=window.strip(),
         since=stats.since,
@@ -108,6 +116,7 @@ def stats_route(session: SessionDep, query: Annotated[StatsQuery, Query()]) -> S
         group_by=group_by,
         percentile_max_relative_error=round(MAX_RELATIVE_ERROR, 4),
         totals=MetricsOut.model_validate(stats.totals),
+        goal_kinds=kinds,
         groups=[
             GroupOut(key=g.key, requester=g.requester, **asdict(g.metrics)) for g in stats.groups
         ],
@@ -165,6 +174,7 @@ def plan_events_route(
             status=query.status,
             source=query.source,
             trajectory_id=query.trajectory_id,
+            goal_kind=query.goal_kind,
             since=_utc(query.since),
             until=_utc(query.until),
         ),

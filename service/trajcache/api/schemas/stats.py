@@ -50,6 +50,7 @@ _EVENT: dict[str, Any] = {
 }
 EventStatus = Literal["success", "miss", "failure", "error", "refused"]
 EventSource = Literal["cache", "planner", "none"]
+GoalKind = Literal["joint", "pose", "unknown"]
 
 
 class LatencyOut(BaseModel):
@@ -137,6 +138,7 @@ class StatsOut(BaseModel):
                     "group_by": "robot",
                     "percentile_max_relative_error": 0.0593,
                     "totals": _METRICS,
+                    "goal_kinds": {"joint": 380, "pose": 32},
                     "groups": [{"key": "robot-7", "requester": "robot", **_METRICS}],
                     "series": [{"start": "2026-11-21T09:00:00Z", **_METRICS}],
                     "time_saved_basis": [
@@ -162,6 +164,11 @@ class StatsOut(BaseModel):
         "of the exact value."
     )
     totals: MetricsOut
+    goal_kinds: dict[GoalKind, int] = Field(
+        description="The window's requests by goal kind: `joint` (a goal state), `pose` (a "
+        "link's pose: `goal_pose`, MoveIt position and orientation constraints); `unknown`: "
+        "recorded before the kind was. Refusals are not requests."
+    )
     groups: list[GroupOut]
     series: list[BucketOut]
     time_saved_basis: list[ModelBasisOut]
@@ -196,6 +203,11 @@ class PlanEventOut(BaseModel):
         default=None,
         description="The planner's random seed when the request planned (null for a cache "
         "answer): planning the same problem with it repeats the same search.",
+    )
+    goal_kind: GoalKind | None = Field(
+        default=None,
+        description="`joint` (a goal state) or `pose` (a link's pose); null: recorded before "
+        "the kind was, or a refusal.",
     )
     rejections: list[RejectedCandidateOut] = Field(
         default_factory=list,

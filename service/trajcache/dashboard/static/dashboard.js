@@ -310,6 +310,8 @@
     cell(tr, fmtTime(e.created_at)).title = fmtDateTime(e.created_at);
     requesterCell(tr, e);
     cell(tr, e.status, `status-${e.status}`).title = e.error || "";
+    // the goal: a state (joint) or a link's pose; none for events recorded before the kind was
+    if (withTrajectory) cell(tr, e.goal_kind || "–", "goal-kind");
     cell(tr, e.source || "–");
     if (withTrajectory) trajectoryLink(cell(tr, ""), e.trajectory_id);
     const tried = cell(tr, String(e.candidates_tried), "num");
@@ -342,7 +344,7 @@
   }
 
   function renderEvents(page) {
-    fillTable($("events-table"), page.items.map((e) => eventRow(e, true)), 8, "No plan events yet");
+    fillTable($("events-table"), page.items.map((e) => eventRow(e, true)), 9, "No plan events yet");
   }
 
   // Plans refused without an answer (a 4xx of a plan route): who, when, and why.

@@ -16,7 +16,7 @@ from alembic.autogenerate.api import AutogenContext
 from sqlalchemy import Connection, create_engine, pool, text
 from sqlalchemy.types import TypeDecorator
 
-from trajcache.db import cartesian, models  # noqa: F401  (registers the tables on Base.metadata)
+from trajcache.db import cartesian, end_poses, models  # noqa: F401  (registers the tables on Base.metadata)
 from trajcache.db.base import Base
 
 config = context.config

@@ -25,6 +25,7 @@ from trajcache.geometry.scene.fields import parse_env
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.validator import ValidatorCache
+from trajcache.services.catalog.end_poses import write_end_poses
 from trajcache.services.catalog.robots import check_robot_id
 from trajcache.services.catalog.scene_cache import SceneCache
 from trajcache.services.errors import (
@@ -83,7 +84,7 @@ def store_trajectory(
     and, in the trajectory's scene or else the stored scene version with its `scene_hash`, the
     minimum clearance. A metric that cannot be computed is left empty; the store proceeds.
     `scenes` and `validators` (the service's caches) spare parsing the scene and building its
-    validator again.
+    validator again. A new row's end poses are indexed in the same transaction (`end_poses`).
     """
     t, model = trajectory, trajectory.model
     array = _validated(
@@ -111,6 +112,7 @@ def store_trajectory(
     new_id = _insert_unless_present(session, row)
     if new_id is None:  # stored concurrently by another request or replica
         return _stored_meanwhile(session, row), False
+    write_end_poses(session, model, [new_id], array[:1], array[-1:])
     if commit:
         session.commit()
     return new_id, True

@@ -4,10 +4,10 @@ the solver of `geometry.model.ik`.
 The robot's model and scene are read as a plan reads them (`services.catalog.robots
 .robot_scene`, the model registry, `geometry.scene.variant.model_in_scene`), and a solution is
 collision-free by the same checker that validates plans (`validator_for(...).checker`), free of
-the scene and of self-collision. Starts, after the seed: the endpoints of the model's cached
-trajectories whose link lies nearest the target (at most CACHED_STARTS, among the endpoints of
-the CACHED_POOL most recent trajectories), then random restarts. No solution is an answer with
-a status, not an error.
+the scene and of self-collision. Starts, after the seed: the ends of the model's cached
+trajectories whose link lies nearest the target, read from the end-pose index (at most
+CACHED_STARTS, among every stored trajectory: `services.ik.cached`), then random restarts. No
+solution is an answer with a status, not an error.
 """
 
 from __future__ import annotations
@@ -24,11 +24,10 @@ from trajcache.geometry.model.kinematics import (
     StateInput,
     check_limits,
     check_states,
-    forward_kinematics,
     resolve_state,
 )
 from trajcache.geometry.model.pin_kinematics import PinKinematics
-from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, pose_matrix
 from trajcache.geometry.model.srdf import parse_srdf
 from trajcache.geometry.path_quality import end_effector_link
@@ -39,13 +38,12 @@ from trajcache.services.catalog.models import get_model, model_source
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
+from trajcache.services.ik.cached import nearest_starts
 
 IK_BUDGET_S = 0.05  # default time budget of one IK request
 IK_BUDGET_MAX_S = 2.0  # the most a request may ask for
-CACHED_STARTS = 3  # cached endpoint states tried after the seed
-CACHED_POOL = 256  # the most recent cached trajectories whose endpoints are searched
 
-__all__ = ["IkAnswer", "IkRequest", "IkStatus", "answer_ik", "cached_starts", "free_fn", "link_of"]
+__all__ = ["IkAnswer", "IkRequest", "IkStatus", "answer_ik", "free_fn", "link_of"]
 
 
 @dataclass(frozen=True)
@@ -86,15 +84,14 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         robot = robot_scene(session=session, scenes=ctx.scenes, robot_id=robot_id)
         model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
         source = model_source(session=session, model_id=model.model_id, registry=ctx.models)
-        endpoints = ctx.indexes.index(session, model).endpoints(CACHED_POOL)
-    checked = model_in_scene(model, robot.scene, robot.joint_values, cache=ctx.variants)
+        checked = model_in_scene(model, robot.scene, robot.joint_values, cache=ctx.variants)
+        seed = _seed(checked, request)
+        target = _target(link_of(checked, source.srdf, request.link, request.names), request)
+        stored = len(ctx.indexes.index(session, model))
+        starts = nearest_starts(session, model, checked, target, seed, stored=stored)
     read = time.perf_counter()
     kinematics = ctx.kinematics.get_or_build(
         checked, lambda: PinKinematics.build(checked, source.urdf)
-    )
-    seed = _seed(checked, request)
-    target = _target(
-        kinematics, link_of(checked, source.srdf, request.link, request.names), request
     )
     valid_fn = None
     if request.avoid_collisions:
@@ -106,7 +103,7 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         target,
         seed,
         move_base=request.move_base,
-        starts=cached_starts(checked, endpoints, seed, target, move_base=request.move_base),
+        starts=starts,
         valid_fn=valid_fn,
         solutions=request.solutions,
         budget_s=min(budget, IK_BUDGET_MAX_S),
@@ -156,7 +153,7 @@ def link_of(
     )
 
 
-def _target(kinematics: PinKinematics, link: str, request: IkRequest) -> PoseTarget:
+def _target(link: str, request: IkRequest) -> PoseTarget:
     """The pose target; a SceneError (422) names a quaternion that is not a unit one."""
     where = request.names.get("orientation", "orientation")
     quaternion = unit_quaternion(list(request.orientation), where)  # a SceneError (422)
@@ -171,28 +168,6 @@ def free_fn(checker: CollisionChecker) -> Callable[[FloatArray], bool]:
         return bool(int(checker.check(state[None, :]).status[0]) == FREE)
 
     return free
-
-
-def cached_starts(
-    model: RobotModel,
-    endpoints: FloatArray,
-    seed: FloatArray,
-    target: PoseTarget,
-    *,
-    move_base: bool,
-) -> list[FloatArray]:
-    """The cached endpoint states that put the link nearest the target (the seed's base unless
-    the base may move)."""
-    if len(endpoints) == 0:
-        return []
-    states = np.array(endpoints, dtype=float)
-    if model.base is BaseType.PLANAR and not move_base:
-        states[:, : model.arm_offset] = seed[: model.arm_offset]
-    link = model.link_names.index(target.link)
-    positions = forward_kinematics(model, states)[:, link, :3, 3]
-    gaps = np.linalg.norm(positions - target.pose[:3, 3], axis=1)
-    nearest = np.argsort(gaps)[:CACHED_STARTS]
-    return [states[i] for i in nearest]
 
 
 def _message(result: IkResult, request: IkRequest) -> str:

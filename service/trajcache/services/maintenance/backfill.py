@@ -11,6 +11,10 @@ of at most one second's worth, with the thread asleep between them, so the compu
 bounded share of one core and request threads keep the interpreter most of the time. On
 PostgreSQL replicas skip rows another one is working on (`FOR UPDATE SKIP LOCKED`); elsewhere
 two replicas may compute the same row twice, harmlessly (same settings, same answer).
+
+The same thread indexes the end poses of trajectories stored before the end-pose index existed
+(`end_pose_backlog`, filled by migration 0016; `index_backlog_batch`): a backlog entry's index
+rows are written and the entry deleted in one transaction, so a trajectory is indexed once.
 """
 
 from __future__ import annotations
@@ -19,10 +23,13 @@ import logging
 import math
 import time
 
+import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from trajcache.db import models as tables
+from trajcache.db.end_poses import EndPoseBacklog, TrajectoryEndPose
+from trajcache.services.catalog.end_poses import write_end_poses
 from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.trajectories import quality_columns, scene_with_hash
 from trajcache.services.context import ServiceContext
@@ -61,6 +68,32 @@ def backfill_batch(ctx: ServiceContext, limit: int) -> int:
         return len(rows)
 
 
+def index_backlog_batch(ctx: ServiceContext, limit: int) -> int:
+    """Write the end poses of up to `limit` backlog trajectories; how many were done."""
+    _B = EndPoseBacklog
+    with ctx.sessions() as session:
+        rows = session.execute(
+            sa.select(_T.id, _T.model_id, _T.start, _T.goal)
+            .join(_B, _B.trajectory_id == _T.id)
+            .order_by(_T.id)
+            .limit(limit)
+            .with_for_update(of=_B, skip_locked=True)
+        ).all()
+        ids = [row.id for row in rows]
+        session.execute(
+            sa.delete(TrajectoryEndPose).where(TrajectoryEndPose.trajectory_id.in_(ids))
+        )
+        for model_id in {row.model_id for row in rows}:
+            mine = [row for row in rows if row.model_id == model_id]
+            model = get_model(session=session, registry=ctx.models, model_id=model_id)
+            starts = np.array([row.start for row in mine], dtype=float)
+            goals = np.array([row.goal for row in mine], dtype=float)
+            write_end_poses(session, model, [row.id for row in mine], starts, goals)
+        session.execute(sa.delete(_B).where(_B.trajectory_id.in_(ids)))
+        session.commit()
+        return len(rows)
+
+
 def _quality(ctx: ServiceContext, session: Session, row: tables.Trajectory) -> dict | None:
     """The row's quality columns; None when they cannot be computed (the mark is cleared
     anyway: a metric that cannot be computed is left empty, as at store time)."""
@@ -93,7 +126,8 @@ class QualityBackfill(BackgroundLoop):
 
     def step(self) -> float:
         started = time.monotonic()
-        done = backfill_batch(self.ctx, batch_size(self._rate))
+        batch = batch_size(self._rate)
+        done = backfill_batch(self.ctx, batch) + index_backlog_batch(self.ctx, batch)
         self.done += done
         return pause_after(done, self._rate, time.monotonic() - started)
 

@@ -7,13 +7,15 @@ a duplicate; a row repeated inside one batch is dropped before the INSERT and co
 On PostgreSQL a batch is copied (COPY, the driver's compiled path) into a temporary table of
 the transaction and inserted from there with one `INSERT … SELECT … ON CONFLICT DO NOTHING`: a
 VALUES list of 25 parameters a row costs more to build and parse than the rows cost to insert.
-The writer never commits: the importer's one transaction holds every batch.
+The writer never commits: the importer's one transaction holds every batch. The rows a batch
+inserted (their ids read back by model and content hash) go to `inserted_fn`, which writes what
+belongs with them in the same transaction (their end poses).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import sqlalchemy as sa
@@ -54,13 +56,21 @@ _KEYS = (
 )
 
 _KEY_SET = frozenset(_KEYS)
+InsertedFn = Callable[[Session, list[dict[str, Any]]], None]  # the new rows, each with its id
 
 
 class BatchWriter:
     """Collects rows (`add`) and inserts them a batch at a time (`flush`, at `batch_rows`)."""
 
-    def __init__(self, session: Session, *, batch_rows: int = DEFAULT_BATCH_ROWS) -> None:
+    def __init__(
+        self,
+        session: Session,
+        *,
+        batch_rows: int = DEFAULT_BATCH_ROWS,
+        inserted_fn: InsertedFn | None = None,
+    ) -> None:
         self.session = session
+        self.inserted_fn = inserted_fn
         self.batch_rows = max(1, batch_rows)
         self.inserted = 0
         self.duplicates = 0
@@ -89,14 +99,18 @@ class BatchWriter:
         rows = list(self._pending.values())
         self._pending.clear()
         if self._dialect == "postgresql":
-            new = _staged_insert(self.session, rows, first=not self._staged)
+            keys = _staged_insert(self.session, rows, first=not self._staged)
             self._staged = True
         elif self._statement is None:
-            new = sum(_insert_one(self.session, row) for row in rows)
+            keys = [key for row in rows if (key := _insert_one(self.session, row)) is not None]
         else:
-            new = len(self.session.connection().execute(self._statement, rows).all())
-        self.inserted += new
-        self.duplicates += len(rows) - new
+            keys = [tuple(r) for r in self.session.connection().execute(self._statement, rows)]
+        self.inserted += len(keys)
+        self.duplicates += len(rows) - len(keys)
+        if self.inserted_fn is not None and keys:
+            by_key = {(row["model_id"], row["content_hash"]): row for row in rows}
+            new = [{**by_key[(m, h)], "id": int(i)} for i, m, h in keys]
+            self.inserted_fn(self.session, new)
 
 
 def _insert_statement(dialect: str) -> sa.Insert | None:
@@ -107,25 +121,29 @@ def _insert_statement(dialect: str) -> sa.Insert | None:
     return (
         insert(_TABLE)
         .on_conflict_do_nothing(index_elements=["model_id", "content_hash"])
-        .returning(_TABLE.c.id)
+        .returning(_TABLE.c.id, _TABLE.c.model_id, _TABLE.c.content_hash)
     )
 
 
-def _insert_one(session: Session, row: dict[str, Any]) -> int:
-    """1 if the row was inserted, 0 if it was already there (other databases)."""
+_Key = tuple[Any, ...]  # id, model_id, content_hash of an inserted row
+
+
+def _insert_one(session: Session, row: dict[str, Any]) -> _Key | None:
+    """The key of the row once inserted, None if it was already there (other databases)."""
     key = (_TABLE.c.model_id == row["model_id"]) & (_TABLE.c.content_hash == row["content_hash"])
     if session.execute(sa.select(_TABLE.c.id).where(key)).first() is not None:
-        return 0
+        return None
     session.execute(sa.insert(_TABLE), [row])
-    return 1
+    new_id = session.execute(sa.select(_TABLE.c.id).where(key)).scalar_one()
+    return new_id, row["model_id"], row["content_hash"]
 
 
 _STAGE = "trajcache_import_batch"  # a temporary table of the import's transaction
 
 
-def _staged_insert(session: Session, rows: list[dict[str, Any]], first: bool) -> int:
+def _staged_insert(session: Session, rows: list[dict[str, Any]], first: bool) -> list[_Key]:
     """Insert `rows` on PostgreSQL: COPY into a temporary table, then one INSERT … SELECT …
-    ON CONFLICT DO NOTHING; how many were new."""
+    ON CONFLICT DO NOTHING; the keys of the new ones."""
     names = ", ".join(_KEYS)
     raw = session.connection().connection.driver_connection
     assert raw is not None  # a live connection of the session's transaction
@@ -145,9 +163,9 @@ def _staged_insert(session: Session, rows: list[dict[str, Any]], first: bool) ->
                 copy.write_row(values)
         cursor.execute(
             f"INSERT INTO {_TABLE.name} ({names}) SELECT {names} FROM {_STAGE} "
-            "ON CONFLICT (model_id, content_hash) DO NOTHING RETURNING id"
+            "ON CONFLICT (model_id, content_hash) DO NOTHING RETURNING id, model_id, content_hash"
         )
-        return len(cursor.fetchall())
+        return [tuple(r) for r in cursor.fetchall()]
 
 
 _JSON_AT = [i for i, name in enumerate(_KEYS) if isinstance(_TABLE.c[name].type, sa.JSON)]

@@ -6,8 +6,8 @@ header of another format or a newer version, or a version-2 export without its e
 short) refuses the whole import: nothing is stored. Trajectories are written in batches
 (`bulk_insert`), all inside the one transaction. Their quality (timing, clearance) is not
 computed here: new rows are marked pending and the service computes it in the background
-(`backfill`). Models registered by the import reach the process's registry only once it is
-committed.
+(`backfill`). Their end poses are indexed with each batch (`end_poses`), in the transaction.
+Models registered by the import reach the process's registry only once it is committed.
 """
 
 from __future__ import annotations
@@ -21,12 +21,14 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
+import numpy as np
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from trajcache.core.config import Settings
 from trajcache.geometry.errors import GeometryError
 from trajcache.geometry.model.robot import RobotModel
+from trajcache.services.catalog.end_poses import write_end_poses
 from trajcache.services.catalog.models import (
     ModelRegistration,
     ModelRegistry,
@@ -128,7 +130,7 @@ class Importer:
         self.report = ImportReport()
         self._model_ids: dict[str, str] = {}  # id in the file -> id in this database
         self._models: dict[str, RobotModel] = {}
-        self._writer = BatchWriter(session, batch_rows=batch_rows)
+        self._writer = BatchWriter(session, batch_rows=batch_rows, inserted_fn=self._index_ends)
         self._version = 0  # of the header; 0: no header read
         self._ended = False
 
@@ -247,6 +249,15 @@ class Importer:
                 ) from None
             self._models[model_id] = model
         return model
+
+    def _index_ends(self, session: Session, rows: list[dict[str, Any]]) -> None:
+        """Write the end poses of the rows a batch inserted, model by model."""
+        for model_id in {row["model_id"] for row in rows}:
+            mine = [row for row in rows if row["model_id"] == model_id]
+            starts = np.array([row["start"] for row in mine], dtype=float)
+            goals = np.array([row["goal"] for row in mine], dtype=float)
+            ids = [row["id"] for row in mine]
+            write_end_poses(session, self._models[model_id], ids, starts, goals)
 
     def _trajectory(self, record: Mapping[str, Any]) -> None:
         model = self._model_for(record.get("model_id"))

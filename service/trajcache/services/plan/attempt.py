@@ -30,6 +30,7 @@ from trajcache.services.plan.quality import AnswerDetails
 from trajcache.services.plan.rejections import RejectedCandidate
 
 __all__ = [
+    "GoalKind",
     "GoalPose",
     "Origin",
     "PhaseClock",
@@ -51,6 +52,13 @@ class PlanStatus(str, Enum):
     MISS = "miss"  # no valid cached candidate and no fallback planning asked for or available
     FAILURE = "failure"  # the planner found no path within its budget
     ERROR = "error"  # the planner could not run (pool broken, backend down): answered with 503
+
+
+class GoalKind(str, Enum):
+    """What a plan request's goal was: a state, or a link's pose (`goal_pose`)."""
+
+    JOINT = "joint"
+    POSE = "pose"
 
 
 class Requester(str, Enum):
@@ -210,6 +218,11 @@ class PlanAttempt:
         """What the validator's verdicts depend on besides the states (`cache.memo`)."""
         return MemoScope.of(self.validator)
 
+    @property
+    def goal_kind(self) -> GoalKind:
+        """What the request's goal was: a state, or a link's pose."""
+        return GoalKind.JOINT if self.request.goal_pose is None else GoalKind.POSE
+
     def event(
         self,
         status: PlanStatus,
@@ -237,4 +250,5 @@ class PlanAttempt:
             "error": (error or None) and error[:500],
             "seed": seed,
             "rejections": None,  # the record writer fills it in (`services.plan.rejections`)
+            "goal_kind": self.goal_kind.value,
         }

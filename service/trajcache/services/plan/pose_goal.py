@@ -2,13 +2,14 @@
 
 Lookup by pose first, then inverse kinematics (`geometry/model/ik.py`):
 
-1. As it is: among the start and end states of the model's most recent cached trajectories
-   (`CACHED_POOL`), those that put the link within the tolerances and are free in the robot's
-   scene; the one whose trajectory's other end is nearest the request's start is the goal.
-   The joint lookup then finds that trajectory at distance zero from the goal.
+1. As it is: among the ends of every cached trajectory of the model, those that put the link
+   within the tolerances (read from the end-pose index, checked by forward kinematics:
+   `services.ik.cached.ends_within`) and are free in the robot's scene; the one whose
+   trajectory's other end is nearest the request's start is the goal. The joint lookup then
+   finds that trajectory at distance zero from the goal.
 2. After IK from a nearby cached state: the solver starts from the cached states whose link
-   lies nearest the target (the nearest first, as its seed), so that a solution it finds lies
-   next to a cached trajectory's end, within the lookup threshold.
+   lies nearest the target (the nearest first, as its seed; `nearest_starts`), so that a
+   solution it finds lies next to a cached trajectory's end, within the lookup threshold.
 3. Otherwise IK from the request's start, with random restarts (the solution nearest it).
 
 A goal state found either way is a state like any other: the plan flow looks up, adapts,
@@ -23,14 +24,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from trajcache.geometry.model.ik import IkProblem, IkStatus, PoseTarget, solve_ik
-from trajcache.geometry.model.kinematics import forward_kinematics
 from trajcache.geometry.model.pin_kinematics import PinKinematics
 from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray, pose_matrix
 from trajcache.geometry.scene.fields import unit_quaternion
 from trajcache.geometry.validation.validator import validator_for
 from trajcache.services.catalog.models import model_source
-from trajcache.services.ik.solve import CACHED_POOL, cached_starts, free_fn, link_of
+from trajcache.services.ik.cached import ends_within, nearest_starts
+from trajcache.services.ik.solve import free_fn, link_of
 from trajcache.services.plan.attempt import GoalPose, PlanAttempt
 
 __all__ = ["NO_GOAL_STATE", "PoseGoalFound", "resolve_pose_goal"]
@@ -64,13 +65,13 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
         goal.position_tolerance,
         goal.orientation_tolerance,
     )
-    endpoints = ctx.indexes.index(session, attempt.model).endpoints(CACHED_POOL)
     checker = validator_for(checked, attempt.scene, ctx.settings, cache=ctx.validators).checker
     free = free_fn(checker)
-    as_is = _cached_as_is(attempt, endpoints, target, free)
+    as_is = _cached_as_is(attempt, target, free)
     if as_is is not None:
         return PoseGoalFound(as_is, "cached")
-    starts = cached_starts(checked, endpoints, attempt.start, target, move_base=False)
+    stored = len(ctx.indexes.index(session, attempt.model))
+    starts = nearest_starts(session, attempt.model, checked, target, attempt.start, stored=stored)
     seeds = [(starts[0], starts[1:]), (attempt.start, starts)] if starts else [(attempt.start, [])]
     budget = POSE_IK_BUDGET_S / len(seeds)
     for seed, others in seeds:
@@ -90,24 +91,17 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
 
 
 def _cached_as_is(
-    attempt: PlanAttempt,
-    endpoints: FloatArray,
-    target: PoseTarget,
-    free: Callable[[FloatArray], bool],
+    attempt: PlanAttempt, target: PoseTarget, free: Callable[[FloatArray], bool]
 ) -> FloatArray | None:
     """The cached end state within the tolerances, free, whose trajectory's other end is
-    nearest the request's start (endpoints come in pairs: start, goal of one trajectory)."""
-    model = attempt.checked
-    if len(endpoints) == 0 or model.base is BaseType.PLANAR:
+    nearest the request's start."""
+    if attempt.checked.base is BaseType.PLANAR:
         return None  # a planar base's cached ends stand elsewhere: IK places the arm
-    frames = forward_kinematics(model, endpoints)[:, model.link_names.index(target.link)]
-    gap = np.linalg.norm(frames[:, :3, 3] - target.pose[:3, 3], axis=1)
-    turn = np.einsum("nij,ij->n", frames[:, :3, :3], target.pose[:3, :3])  # trace(Rᵀ R*)
-    angle = np.arccos(np.clip((turn - 1.0) / 2.0, -1.0, 1.0))
-    within = (gap <= target.position_tolerance) & (angle <= target.orientation_tolerance)
-    other = endpoints[np.arange(len(endpoints)) ^ 1]  # the partner of each end
-    order = np.argsort(np.linalg.norm(other - attempt.start, axis=1))
-    for k in order[within[order]]:
-        if free(endpoints[k]):
-            return np.array(endpoints[k])
+    ends = ends_within(attempt.session, attempt.model, attempt.checked, target, attempt.start)
+    if len(ends.gaps) == 0:
+        return None
+    order = np.argsort(np.linalg.norm(ends.partners - attempt.start, axis=1), kind="stable")
+    for k in order:
+        if free(ends.states[k]):
+            return np.array(ends.states[k])
     return None

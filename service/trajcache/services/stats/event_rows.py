@@ -31,6 +31,7 @@ class EventRows:
     model: ObjArray
     source: ObjArray  # None when no trajectory was returned
     status: ObjArray
+    goal_kind: ObjArray  # "joint", "pose"; None: recorded before the kind was
     n: npt.NDArray[np.int64]
     sums: npt.NDArray[np.float64]  # (rows, len(METRICS)) timing sums in ms
     # Histogram entries: (row, metric, bin, count).
@@ -52,6 +53,7 @@ class EventRows:
             model=np.concatenate([p.model for p in parts]),
             source=np.concatenate([p.source for p in parts]),
             status=np.concatenate([p.status for p in parts]),
+            goal_kind=np.concatenate([p.goal_kind for p in parts]),
             n=np.concatenate([p.n for p in parts]),
             sums=np.concatenate([p.sums for p in parts]).reshape(-1, len(histograms.METRICS)),
             entries=(
@@ -123,14 +125,16 @@ def fetch_events(
         e.validate_ms,
         e.plan_ms,
         e.total_ms,
+        e.goal_kind,
     ).where(e.created_at >= begin, e.created_at < end, *filters.conditions(e))
     rows = session.connection().execute(query).all()  # core rows: no ORM overhead
     count = len(rows)
-    cols = list(zip(*rows, strict=True)) if rows else [()] * 10
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 11
     sums = np.array(cols[6:10], dtype=np.float64).T.reshape(count, len(histograms.METRICS))
     metrics = len(histograms.METRICS)
     return EventRows(
         **_keys(cols),
+        goal_kind=np.array(cols[10], dtype=object),
         n=np.ones(count, dtype=np.int64),
         sums=sums,
         entries=(
@@ -179,12 +183,14 @@ def fetch_rollups(
         r.plan_ms,
         r.total_ms,
         r.histograms,
+        r.goal_kind,
     ).where(r.bucket_start >= begin, r.bucket_start < end, *filters.conditions(r))
     rows = session.connection().execute(query).all()  # core rows: no ORM overhead
     count = len(rows)
-    cols = list(zip(*rows, strict=True)) if rows else [()] * 12
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 13
     return EventRows(
         **_keys(cols),
+        goal_kind=np.array(cols[12], dtype=object),
         n=np.array(cols[6], dtype=np.int64),
         sums=np.array(cols[7:11], dtype=np.float64).T.reshape(count, len(histograms.METRICS)),
         entries=histograms.decode(list(cols[11])),

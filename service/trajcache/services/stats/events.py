@@ -1,4 +1,5 @@
-"""Plan events, newest first: filtered pages with a keyset cursor, and a trajectory's usage.
+"""Plan events, newest first: filtered pages with a keyset cursor, a trajectory's usage, and
+the requests of a window by goal kind.
 
 Pages are ordered by (created_at, id) descending and continue after the last row of the
 previous page (`cursor`), so rows written meanwhile never shift or repeat a page, and a page
@@ -10,19 +11,22 @@ from __future__ import annotations
 
 import base64
 import binascii
+from collections import Counter
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session, defer
 
-from trajcache.db.models import PlanEvent, Trajectory
+from trajcache.db.models import PlanEvent, PlanEventRollup, PlanEventRollupState, Trajectory
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.stats.event_rows import EventFilter
+from trajcache.services.stats.rollups import ROLLUP_S, floor_hour
 
 STATUSES = ("success", "miss", "failure", "error", "refused")  # refused: no answer (4xx)
 SOURCES = ("cache", "planner", "none")  # none: no trajectory was returned
 REQUESTERS = ("robot", "seed_job")  # who asked: a robot, or a seed job
+GOAL_KINDS = ("joint", "pose", "unknown")  # unknown: recorded before the kind was
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
@@ -64,6 +68,7 @@ class PlanEventFilter(EventFilter):
     trajectory_id: int | None = None
     since: datetime | None = None
     until: datetime | None = None
+    goal_kind: str | None = None  # "joint", "pose", or "unknown"
 
 
 def list_plan_events(
@@ -87,6 +92,8 @@ def list_plan_events(
         raise InvalidInputError(
             f"query.requester: {requester!r} is not one of {', '.join(REQUESTERS)}"
         )
+    if f.goal_kind is not None:
+        conditions.append(_goal_kind_is(f.goal_kind))
     if status is not None:
         conditions.append(e.status == status)
     if source is not None:
@@ -111,6 +118,54 @@ def list_plan_events(
     more = len(rows) > limit
     items = rows[:limit]
     return PlanEventPage(items=items, next_cursor=encode_cursor(items[-1]) if more else None)
+
+
+def _goal_kind_is(kind: str) -> sa.ColumnElement[bool]:
+    """The condition that an event's goal was of `kind`; InvalidInputError names a wrong one."""
+    if kind not in GOAL_KINDS:
+        raise InvalidInputError(f"query.goal_kind: {kind!r} is not one of {', '.join(GOAL_KINDS)}")
+    column = PlanEvent.goal_kind
+    return column.is_(None) if kind == "unknown" else column == kind
+
+
+def goal_kind_counts(
+    *, session: Session, since: datetime, until: datetime, filters: EventFilter
+) -> dict[str, int]:
+    """The answered requests of `[since, until)` by goal kind (refusals are not requests): the
+    whole hours already rolled up from their rollups, the rest from the events."""
+    rolled = session.scalar(sa.select(PlanEventRollupState.rolled_until))
+    first = floor_hour(since)
+    first += timedelta(seconds=ROLLUP_S) if first < since else timedelta(0)
+    last = min(floor_hour(until), rolled) if rolled is not None else first
+    counts: Counter[str] = Counter()
+    spans = [(since, until)]
+    if first < last:
+        counts += _kinds(session, PlanEventRollup, first, last, filters)
+        spans = [(since, first), (last, until)]
+    for begin, end in spans:
+        counts += _kinds(session, PlanEvent, begin, end, filters)
+    return dict(counts)
+
+
+def _kinds(
+    session: Session,
+    table: type[PlanEvent] | type[PlanEventRollup],
+    begin: datetime,
+    end: datetime,
+    filters: EventFilter,
+) -> Counter[str]:
+    """The requests of `table` (events, or hourly rollups) in `[begin, end)` by goal kind."""
+    count: sa.ColumnElement[int] = sa.func.count()
+    at = PlanEvent.created_at
+    if table is PlanEventRollup:
+        count, at = sa.func.sum(PlanEventRollup.requests), PlanEventRollup.bucket_start
+    kind = sa.func.coalesce(table.goal_kind, "unknown")
+    rows = session.execute(
+        sa.select(kind, count)
+        .where(*filters.conditions(table), at >= begin, at < end, table.status != "refused")
+        .group_by(kind)
+    ).all()
+    return Counter({str(name): int(n or 0) for name, n in rows})
 
 
 def trajectory_usage(*, session: Session, trajectory_id: int, limit: int = 20) -> list[PlanEvent]:

@@ -2,12 +2,12 @@
 
 An hour is summarised once it is `SETTLE_S` in the past (events are written off the request
 path, a little after they happened): one `PlanEventRollup` row per robot and requester, model,
-source and status, with the timing sums and their histograms (a robot and a seed job that share
-a name stay apart). `PlanEventRollupState.rolled_until` says how
-far that has gone; replicas advance it with a compare-and-set, so each hour is summarised by
-exactly one of them. An event written later than that into an hour already summarised is picked
-up by `heal_rollups`, which compares event and rollup counts over the last `RECHECK_S` and
-summarises again the hours that differ.
+source, status and goal kind, with the timing sums and their histograms (a robot and a seed job
+that share a name stay apart). `PlanEventRollupState.rolled_until` says how far that has gone;
+replicas advance it with a compare-and-set, so each hour is summarised by exactly one of them.
+An event written later than that into an hour already summarised is picked up by
+`heal_rollups`, which compares event and rollup counts over the last `RECHECK_S` and summarises
+again the hours that differ.
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ def summarise(rows: EventRows, hour_start: int) -> list[dict[str, object]]:
     if not len(rows):
         return []
     hour = (rows.t - hour_start) // ROLLUP_S
-    columns = [codes(c) for c in (rows.robot, rows.requester, rows.model, rows.source, rows.status)]
+    grouped = (rows.robot, rows.requester, rows.model, rows.source, rows.status, rows.goal_kind)
+    columns = [codes(c) for c in grouped]
     dims = (int(hour.max()) + 1, *(len(labels) for labels, _ in columns))
     flat = np.ravel_multi_index((hour, *(inverse for _, inverse in columns)), dims)
     unique, inverse = np.unique(flat, return_inverse=True)
@@ -47,7 +48,7 @@ def summarise(rows: EventRows, hour_start: int) -> list[dict[str, object]]:
     )
     blobs = _histogram_blobs(rows, inverse, groups)
     keys = np.unravel_index(unique, dims)
-    (robots, _), (requesters, _), (models, _), (sources, _), (statuses, _) = columns
+    (robots, _), (requesters, _), (models, _), (sources, _), (statuses, _), (kinds, _) = columns
     return [
         {
             "bucket_start": datetime.fromtimestamp(hour_start + int(keys[0][i]) * ROLLUP_S, UTC),
@@ -56,6 +57,7 @@ def summarise(rows: EventRows, hour_start: int) -> list[dict[str, object]]:
             "model_id": models[keys[3][i]],
             "source": sources[keys[4][i]],
             "status": statuses[keys[5][i]],
+            "goal_kind": kinds[keys[6][i]],
             "requests": int(n[i]),
             "lookup_ms": float(sums[i, 0]),
             "validate_ms": float(sums[i, 1]),
