@@ -12,7 +12,32 @@ export const COLORS = {
   highlight: 0xff00ff, // magenta, unlit: the link and the object at fault
   path: 0x1f6feb,
   base: 0x57606a,
+  lines: 0x1a7f37, // green: a Cartesian path's straight lines, as asked
 };
+
+const MARKER_M = 0.12; // the length of a goal frame's axes
+
+// Three axes (x red, y green, z blue) at a pose: x, y, z and a quaternion x, y, z, w.
+export function frameMarker(position, orientation) {
+  const axes = new THREE.AxesHelper(MARKER_M);
+  setPose(axes, [...position, ...orientation]);
+  axes.userData.name = "goal pose";
+  return axes;
+}
+
+// A polyline through poses (7 numbers each), a dot at each corner.
+export function polyline(poses, material) {
+  const group = new THREE.Group();
+  const points = poses.map((p) => new THREE.Vector3(p[0], p[1], p[2]));
+  group.add(new THREE.Line(new THREE.BufferGeometry().setFromPoints(points), material));
+  for (const point of points) {
+    const dot = new THREE.Mesh(new THREE.SphereGeometry(0.008, 12, 8), material);
+    dot.position.copy(point);
+    group.add(dot);
+  }
+  group.userData.name = "waypoints";
+  return group;
+}
 
 const HEIGHT = 480;
 
@@ -59,6 +84,7 @@ export function materials() {
     highlight: new THREE.MeshBasicMaterial({ color: COLORS.highlight }),
     path: new THREE.LineBasicMaterial({ color: COLORS.path }),
     base: new THREE.LineDashedMaterial({ color: COLORS.base, dashSize: 0.05, gapSize: 0.04 }),
+    lines: new THREE.MeshBasicMaterial({ color: COLORS.lines }),
   };
 }
 
