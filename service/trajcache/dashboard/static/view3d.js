@@ -12,7 +12,7 @@
 // `data-show` on #view3d to "trajectory:ID", "event:ID" or "cartesian:ID"; once a view is fetched, #view3d reports the trajectory it shows
 // (`data-trajectory`, and a "view3d-shown" event whose detail names it: for an event, its
 // trajectory or the rejected candidate at fault), so the rest of the page can follow it.
-import { Stage, THREE, frameMarker, materials, polyline, primitive, setPose, stlGeometry, triangles } from "./view3d_stage.js";
+import { COLORS, Stage, THREE, frameMarker, materials, polyline, primitive, setPose, stlGeometry, triangles } from "./view3d_stage.js";
 
 const KEY_STORAGE = "trajcache.adminKey";
 const ROUTES = { trajectory: "trajectories", event: "plan-events", cartesian: "cartesian-paths" };
@@ -216,7 +216,7 @@ class View3D {
     const goal = view.goal_pose;
     if (goal) this.stage.content.add(frameMarker(goal.position, goal.orientation));
     const lines = view.cartesian;
-    if (lines) this.stage.content.add(polyline(lines.poses, this.materials.lines));
+    if (lines) this.stage.content.add(polyline(lines.poses, COLORS.lines));
     this.root.dataset.goal = goal ? goal.position.map((v) => v.toFixed(3)).join(",") : "";
     this.root.dataset.waypoints = lines ? String(lines.poses.length - 1) : "";
   }

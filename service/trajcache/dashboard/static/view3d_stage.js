@@ -16,25 +16,40 @@ export const COLORS = {
 };
 
 const MARKER_M = 0.12; // the length of a goal frame's axes
+const AXES = [[0xff0000, [0, 0, -Math.PI / 2]], [0x00c000, [0, 0, 0]], [0x0050ff, [Math.PI / 2, 0, 0]]];
 
-// Three axes (x red, y green, z blue) at a pose: x, y, z and a quaternion x, y, z, w.
+// Three axes (x red, y green, z blue: unlit rods, thick enough to see) at a pose: x, y, z and a
+// quaternion x, y, z, w.
 export function frameMarker(position, orientation) {
-  const axes = new THREE.AxesHelper(MARKER_M);
-  setPose(axes, [...position, ...orientation]);
-  axes.userData.name = "goal pose";
-  return axes;
+  const marker = new THREE.Group();
+  for (const [color, [rx, ry, rz]] of AXES) {
+    const rod = new THREE.CylinderGeometry(0.005, 0.005, MARKER_M, 10);
+    rod.translate(0, MARKER_M / 2, 0); // from the origin along +y, then turned onto its axis
+    rod.rotateX(rx).rotateZ(rz).rotateY(ry);
+    marker.add(new THREE.Mesh(rod, new THREE.MeshBasicMaterial({ color })));
+  }
+  setPose(marker, [...position, ...orientation]);
+  marker.userData.name = "goal pose";
+  return marker;
 }
 
-// A polyline through poses (7 numbers each), a dot at each corner.
-export function polyline(poses, material) {
+// A polyline through poses (7 numbers each), a dot at each corner: drawn over the robot (no
+// depth test), since the lines asked for run through the link that follows them.
+export function polyline(poses, color) {
   const group = new THREE.Group();
   const points = poses.map((p) => new THREE.Vector3(p[0], p[1], p[2]));
-  group.add(new THREE.Line(new THREE.BufferGeometry().setFromPoints(points), material));
+  const line = new THREE.Line(
+    new THREE.BufferGeometry().setFromPoints(points),
+    new THREE.LineBasicMaterial({ color, depthTest: false, transparent: true }),
+  );
+  group.add(line);
+  const dot = new THREE.MeshBasicMaterial({ color, depthTest: false, transparent: true });
   for (const point of points) {
-    const dot = new THREE.Mesh(new THREE.SphereGeometry(0.008, 12, 8), material);
-    dot.position.copy(point);
-    group.add(dot);
+    const mesh = new THREE.Mesh(new THREE.SphereGeometry(0.008, 12, 8), dot);
+    mesh.position.copy(point);
+    group.add(mesh);
   }
+  for (const child of group.children) child.renderOrder = 1;
   group.userData.name = "waypoints";
   return group;
 }
@@ -84,7 +99,6 @@ export function materials() {
     highlight: new THREE.MeshBasicMaterial({ color: COLORS.highlight }),
     path: new THREE.LineBasicMaterial({ color: COLORS.path }),
     base: new THREE.LineDashedMaterial({ color: COLORS.base, dashSize: 0.05, gapSize: 0.04 }),
-    lines: new THREE.MeshBasicMaterial({ color: COLORS.lines }),
   };
 }
 
