@@ -3,12 +3,14 @@
 From each MotionBenchMaker Panda problem's goal state (`../shared/data/mbm-panda`), two 10 cm
 straight moves of `panda_hand` along its approach axis (its z): forward (approach) and back
 (retreat), sent to `POST /v1/robots/{id}/cartesian-path` through the REST API, in the
-problem's scene. A move is kept when the independent check finds its line clear: the hand and
-its fingers (Pinocchio and coal, from the shipped URDF and meshes: `mbm_check`, sharing no code
-with the service), placed at the goal state and slid along the line every 5 mm, touch no scene
-object, and the goal state itself is free. For each kept move:
+problem's scene. A move is kept when it is feasible without the service's word
+(`cartesian_filter`, sharing no code with the service: an independent IK path along the line,
+within the joint limits, with the whole robot clear along it); the others are counted by reason
+(`filtered`). For each kept move:
 
-- `cartesian_success_rate`: answers that reach fraction 1.0; the others are listed by reason;
+- `cartesian_success_rate`: answers that reach fraction 1.0; the others are listed by reason
+  (status, and what it hit); filtered moves are asked too (their answers are checked alike)
+  and those the service completes anyway are counted (`filtered_but_complete`);
 - every answered path is dense-checked (`mbm_check.check_path`: `collisions`), and the hand's
   origin at each state and midway between states (yourdfpy) must lie within the answer's
   `max_deviation_m` of the line (`line_errors`);
@@ -27,53 +29,33 @@ import time
 from collections import Counter
 from typing import Any
 
-import coal
 import numpy as np
-import pinocchio as pin
 from rich.console import Console
 from rich.table import Table
 
+from cartesian_filter import LineIk, infeasible_reason
 from harness.report import print_checked
 from harness.service import running_service
-from mbm_check import SceneChecker, check_path
+from mbm_check import check_path
 from mbm_problems import FAMILIES, allowed_pairs, clamp, load_problems, scene_objects, unpacked
 from mbm_tally import Tally, percentile
 from trajcache_client import NO_RETRY, APIError, Client
 
 LINK = "panda_hand"
-HAND_LINKS = ("panda_hand", "panda_leftfinger", "panda_rightfinger")
 MOVE_M = 0.10
-SLIDE_STEP_M = 0.005
 START_JITTER_RAD = 4e-3
 WAYPOINT_JITTER_M = 0.005
 CACHE = {"joint_tolerance": 5e-3, "position_tolerance": 6e-3}
 
 
-def line_clear(checker: SceneChecker, state: np.ndarray, shift: np.ndarray) -> bool:
-    """Whether the hand and fingers at `state`, slid along `shift` every 5 mm, touch no object."""
-    if not checker.is_free(state):
-        return False
-    q = checker.configuration(state)
-    pin.forwardKinematics(checker.model, checker.data, q)
-    pin.updateGeometryPlacements(checker.model, checker.data, checker.geoms, checker.geom_data)
-    n = len(checker.robot_geoms.geometryObjects)
-    hand = [g for g in range(n) if checker.link_of(g) in HAND_LINKS]
-    objects = checker.geoms.geometryObjects
-    steps = max(1, int(np.ceil(np.linalg.norm(shift) / SLIDE_STEP_M)))
-    request, result = coal.CollisionRequest(), coal.CollisionResult()
-    for k in range(n, len(objects)):
-        other = coal.Transform3s(
-            checker.geom_data.oMg[k].rotation, checker.geom_data.oMg[k].translation
-        )
-        for g in hand:
-            placed = checker.geom_data.oMg[g]
-            for t in np.linspace(0.0, 1.0, steps + 1):
-                moved = coal.Transform3s(placed.rotation, placed.translation + t * shift)
-                result.clear()
-                geometry = checker.geoms.geometryObjects[g].geometry
-                if coal.collide(geometry, moved, objects[k].geometry, other, request, result):
-                    return False
-    return True
+def miss_reason(answer: dict[str, Any]) -> str:
+    """The status of a path stopped short, with what it hit (links and objects, not states)."""
+    message = answer["message"]
+    if answer["status"] in ("collision", "too_close"):
+        message = message.split(" (on the motion")[0].split(" (at the start")[0]
+    elif answer["status"] == "no_ik_solution":
+        message = message.split(" at sample")[0]
+    return f"{answer['status']}: {message[:100]}"
 
 
 class CartesianRun:
@@ -85,6 +67,9 @@ class CartesianRun:
         self.reasons: Counter[str] = Counter()
         self.times: dict[str, list[float]] = {"computed": [], "hit": []}
         self.shifts: list[float] = []
+        self.filtered: Counter[str] = Counter()
+        self.bonus: Counter[str] = Counter()  # filtered moves the service completed anyway
+        self.ik = LineIk(run.checker, LINK)
 
     def ask(self, robot_id: str, body: dict[str, Any]) -> dict[str, Any] | None:
         try:
@@ -120,20 +105,23 @@ class CartesianRun:
     def move(self, tally: Tally, robot_id: str, state: np.ndarray, sign: float, rng: Any) -> None:
         pose = self.run.hand.of(state)
         shift = sign * MOVE_M * pose[:3, 2]
-        if not line_clear(self.run.checker, state, shift):
-            self.counts["lines_blocked"] += 1
-            return
-        self.counts["moves"] += 1
         quat = self.run.hand.goal(state)["orientation"]
         end = pose[:3, 3] + shift
         body = {"start": state.tolist(), "link": LINK, "cache": CACHE,
                 "waypoints": [{"position": end.tolist(), "orientation": quat}]}  # fmt: skip
-        answer = self.ask(robot_id, body)
+        reason = infeasible_reason(self.ik, state, shift)
+        answer = self.ask(robot_id, {**body, "cache": {**CACHE, "store": not reason}})
+        if answer is not None:
+            self.check(tally, answer, (pose[:3, 3], end))
+        if reason:  # asked all the same: checked, and a whole path counts as a bonus
+            self.filtered[reason] += 1
+            self.bonus[reason] += answer is not None and answer["fraction"] == 1.0
+            return
+        self.counts["moves"] += 1
         if answer is None:
             return
-        self.check(tally, answer, (pose[:3, 3], end))
         if answer["fraction"] < 1.0:
-            self.reasons[f"{answer['status']}: {answer['message'][:90]}"] += 1
+            self.reasons[miss_reason(answer)] += 1
             return
         self.counts["complete"] += 1
         self.times["computed"].append(answer["timings_ms"]["total"])
@@ -183,7 +171,8 @@ def main(args: argparse.Namespace, run_class: Any) -> int:
     figures = {
         "problems": sum(t.problems for t in tallies.values()),
         "moves": moves,
-        "lines_blocked": counts["lines_blocked"],
+        "filtered": dict(bench.filtered),
+        "filtered_but_complete": dict(bench.bonus),
         "cartesian_success_rate": round(counts["complete"] / moves, 4) if moves else None,
         "cartesian_ms_median": percentile(bench.times["computed"]),
         "repeats": repeats,

@@ -218,6 +218,10 @@ def _print_report(report: ImportReport, name: str, show_rejected: int, console: 
     )
     table.add_row("trajectories imported", str(report.inserted))
     table.add_row("already there (skipped)", str(report.duplicates))
+    table.add_row(
+        "Cartesian paths imported / already there",
+        f"{report.cartesian_inserted} / {report.cartesian_duplicates}",
+    )
     table.add_row("rejected", str(report.rejected_count))
     Console().print(table)
     for rejected in report.rejected[:show_rejected]:

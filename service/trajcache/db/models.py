@@ -262,6 +262,10 @@ class PlanEvent(Base):
     # Why each cached candidate was rejected: its first failing validation sample, the state
     # there and the pairs (or joints) at fault (`services/plan/rejections.py`); None: none was.
     rejections: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON)
+    # The goal as a link's pose when the request gave one: {link, position, orientation,
+    # position_tolerance, orientation_tolerance} (the model's base frame; the world for a
+    # planar base); None: the goal was a state.
+    goal_pose: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     # Set by the background bookkeeping writer: a write retried after its COMMIT reached the
     # database (only the answer was lost) is recognised by it instead of being counted twice.
     record_key: Mapped[str | None] = mapped_column(String(32))

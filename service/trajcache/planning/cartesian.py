@@ -28,9 +28,10 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
+import pinocchio as pin
 from scipy.spatial.transform import Rotation, Slerp
 
-from trajcache.geometry.model.ik import IkProblem, PoseTarget, descend_from_seed
+from trajcache.geometry.model.ik import IkProblem, PoseTarget, descend_from_seed, pose_errors
 from trajcache.geometry.model.pin_kinematics import PinKinematics
 from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
@@ -42,6 +43,7 @@ __all__ = [
     "CartesianStatus",
     "MotionVerdict",
     "cartesian_path",
+    "path_fault",
     "sample_count",
     "sample_lines",
 ]
@@ -258,3 +260,39 @@ def _relative_jump(
         f"mean step ({jump_threshold:g} × {steps.mean():.4g})"
     )
     return states[: k + 1], CartesianStatus.JOINT_JUMP, message
+
+
+def path_fault(problem: CartesianProblem, states: FloatArray, line_of: np.ndarray) -> str:
+    """Why `states` (the start first) is not a complete path of `problem` as `cartesian_path`
+    would answer it (empty: it is one): one state per sample, solved on the sample's line, each
+    within the IK tolerances of its sample, no jump over the thresholds. A stored path is held
+    to this before it serves, so that its word (an import's, a tampered row's) is never taken;
+    the scene is the validator's to judge, not this."""
+    kin = problem.kinematics
+    frame = kin.frame_id(problem.link)
+    states = np.asarray(states, dtype=float)
+    start = np.asarray(problem.start, dtype=float)
+    if states.ndim != 2 or len(states) < 2 or not np.array_equal(states[0], start):
+        return "the path does not begin at its start"
+    poses, line = sample_lines(
+        kin.link_pose(start, frame), problem.waypoints, problem.max_step, problem.max_rotation_step
+    )[:2]
+    if len(states) != len(poses) + 1:
+        return f"{len(states) - 1} states for {len(poses)} samples"
+    if not np.array_equal(np.asarray(line_of), np.concatenate([[0], line])):
+        return "a state is not on the line of its sample"
+    tolerances = np.array([problem.position_tolerance, problem.orientation_tolerance])
+    for k, pose in enumerate(poses):
+        errors = pose_errors(kin, frame, states[k + 1], pin.SE3(pose))
+        if np.any(np.array(errors) > tolerances):
+            return f"state {k + 1} is off its sample by {errors[0]:.3g} m, {errors[1]:.3g} rad"
+    revolute = _turning(kin.model)
+    for k, step in enumerate(np.diff(states, axis=0)):
+        jump = _absolute_jump(problem, step, revolute)
+        if jump:
+            return f"{jump} at sample {k + 1}"
+    if problem.jump_threshold > 0:
+        message = _relative_jump(states, problem.jump_threshold, [])[2]
+        if message:
+            return message
+    return ""

@@ -33,7 +33,7 @@ router = APIRouter(prefix="/admin", tags=["admin"], responses=COMMON, route_clas
 NDJSON = "application/x-ndjson"
 _MODEL_ID = "5158592d7f5559c728b6d23f76857a89890f358d7aa40994d9e2338ac93ec821"
 _NDJSON_EXAMPLE = (
-    '{"type":"header","format":"trajcache-export","version":2,"exported_at":"2025-06-02T09:25:01Z",'
+    '{"type":"header","format":"trajcache-export","version":3,"exported_at":"2025-06-02T09:25:01Z",'
     '"filters":{"model_ids":[],"sources":["sim"],"created_after":null,"created_before":null}}\n'
     '{"type":"model","model_id":"' + _MODEL_ID + '","name":"arm2","base":"fixed",'
     '"joint_names":["j1"],"urdf":"<robot name=\\"arm2\\">…</robot>","files":[],'
@@ -43,7 +43,7 @@ _NDJSON_EXAMPLE = (
     '"planning_time_ms":68.2,"created_at":"2025-06-01T10:00:00Z","last_used_at":null,'
     '"last_validated_at":null,"last_real_validated_at":null,"hits":0,"failures":0,'
     '"consecutive_failures":0,"real_validations":0}\n'
-    '{"type":"end","trajectories":1}\n'
+    '{"type":"end","trajectories":1,"cartesian_paths":0}\n'
 )
 MAX_AGE_S = 1e10  # about 300 years: ages beyond cannot be subtracted from today's date
 
@@ -124,6 +124,8 @@ class ImportOut(BaseModel):
                     "models_existing": 0,
                     "inserted": 111,
                     "duplicates": 1,
+                    "cartesian_inserted": 0,
+                    "cartesian_duplicates": 0,
                     "rejected_count": 1,
                     "rejected": [
                         {"line": 57, "reason": "state is out of joint limits: joint2 = 2.5 …"}
@@ -138,6 +140,8 @@ class ImportOut(BaseModel):
     models_existing: int
     inserted: int
     duplicates: int
+    cartesian_inserted: int = Field(description="Cartesian paths stored.")
+    cartesian_duplicates: int = Field(description="Cartesian paths already there (skipped).")
     rejected_count: int
     rejected: list[RejectedLineOut]
 
@@ -238,8 +242,10 @@ def export_route(
     "one (same model and states) is already there. Rejected lines are listed with their "
     "reasons; the rest is imported. The import is one transaction: a corrupt, truncated or "
     "empty body (gzip that does not unpack to its end, text that is not UTF-8, a line that is "
-    "not JSON, a version-2 export without its end line) is a 422 naming the byte or line, and "
-    "nothing is imported. The body is read as it arrives and rows are written in batches; "
+    "not JSON, an export of version 2 or later without its end line) is a 422 naming the byte "
+    "or line, and nothing is imported. Cartesian paths (version 3) are checked against their "
+    "model and proven in the robot's scene before they serve. The body is read as it arrives "
+    "and rows are written in batches; "
     "imported trajectories show `quality_pending` until the service has computed their "
     "quality in the background. `source` relabels every trajectory's provenance.",
     openapi_extra={
@@ -294,6 +300,8 @@ async def import_route(
             models_existing=report.models_existing,
             inserted=report.inserted,
             duplicates=report.duplicates,
+            cartesian_inserted=report.cartesian_inserted,
+            cartesian_duplicates=report.cartesian_duplicates,
             rejected_count=report.rejected_count,
             rejected=[RejectedLineOut(line=r.line, reason=r.reason) for r in report.rejected],
         )

@@ -12,13 +12,16 @@ from trajcache.api.responses import COMMON, errors
 from trajcache.api.schemas.rejections import RejectedCandidateOut
 from trajcache.api.schemas.stats import PlanEventOut
 from trajcache.api.schemas.view import (
+    CartesianLinesOut,
     FailureOut,
     FramesOut,
+    GoalPoseOut,
     ModelElementOut,
     ModelViewOut,
     PathViewOut,
     StoredSceneOut,
 )
+from trajcache.services.view.cartesian import cartesian_view
 from trajcache.services.view.files import model_file
 from trajcache.services.view.model import element_stl, model_view
 from trajcache.services.view.paths import PathView, plan_event_view, trajectory_view
@@ -216,6 +219,21 @@ def plan_event_view_route(
     )
 
 
+@router.get(
+    "/view/cartesian-paths/{path_id}",
+    response_model=PathViewOut,
+    summary="A stored Cartesian path as link poses, with the lines it follows",
+    description="The joint path of a Cartesian path the service stored (`path_id` of a "
+    "Cartesian path answer), one frame per validation sample, and `cartesian`: the link's pose "
+    "at the start and each waypoint, the corners of the straight lines it follows. Stored "
+    "without a scene (it is proven in each request's scene), it is shown alone.",
+    responses=errors({404: ("Unknown Cartesian path", "Cartesian path 12 not found")}),
+)
+def cartesian_view_route(path_id: Id, ctx: CtxDep, session: SessionDep) -> PathViewOut:
+    """The Cartesian path's frames and lines."""
+    return _path_out(cartesian_view(ctx=ctx, session=session, path_id=path_id))
+
+
 def _scene_out(scene: StoredScene) -> StoredSceneOut:
     return StoredSceneOut(
         robot_id=scene.robot_id,
@@ -260,4 +278,8 @@ def _path_out(view: PathView) -> PathViewOut:
         failure=failure,
         event=None if view.event is None else PlanEventOut.model_validate(view.event),
         notes=view.notes,
+        goal_pose=None if view.goal_pose is None else GoalPoseOut.model_validate(view.goal_pose),
+        cartesian=None
+        if view.cartesian is None
+        else CartesianLinesOut(link=view.cartesian.link, poses=view.cartesian.poses.tolist()),
     )

@@ -135,6 +135,27 @@ class FramesOut(BaseModel):
     )
 
 
+class GoalPoseOut(BaseModel):
+    """The goal a plan request gave as a link's pose (drawn as a frame marker)."""
+
+    link: str = Field(description="As the request named it (empty: the end-effector link).")
+    position: list[float] = Field(
+        description="x, y, z (the model's base frame; the world for a planar base)."
+    )
+    orientation: list[float] = Field(description="Quaternion x, y, z, w.")
+    position_tolerance: float
+    orientation_tolerance: float
+
+
+class CartesianLinesOut(BaseModel):
+    """The straight lines a Cartesian path follows (drawn as a polyline)."""
+
+    link: str = Field(description="The link whose origin follows the lines.")
+    poses: list[list[float]] = Field(
+        description=f"The corners ({POSE}): the link's pose at the start, then each waypoint."
+    )
+
+
 class FailureOut(BaseModel):
     """Where a rejected candidate failed: the event's record of it, its frame, and the posed
     links at the failing state (which may lie between two frames)."""
@@ -188,3 +209,9 @@ class PathViewOut(BaseModel):
     failure: FailureOut | None = Field(description="A rejected candidate's first failure.")
     event: PlanEventOut | None = Field(description="The plan event shown, if one is.")
     notes: list[str] = Field(description="What the view shows otherwise than asked.")
+    goal_pose: GoalPoseOut | None = Field(
+        default=None, description="A plan event's goal, when the request gave it as a pose."
+    )
+    cartesian: CartesianLinesOut | None = Field(
+        default=None, description="A Cartesian path's lines: its start and waypoints."
+    )

@@ -1,19 +1,21 @@
 // The dashboard's 3D view: a robot with its collision geometry, the scene version a path was
 // stored or validated in, and the path animated (play, pause, a scrubber) with the end
 // effector's swept path drawn. A plan event with rejected candidates opens at the first
-// failing sample of one, the link and the object (or the two links) at fault in magenta.
+// failing sample of one, the link and the object (or the two links) at fault in magenta. A
+// goal given as a pose is drawn as a frame marker, a Cartesian path's lines as a polyline.
 //
 // Everything drawn comes from the service, render-ready: the model's collision elements
 // (/v1/view/models/{id}, meshes as STL of the triangles the validator checks), the scene and
 // the world pose of every posed link at every frame (/v1/view/trajectories/{id},
-// /v1/view/plan-events/{id}), computed with the service's own kinematics. No URDF loader and
-// no kinematics here. The dashboard asks for a view by setting `data-show` on #view3d to
-// "trajectory:ID" or "event:ID"; once a view is fetched, #view3d reports the trajectory it shows
+// /v1/view/plan-events/{id}, /v1/view/cartesian-paths/{id}), computed with the service's own
+// kinematics. No URDF loader and no kinematics here. The dashboard asks for a view by setting
+// `data-show` on #view3d to "trajectory:ID", "event:ID" or "cartesian:ID"; once a view is fetched, #view3d reports the trajectory it shows
 // (`data-trajectory`, and a "view3d-shown" event whose detail names it: for an event, its
 // trajectory or the rejected candidate at fault), so the rest of the page can follow it.
-import { Stage, THREE, materials, primitive, setPose, stlGeometry, triangles } from "./view3d_stage.js";
+import { COLORS, Stage, THREE, frameMarker, materials, polyline, primitive, setPose, stlGeometry, triangles } from "./view3d_stage.js";
 
 const KEY_STORAGE = "trajcache.adminKey";
+const ROUTES = { trajectory: "trajectories", event: "plan-events", cartesian: "cartesian-paths" };
 const FRAMES_PER_SECOND = 30;
 const $ = (id) => document.getElementById(id);
 
@@ -98,11 +100,10 @@ class View3D {
     this.pause();
     this.root.dataset.state = "loading";
     $("view3d-info").textContent = `Loading ${kind} ${id}…`;
-    const path = kind === "event" ? `/v1/view/plan-events/${id}${query}` : `/v1/view/trajectories/${id}${query}`;
-    const view = await fetchApi(path);
+    const view = await fetchApi(`/v1/view/${ROUTES[kind]}/${id}${query}`);
     if (ticket !== this.loading) return; // a newer request took over
     const event = context || view.event;
-    const shown = kind === "trajectory" ? id : view.failure ? view.failure.rejection.trajectory_id : event.trajectory_id;
+    const shown = kind === "trajectory" ? id : view.failure ? view.failure.rejection.trajectory_id : event ? event.trajectory_id : null;
     this.report(shown); // even where WebGL is missing, the page follows the selection
     if (!this.ensureStage()) return;
     const model = await this.model(view.model_id);
@@ -155,6 +156,7 @@ class View3D {
     this.robotMeshes = this.links.flatMap((g) => g.children);
     this.sceneObjects(view, names, posed);
     this.paths(view, model.view, posed);
+    this.goals(view);
     const scrub = $("view3d-scrub");
     scrub.max = String(view.frames.count - 1);
     this.highlight(view.failure ? view.failure.rejection.pairs.flatMap((p) => [p.link, p.other]) : []);
@@ -207,6 +209,16 @@ class View3D {
       line.computeLineDistances();
       this.stage.content.add(line);
     }
+  }
+
+  // The goal pose as a frame marker; a Cartesian path's lines through its waypoints.
+  goals(view) {
+    const goal = view.goal_pose;
+    if (goal) this.stage.content.add(frameMarker(goal.position, goal.orientation));
+    const lines = view.cartesian;
+    if (lines) this.stage.content.add(polyline(lines.poses, COLORS.lines));
+    this.root.dataset.goal = goal ? goal.position.map((v) => v.toFixed(3)).join(",") : "";
+    this.root.dataset.waypoints = lines ? String(lines.poses.length - 1) : "";
   }
 
   // What to look at: the robot over the whole path, with some of the scene around it.
@@ -330,7 +342,9 @@ class View3D {
     $("view3d-failure").hidden = !view.failure;
     const of = event ? `plan event #${event.event_id} of ${event.robot_id} (${event.status})` : "";
     const trajectory = `${view.failure ? "rejected candidate" : "trajectory"} #${shown}`;
-    const what = kind === "event" ? `${of} · ${trajectory}` : `trajectory #${id}${of ? ` for ${of}` : ""}`;
+    const what = kind === "event" ? `${of} · ${trajectory}`
+      : kind === "cartesian" ? `Cartesian path #${id} of ${view.cartesian.link}`
+      : `trajectory #${id}${of ? ` for ${of}` : ""}`;
     $("view3d-title").textContent = `${what} · ${sceneLabel(view)}`;
     const lines = view.failure ? [describe(view.failure.rejection)] : [`${view.key_states.length} key states, ${view.frames.samples} validation samples`];
     $("view3d-info").textContent = [...lines, ...view.notes].join(" · ");

@@ -12,7 +12,47 @@ export const COLORS = {
   highlight: 0xff00ff, // magenta, unlit: the link and the object at fault
   path: 0x1f6feb,
   base: 0x57606a,
+  lines: 0x1a7f37, // green: a Cartesian path's straight lines, as asked
 };
+
+const MARKER_M = 0.12; // the length of a goal frame's axes
+const AXES = [[0xff0000, [0, 0, -Math.PI / 2]], [0x00c000, [0, 0, 0]], [0x0050ff, [Math.PI / 2, 0, 0]]];
+
+// Three axes (x red, y green, z blue: unlit rods, thick enough to see) at a pose: x, y, z and a
+// quaternion x, y, z, w.
+export function frameMarker(position, orientation) {
+  const marker = new THREE.Group();
+  for (const [color, [rx, ry, rz]] of AXES) {
+    const rod = new THREE.CylinderGeometry(0.005, 0.005, MARKER_M, 10);
+    rod.translate(0, MARKER_M / 2, 0); // from the origin along +y, then turned onto its axis
+    rod.rotateX(rx).rotateZ(rz).rotateY(ry);
+    marker.add(new THREE.Mesh(rod, new THREE.MeshBasicMaterial({ color })));
+  }
+  setPose(marker, [...position, ...orientation]);
+  marker.userData.name = "goal pose";
+  return marker;
+}
+
+// A polyline through poses (7 numbers each), a dot at each corner: drawn over the robot (no
+// depth test), since the lines asked for run through the link that follows them.
+export function polyline(poses, color) {
+  const group = new THREE.Group();
+  const points = poses.map((p) => new THREE.Vector3(p[0], p[1], p[2]));
+  const line = new THREE.Line(
+    new THREE.BufferGeometry().setFromPoints(points),
+    new THREE.LineBasicMaterial({ color, depthTest: false, transparent: true }),
+  );
+  group.add(line);
+  const dot = new THREE.MeshBasicMaterial({ color, depthTest: false, transparent: true });
+  for (const point of points) {
+    const mesh = new THREE.Mesh(new THREE.SphereGeometry(0.008, 12, 8), dot);
+    mesh.position.copy(point);
+    group.add(mesh);
+  }
+  for (const child of group.children) child.renderOrder = 1;
+  group.userData.name = "waypoints";
+  return group;
+}
 
 const HEIGHT = 480;
 

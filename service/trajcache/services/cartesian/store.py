@@ -7,16 +7,20 @@ digest (the steps, thresholds and IK tolerances: `params_digest`), its start is 
 `position_tolerance` (m) and `orientation_tolerance` (rad) of the stored one. Candidates are
 tried nearest first (the start's largest gap plus the waypoints', a ranking only), at most
 TRIED of them among the CANDIDATES most recent: the stored joint path with its first state
-replaced by the request's start is served only when the request's validator (certified, in
-the robot's current scene, as a computed path is) finds every joint motion valid. Never served
-uncertified; a scene change that blocks the path makes the request compute anew.
+replaced by the request's start is served only when it is a complete path of its own request
+(its stored start and waypoints, the request's parameters, which the digest matched:
+`planning.cartesian.path_fault`: every state solves its sample within the IK tolerances, no
+jump over the thresholds) and the request's validator (certified, in the robot's current scene,
+as a computed path is) finds every joint motion valid. Never served on a stored row's word (an
+imported one's included) nor uncertified; a scene change that blocks the path makes the request
+compute anew.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -28,6 +32,7 @@ from trajcache.planning.cartesian import (
     CartesianPath,
     CartesianProblem,
     CartesianStatus,
+    path_fault,
     sample_lines,
 )
 from trajcache.services.context import ServiceContext
@@ -126,15 +131,36 @@ def lookup_path(
             np.asarray(waypoints), wanted, query
         ):
             offset = np.linalg.norm(np.asarray(waypoints)[:, :3] - wanted[:, :3], axis=1).max()
-            near.append((float(gap.max() + offset), path_id, states, line_of))
+            near.append(
+                (float(gap.max() + offset), path_id, stored_start, waypoints, states, line_of)
+            )
     near.sort(key=lambda entry: entry[0])
-    for _, path_id, states, line_of in near[:TRIED]:
+    for _, path_id, stored_start, waypoints, states, line_of in near[:TRIED]:
+        if _stored_fault(problem, stored_start, waypoints, states, line_of):
+            continue
         served = np.array(states, dtype=float)
         served[0] = start
         if problem.validate_fn is not None and problem.validate_fn(served).kept < len(served):
             continue
         return CachedPath(_served(problem, served, np.asarray(line_of)), int(path_id))
     return None
+
+
+def _stored_fault(
+    problem: CartesianProblem,
+    start: list[float],
+    waypoints: list[list[float]],
+    states: list[list[float]],
+    line_of: list[int],
+) -> str:
+    """Why a stored path is not a complete path of its own request under `problem`'s
+    parameters (empty: it is one)."""
+    rows = np.asarray(waypoints, dtype=float)
+    poses = np.tile(np.eye(4), (len(rows), 1, 1))
+    poses[:, :3, :3] = Rotation.from_quat(rows[:, 3:]).as_matrix()  # a unit, whatever stored
+    poses[:, :3, 3] = rows[:, :3]
+    own = replace(problem, start=np.asarray(start, dtype=float), waypoints=list(poses))
+    return path_fault(own, np.asarray(states, dtype=float), np.asarray(line_of))
 
 
 def _waypoints_near(stored: FloatArray, wanted: FloatArray, query: CacheQuery) -> bool:

@@ -7,7 +7,9 @@ short) refuses the whole import: nothing is stored. Trajectories are written in 
 (`bulk_insert`), all inside the one transaction. Their quality (timing, clearance) is not
 computed here: new rows are marked pending and the service computes it in the background
 (`backfill`). Their end poses are indexed with each batch (`end_poses`), in the transaction.
-Models registered by the import reach the process's registry only once it is committed.
+Cartesian paths (version 3) are checked as data and written in batches too
+(`cartesian_transfer`); they are proven, in the robot's scene, before they serve. Models
+registered by the import reach the process's registry only once it is committed.
 """
 
 from __future__ import annotations
@@ -43,6 +45,11 @@ from trajcache.services.errors import (
     ServiceError,
 )
 from trajcache.services.maintenance.bulk_insert import DEFAULT_BATCH_ROWS, BatchWriter
+from trajcache.services.maintenance.cartesian_transfer import (
+    CartesianLineError,
+    CartesianWriter,
+    cartesian_values,
+)
 from trajcache.services.maintenance.transfer import COUNTERS, FORMAT, FORMAT_VERSION, TIMES
 
 MAX_LISTED_REJECTS = 1000
@@ -65,6 +72,8 @@ class ImportReport:
     models_existing: int = 0
     inserted: int = 0
     duplicates: int = 0
+    cartesian_inserted: int = 0
+    cartesian_duplicates: int = 0
     rejected_count: int = 0
     rejected: list[Rejected] = field(default_factory=list)  # the first MAX_LISTED_REJECTS
 
@@ -131,6 +140,7 @@ class Importer:
         self._model_ids: dict[str, str] = {}  # id in the file -> id in this database
         self._models: dict[str, RobotModel] = {}
         self._writer = BatchWriter(session, batch_rows=batch_rows, inserted_fn=self._index_ends)
+        self._paths = CartesianWriter(session, batch_rows=batch_rows)
         self._version = 0  # of the header; 0: no header read
         self._ended = False
 
@@ -152,6 +162,9 @@ class Importer:
                 self._model(record)
             elif kind == "trajectory":
                 self._trajectory(record)
+            elif kind == "cartesian_path":
+                model = self._model_for(record.get("model_id"))
+                self._paths.add(cartesian_values(model, record))
             elif kind == "end":
                 self._ended = True  # version 2: the export was written to its end
             else:
@@ -164,7 +177,7 @@ class Importer:
             self.report.reject(line_no, "not valid JSON: it nests too deeply")
         except ImportFormatError:
             raise
-        except (_LineError, GeometryError, ServiceError) as exc:
+        except (_LineError, CartesianLineError, GeometryError, ServiceError) as exc:
             self.report.reject(line_no, str(exc)[:500])
 
     def finish(self) -> ImportReport:
@@ -174,8 +187,11 @@ class Importer:
                 "the export ends without its end line: it was cut short; nothing was imported"
             )
         self._writer.flush()
+        self._paths.flush()
         self.report.inserted += self._writer.inserted
         self.report.duplicates += self._writer.duplicates
+        self.report.cartesian_inserted += self._paths.inserted
+        self.report.cartesian_duplicates += self._paths.duplicates
         self.session.commit()
         for model in self._models.values():
             self.registry.put(model)
@@ -236,7 +252,7 @@ class Importer:
 
     def _model_for(self, file_id: Any) -> RobotModel:
         if not isinstance(file_id, str) or not file_id:
-            raise _LineError("a trajectory line needs a model_id")
+            raise _LineError("a trajectory or Cartesian path line needs a model_id")
         model_id = self._model_ids.get(file_id, file_id)
         model = self._models.get(model_id)
         if model is None:

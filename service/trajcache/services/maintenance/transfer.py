@@ -2,7 +2,7 @@
 
 One JSON object per line, in this order:
 
-1. `{"type": "header", "format": "trajcache-export", "version": 2, "exported_at": ISO-8601,
+1. `{"type": "header", "format": "trajcache-export", "version": 3, "exported_at": ISO-8601,
    "filters": {...}}` — optional on import; a file of another format or a newer version is
    refused as a whole.
 2. Per model, before its trajectories: `{"type": "model", "model_id", "name", "base",
@@ -17,12 +17,17 @@ One JSON object per line, in this order:
    "consecutive_failures", "real_validations"}` — states ordered as the model's
    `state_names`; timestamps ISO-8601 (UTC) or null; `content_hash` (optional on import) is
    checked against the states.
-4. `{"type": "end", "trajectories": N}` (version 2): the last line, with the number of
-   trajectory lines written (for information). A version-2 file without it was cut short (a
-   plain file can be cut at a line's end) and is refused as a whole, as is text after it.
+4. `{"type": "cartesian_path", ...}` (version 3): the stored Cartesian paths, each after its
+   model's line (`cartesian_transfer`: the format, and what import checks). They have no
+   source nor creation time: an export filtered by source or age carries none.
+5. `{"type": "end", "trajectories": N, "cartesian_paths": M}` (version 2): the last line, with
+   the number of lines of each kind written (for information). A file of version 2 or later
+   without it was cut short (a plain file can be cut at a line's end) and is refused as a
+   whole, as is text after it.
 
 Versions: 1 (trajcache up to the release that added background quality) has no end line;
-importing it still works, without the cut-short check. 2 adds the end line.
+importing it still works, without the cut-short check. 2 adds the end line, 3 the Cartesian
+paths; every earlier version still imports.
 
 Export streams: rows are read a batch at a time (a server-side cursor on PostgreSQL) and
 written as they come, so its memory does not grow with the cache. Import is idempotent: a
@@ -53,9 +58,10 @@ from sqlalchemy.orm import Session
 from trajcache.db import models as tables
 from trajcache.services.catalog.trajectories import SOURCES
 from trajcache.services.errors import InvalidInputError, NotFoundError
+from trajcache.services.maintenance.cartesian_transfer import cartesian_records
 
 FORMAT = "trajcache-export"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 EXPORT_BATCH_ROWS = 2000
 _T = tables.Trajectory
 COUNTERS = ("hits", "failures", "consecutive_failures", "real_validations")
@@ -83,6 +89,10 @@ class ExportFilter:
         if self.created_before is not None:
             out.append(_T.created_at < self.created_before)
         return out
+
+    def selects_cartesian_paths(self) -> bool:
+        """Cartesian paths have no source nor creation time: only a filter by model keeps them."""
+        return not self.sources and self.created_after is None and self.created_before is None
 
     def as_dict(self) -> dict[str, Any]:
         """The filter as written into the header."""
@@ -190,7 +200,8 @@ def _env(row: Any) -> dict[str, Any]:
 def export_records(
     *, session: Session, filt: ExportFilter, include_models: bool = True
 ) -> Iterator[dict[str, Any]]:
-    """The header, each model's line and its trajectories (by model, then id), the end line."""
+    """The header, each model's line and its trajectories (by model, then id), the Cartesian
+    paths (after their model's line), the end line."""
     check_filter(session, filt)
     yield {
         "type": "header",
@@ -205,15 +216,22 @@ def export_records(
         .order_by(_T.model_id, _T.id)
         .execution_options(yield_per=EXPORT_BATCH_ROWS)
     )
-    current: str | None = None
-    count = 0
+    written: set[str] = set()
+    count = paths = 0
     for row in rows:
-        if include_models and row.model_id != current:
-            current = row.model_id
+        if include_models and row.model_id not in written:
+            written.add(row.model_id)
             yield model_record(session, row.model_id)
         count += 1
         yield trajectory_record(row)
-    yield {"type": "end", "trajectories": count}
+    if filt.selects_cartesian_paths():
+        for record in cartesian_records(session, filt.model_ids):
+            if include_models and record["model_id"] not in written:
+                written.add(record["model_id"])
+                yield model_record(session, record["model_id"])
+            paths += 1
+            yield record
+    yield {"type": "end", "trajectories": count, "cartesian_paths": paths}
 
 
 def dumps(record: Mapping[str, Any]) -> str:

@@ -251,4 +251,18 @@ class PlanAttempt:
             "seed": seed,
             "rejections": None,  # the record writer fills it in (`services.plan.rejections`)
             "goal_kind": self.goal_kind.value,
+            "goal_pose": _pose_record(self.request.goal_pose),
         }
+
+
+def _pose_record(goal: GoalPose | None) -> dict[str, object] | None:
+    """A goal pose as its plan event keeps it (None: the goal was a state)."""
+    if goal is None:
+        return None
+    return {
+        "link": goal.link,
+        "position": [float(v) for v in goal.position],
+        "orientation": [float(v) for v in goal.orientation],
+        "position_tolerance": float(goal.position_tolerance),
+        "orientation_tolerance": float(goal.orientation_tolerance),
+    }

@@ -8,5 +8,6 @@ kinematics of its own.
 - `scenes.py`: stored scene versions, by robot and version or by hash;
 - `paths.py`: the view of a stored trajectory in the scene it was stored in, and of a plan
   event: its trajectory, or a rejected candidate adapted as it was validated, opened at its
-  first failing sample.
+  first failing sample; a plan event whose goal was a pose carries it;
+- `cartesian.py`: a stored Cartesian path, with the lines it follows (start and waypoints).
 """

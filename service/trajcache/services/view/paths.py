@@ -10,6 +10,7 @@
   answer replaced its end states with the request's). A candidate deleted since keeps its
   failing state, shown alone. A rejected candidate is posed with the joint values the robot
   held when it was validated (recorded with it); an event's trajectory, with the current ones.
+  A request whose goal was a link's pose carries it (`goal_pose`), for a frame marker.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from trajcache.services.view.frames import (
 )
 from trajcache.services.view.scenes import StoredScene, find_scene, scene_by_hash
 
-__all__ = ["FailureView", "PathView", "plan_event_view", "trajectory_view"]
+__all__ = ["CartesianLines", "FailureView", "PathView", "plan_event_view", "trajectory_view"]
 
 
 @dataclass(frozen=True)
@@ -52,6 +53,15 @@ class FailureView:
     entry: Mapping[str, Any]  # the event's record (`services.plan.rejections`)
     frame: int  # the frame at (or just before) the failing sample
     poses: FloatArray  # (K, 7) the posed links at the failing state
+
+
+@dataclass(frozen=True)
+class CartesianLines:
+    """The lines a Cartesian path follows: the link, and the poses (x, y, z, qx, qy, qz, qw)
+    of its corners: the link's at the start, then each waypoint."""
+
+    link: str
+    poses: FloatArray  # (W + 1, 7)
 
 
 @dataclass(frozen=True)
@@ -68,6 +78,8 @@ class PathView:
     failure: FailureView | None = None
     event: tables.PlanEvent | None = None
     notes: list[str] = field(default_factory=list)
+    goal_pose: Mapping[str, Any] | None = None  # the plan event's, when its goal was a pose
+    cartesian: CartesianLines | None = None  # a Cartesian path's lines (`view.cartesian`)
 
 
 def trajectory_view(
@@ -158,6 +170,7 @@ def _event_view(
         failure=failure,
         event=event,
         notes=notes,
+        goal_pose=event.goal_pose,
     )
 
 
