@@ -10,6 +10,9 @@ from pathlib import Path
 import pytest
 
 REQUIRE_SERVICES = os.environ.get("TRAJCACHE_REQUIRE_SERVICES", "") == "1"
+# `trajcache import` run in a test's own process would lower that process's CPU priority for
+# the rest of the run (its default niceness): the suite's workers keep theirs.
+os.environ.setdefault("TRAJCACHE_IMPORT_NICENESS", "0")
 POSTGRES_URL = os.environ.get(
     "TRAJCACHE_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 )

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import gzip
 import json
+import subprocess
+import sys
 from collections.abc import Iterator
 from datetime import timedelta
 from pathlib import Path
@@ -177,3 +179,14 @@ def test_durations() -> None:
     assert parse_duration("2w", "--x") == timedelta(days=14)
     with pytest.raises(typer.BadParameter):
         parse_duration("-1d", "--x")
+
+
+def test_an_import_lowers_its_own_cpu_priority_by_its_niceness() -> None:
+    """`--nice` (or TRAJCACHE_IMPORT_NICENESS) is added to the importing process's niceness;
+    run in a child process, since it cannot be undone."""
+    code = (
+        "import os; from trajcache.cli.transfer import lower_priority; "
+        "before = os.nice(0); lower_priority(3); lower_priority(0); print(os.nice(0) - before)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "3"

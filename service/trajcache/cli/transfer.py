@@ -174,6 +174,7 @@ def import_command(
         typer.Option(
             min=0,
             max=19,
+            envvar="TRAJCACHE_IMPORT_NICENESS",
             help="CPU niceness added to the import, so a service on the same "
             "machine keeps answering first (0: none).",
         ),
