@@ -24,12 +24,13 @@ setup: $(DEV)
 serve: $(RUNTIME)
 	$(BIN)/trajcache serve
 
-# The suite runs on $(JOBS) processes; the tests that restart a shared server run alone after it.
+# The suite runs on $(JOBS) processes (an idle one takes queued tests from the other: the slow
+# ones sit anywhere); the tests that restart a shared server run alone after it.
 # PYTEST_ARGS (e.g. a test file) runs those tests in one process instead.
 JOBS ?= 2
 test: setup
 ifeq ($(strip $(PYTEST_ARGS)),)
-	$(BIN)/pytest -q -n $(JOBS) -m "not serial"
+	$(BIN)/pytest -q -n $(JOBS) --dist worksteal -m "not serial"
 	$(BIN)/pytest -q -m serial
 else
 	$(BIN)/pytest -q $(PYTEST_ARGS)
