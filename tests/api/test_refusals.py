@@ -87,6 +87,19 @@ def test_refusals_are_recorded_with_their_reason_and_counted_apart(
     assert sum(b["refusals"] for b in _stats(app_client)["series"]) == 4
 
 
+def test_a_robot_id_that_names_no_robot_leaves_no_event(
+    client_factory: ClientFactory, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A 129-character id is a 422 whose refusal leaves no event (PostgreSQL's robot id column
+    would refuse the row, and the record would be lost with an error in the log)."""
+    client = client_factory()
+    body = {"start": [0, 0], "goal": [1, 0]}
+    assert client.post(f"/v1/robots/{'0' * 129}/plan", json=body).status_code == 422
+    assert client.post("/v1/robots/ghost/plan", json=body).status_code == 404
+    assert [e["robot_id"] for e in _events(client, status="refused")] == ["ghost"]
+    assert not [r for r in caplog.records if "rejected by the database" in r.getMessage()]
+
+
 def test_the_moveit_route_records_its_in_band_refusals(app_client: TestClient) -> None:
     _robot(app_client)
     request = {

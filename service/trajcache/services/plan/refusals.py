@@ -10,7 +10,8 @@ refusal is counted apart from the answered requests (`services.stats.window`). I
 Only callers the service let through leave one: the HTTP layer records a refusal only after the
 request passed the API-key check (`api.auth`), so an unauthenticated caller (401), a key without
 the right (403), or a body refused before the caller is known (413, unreadable JSON) writes
-nothing.
+nothing. Nor does a request whose robot id is not a robot id at all (too long, other characters):
+its refusal names no robot it could be counted for, so only the Prometheus counter sees it.
 """
 
 from __future__ import annotations
@@ -19,7 +20,9 @@ import sqlalchemy as sa
 
 from trajcache.db.models import Robot
 from trajcache.services.bookkeeping.records import PlanRecord
+from trajcache.services.catalog.robots import check_robot_id
 from trajcache.services.context import ServiceContext
+from trajcache.services.errors import InvalidInputError
 from trajcache.services.plan.attempt import Requester
 from trajcache.services.prometheus import record_refusal as count_refusal
 
@@ -29,10 +32,18 @@ REFUSED = "refused"
 _REASON_CHARS = 500  # plan_events.error
 
 
-def record_refusal(*, ctx: ServiceContext, robot_id: str, reason: str, total_ms: float) -> int:
-    """Queue the plan event of a refused request of robot `robot_id`; its record's number.
+def record_refusal(
+    *, ctx: ServiceContext, robot_id: str, reason: str, total_ms: float
+) -> int | None:
+    """Queue the plan event of a refused request of robot `robot_id`; its record's number (None:
+    no event, for an id that cannot name a robot).
 
     The event names the robot's model when the robot exists ("" for an unknown robot)."""
+    count_refusal(requester=Requester.ROBOT.value)
+    try:
+        check_robot_id(robot_id)
+    except InvalidInputError:
+        return None
     with ctx.sessions() as session:
         model_id = session.scalar(sa.select(Robot.model_id).where(Robot.id == robot_id))
     event = {
@@ -48,9 +59,7 @@ def record_refusal(*, ctx: ServiceContext, robot_id: str, reason: str, total_ms:
         "error": _reason(reason),
     }
     records = ctx.records
-    seq = records.submit(PlanRecord(records.now(), None, (), event))
-    count_refusal(requester=Requester.ROBOT.value)
-    return seq
+    return records.submit(PlanRecord(records.now(), None, (), event))
 
 
 def _reason(text: str) -> str:
