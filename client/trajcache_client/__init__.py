@@ -80,8 +80,10 @@ from trajcache_client._stats_models import (
 )
 from trajcache_client._version import __version__
 from trajcache_client._view_models import (
+    CartesianLines,
     Failure,
     Frames,
+    GoalPose,
     ModelElement,
     ModelView,
     PathView,
@@ -97,6 +99,7 @@ __all__ = [
     "AsyncClient",
     "AuthError",
     "BadRequestError",
+    "CartesianLines",
     "CartesianResult",
     "Client",
     "ConflictError",
@@ -105,6 +108,7 @@ __all__ = [
     "Frames",
     "GetCartesianPathResponse",
     "GetPositionIKResponse",
+    "GoalPose",
     "Health",
     "IkResult",
     "ImportResult",

@@ -89,5 +89,7 @@ class ImportResult(_Answer):
     models_existing: int
     inserted: int
     duplicates: int
+    cartesian_inserted: int
+    cartesian_duplicates: int
     rejected_count: int
     rejected: list[RejectedLine]

@@ -234,6 +234,10 @@ class Endpoints:
         view_ops.trajectory_view,
         "A stored trajectory as link poses at its validation samples, in its scene.",
     )
+    cartesian_path_view = endpoint(
+        view_ops.cartesian_path_view,
+        "A stored Cartesian path as link poses, with the straight lines it follows.",
+    )
     plan_event_view = endpoint(
         view_ops.plan_event_view,
         "What a plan request validated: a rejected candidate at its first failing sample.",

@@ -82,8 +82,28 @@ class Failure(_Answer):
     rejection: RejectedCandidate
 
 
+class GoalPose(_Answer):
+    """A plan request's goal given as a link's pose: position (x, y, z) and quaternion
+    (x, y, z, w), in the model's base frame (the world for a planar base)."""
+
+    link: str
+    position: list[float]
+    orientation: list[float]
+    position_tolerance: float
+    orientation_tolerance: float
+
+
+class CartesianLines(_Answer):
+    """The straight lines a Cartesian path's link follows: its pose at the start, then each
+    waypoint (x, y, z, qx, qy, qz, qw)."""
+
+    link: str
+    poses: list[list[float]]
+
+
 class PathView(_Answer):
-    """A path to draw: its model, scene, frames, and where it failed if it did."""
+    """A path to draw: its model, scene, frames, and where it failed if it did; a pose goal
+    and a Cartesian path's lines when there are any."""
 
     model_id: str
     state_names: list[str]
@@ -95,3 +115,5 @@ class PathView(_Answer):
     failure: Failure | None
     event: PlanEvent | None
     notes: list[str]
+    goal_pose: GoalPose | None = None
+    cartesian: CartesianLines | None = None

@@ -52,6 +52,12 @@ def trajectory_view(trajectory_id: int, *, scene_hash: str | None = None) -> Ope
     return Operation("GET", path, _reader(PathView), idempotent=True, params=params)
 
 
+def cartesian_path_view(path_id: int) -> Operation[PathView]:
+    """GET /v1/view/cartesian-paths/{path_id}: a stored Cartesian path and its lines."""
+    path = f"/v1/view/cartesian-paths/{int(path_id)}"
+    return Operation("GET", path, _reader(PathView), idempotent=True)
+
+
 def plan_event_view(event_id: int, *, candidate: int | None = None) -> Operation[PathView]:
     """GET /v1/view/plan-events/{event_id}: what a plan request validated, at its failure."""
     path = f"/v1/view/plan-events/{int(event_id)}"

@@ -158,6 +158,7 @@ def _prepare(base_url: str, headers: dict[str, str]) -> dict[str, list[Any]]:
         "event_id": [events[0]["event_id"]],
         "element": [0],
         "path": ["meshes/upper.stl"],  # the two-joint arm has no files: a 404
+        "path_id": [1],  # no Cartesian path is stored: a 404
     }
 
 

@@ -101,6 +101,8 @@ MODELS: dict[Any, str] = {
     tc.PathView: "PathViewOut",
     tc.Frames: "FramesOut",
     tc.Failure: "FailureOut",
+    tc.GoalPose: "GoalPoseOut",
+    tc.CartesianLines: "CartesianLinesOut",
 }
 # Request bodies the client builds: None there means "leave it to the service" (not sent).
 REQUESTS = {tc.PlanOptions, tc.TimingOptions}
@@ -272,6 +274,7 @@ SAMPLES: dict[str, Any] = {
     "scene_hash": "0" * 64,
     "element": 0,
     "event_id": 7,
+    "path_id": 12,
 }
 MODULES = (_operations, _admin_operations, _view_operations, _ik_operations)
 

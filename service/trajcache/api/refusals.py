@@ -50,7 +50,8 @@ def record(ctx: ServiceContext, request: Request, reason: str) -> BackgroundTask
     if elapsed is None or not isinstance(robot_id, str):
         return None
     seq = record_refusal(ctx=ctx, robot_id=robot_id, reason=reason, total_ms=elapsed)
-    return None if seq is None else BackgroundTask(ctx.records.written, seq)  # the cycle ends once it is written
+    # the cycle ends once it is written
+    return None if seq is None else BackgroundTask(ctx.records.written, seq)
 
 
 def recording_refusals(handler: Handler) -> Handler:
