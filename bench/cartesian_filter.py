@@ -104,13 +104,19 @@ class LineIk:
 
 def infeasible_reason(ik: LineIk, start: np.ndarray, shift: np.ndarray) -> str:
     """Why the move cannot be made (module docstring), or "" when it can."""
+    return line_witness(ik, start, shift)[0]
+
+
+def line_witness(ik: LineIk, start: np.ndarray, shift: np.ndarray) -> tuple[str, np.ndarray]:
+    """Why the move cannot be made ("" when it can), and the witness's IK path (key states;
+    empty when there is none)."""
     checker = ik.checker
     if not checker.is_free(start):
-        return "start_in_collision"
+        return "start_in_collision", np.empty((0, len(start)))
     states = ik.along(start, shift)
     if states is None:
-        return "no_ik_along_line"
+        return "no_ik_along_line", np.empty((0, len(start)))
     verdict = checker.check_path(states)
     if verdict.collides or verdict.self_collides:
-        return "arm_blocked"
-    return ""
+        return "arm_blocked", states
+    return "", states

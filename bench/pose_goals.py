@@ -10,6 +10,13 @@ gives it (`goal_pose`, native form):
 - replay: the pose moved by 1–3 cm in a random direction, the lookup on: answered from the
   cache (`replay_hit_rate`), of which with a cached end that reaches the pose as it is
   (`replay_as_is_share`), and the server's time of a hit (`hit_server_ms_median`).
+  A moved pose may have no free state near the cached end (the fingers pushed into a can, a
+  joint at its limit): no cache can serve it. Each replay is judged without the service
+  (`cartesian_filter.line_witness`: an independent IK path from the cached end along the
+  straight line to the moved pose, the whole arm dense-checked along it); it is servable when
+  that path is clear and ends within the service's default lookup threshold (0.2 rad on every
+  joint) of the cached end. `replay_servable_hit_rate` is the hit rate over servable replays;
+  the others are counted by reason (`replays_unservable`), and a hit among them is a bonus.
 
 Every returned path is dense-checked as in bench/mbm.py (mbm_check: meshes, self-collision, the
 scene's allowed pairs), and its last state's hand pose is checked against the pose asked, with
@@ -38,6 +45,7 @@ from rich.table import Table
 from scipy.spatial.transform import Rotation
 
 import pose_cartesian
+from cartesian_filter import LineIk, line_witness
 from harness.mbm_panda import register_panda
 from harness.report import print_checked
 from harness.service import running_service
@@ -59,6 +67,7 @@ LINK = "panda_hand"
 POSITION_TOLERANCE = 0.005  # m: a 5 mm sphere
 ORIENTATION_TOLERANCE = 0.05  # rad
 MOVE_M = (0.01, 0.03)
+LOOKUP_THRESHOLD = 0.2  # rad: the service's default, on every joint
 SMOKE_PER_FAMILY = 2
 
 
@@ -97,6 +106,7 @@ class PoseRun:
         robot_dir = args.data / "robot"
         self.hand = HandPose(robot_dir)
         self.checker = SceneChecker(panda_description(robot_dir))
+        self.ik = LineIk(self.checker, LINK)
         self.model_id = register_panda(client, robot_dir).model_id
         self.counts: Counter[str] = Counter()
         self.times: dict[str, list[float]] = {"plan": [], "ik": [], "hit": []}
@@ -139,15 +149,27 @@ class PoseRun:
         direction = rng.normal(size=3)
         shift = direction / np.linalg.norm(direction) * rng.uniform(*MOVE_M)
         moved = self.hand.goal(goal_state, shift)
-        self.counts["replays"] += 1
+        unservable = self.unservable(np.asarray(answer["states"][-1], dtype=float), moved)
+        tally.counts["replays"] += 1
+        tally.counts[f"unservable:{unservable}" if unservable else "servable"] += 1
         again = self.ask(robot_id, start, moved, lookup=True)
         if again is None or again["status"] != "success":
             return
         self.check(tally, again, start, moved)
         if again["source"] == "cache":
-            self.counts["replay_hits"] += 1
+            tally.counts["replay_hits"] += 1
+            tally.counts["servable_hits"] += not unservable
             self.counts["as_is"] += again["goal_found_by"] == "cached"
             self.times["hit"].append(again["timings_ms"]["total"])
+
+    def unservable(self, cached_end: np.ndarray, moved: dict[str, Any]) -> str:
+        """Why no cached answer can reach the moved pose from the cached end (module
+        docstring), or "" when one can."""
+        shift = np.asarray(moved["position"]) - self.hand.of(cached_end)[:3, 3]
+        reason, states = line_witness(self.ik, cached_end, shift)
+        if not reason and np.abs(states[-1] - cached_end).max() >= LOOKUP_THRESHOLD:
+            reason = "far_from_cache"
+        return reason
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -182,9 +204,13 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("family", "problems", "solved", "replay hits"):
         table.add_column(name)
     for t in tallies.values():
-        table.add_row(t.family, str(t.problems), str(t.solved), "")
+        hits = (
+            f"{t.counts['replay_hits']} of {t.counts['replays']} ({t.counts['servable']} servable)"
+        )
+        table.add_row(t.family, str(t.problems), str(t.solved), hits)
     Console(width=120).print(table)
-    replays, hits = counts["replays"], counts["replay_hits"]
+    replays, hits, servable = counts["replays"], counts["replay_hits"], counts["servable"]
+    unservable = {k.split(":", 1)[1]: n for k, n in sorted(counts.items()) if ":" in k}
     figures = {
         "problems": problems_n,
         "success_rate": round(solved / problems_n, 4) if problems_n else None,
@@ -192,6 +218,10 @@ def main(argv: list[str] | None = None) -> int:
         "ik_ms_median": percentile(run.times["ik"]),
         "replays": replays,
         "replay_hit_rate": round(hits / replays, 4) if replays else None,
+        "replay_servable_hit_rate": (
+            round(counts["servable_hits"] / servable, 4) if servable else None
+        ),
+        "replays_unservable": unservable,
         "replay_as_is_share": round(counts["as_is"] / hits, 4) if hits else None,
         "hit_server_ms_median": percentile(run.times["hit"]),
     }
