@@ -29,6 +29,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from trajcache.db import models as tables
+from trajcache.db.bulk import insert_rows
 from trajcache.db.end_poses import TrajectoryEndPose
 from trajcache.geometry.model.end_poses import indexed_anchors, root_relative
 from trajcache.geometry.model.robot import RobotModel
@@ -37,7 +38,9 @@ from trajcache.geometry.model.shapes import FloatArray
 __all__ = ["EndsNear", "ends_near", "index_links", "write_end_poses"]
 
 _E = TrajectoryEndPose
+_TABLE: sa.Table = _E.__table__  # type: ignore[assignment]
 _POSE = ("x", "y", "z", "qx", "qy", "qz", "qw")
+_COLUMNS = ("trajectory_id", "model_id", "link", "end", *_POSE)
 _LINKS: weakref.WeakKeyDictionary[RobotModel, tuple[str, ...]] = weakref.WeakKeyDictionary()
 
 
@@ -64,19 +67,14 @@ def write_end_poses(
     states = np.concatenate([np.asarray(starts, float), np.asarray(goals, float)])
     columns = [model.link_names.index(link) for link in links]
     poses = root_relative(model, states, columns).reshape(2, len(ids), len(links), 7)
+    values = poses.tolist()  # Python floats, as the driver writes them
     rows = [
-        {
-            "trajectory_id": int(tid),
-            "model_id": model.model_id,
-            "link": link,
-            "end": end,
-            **dict(zip(_POSE, map(float, poses[end, i, k]), strict=True)),
-        }
+        (int(tid), model.model_id, link, end, *values[end][i][k])
         for end in (0, 1)
         for i, tid in enumerate(ids)
         for k, link in enumerate(links)
     ]
-    session.execute(sa.insert(_E), rows)
+    insert_rows(session, _TABLE, _COLUMNS, rows)
     return len(rows)
 
 
