@@ -76,7 +76,7 @@ def write_export(path: Path, rows: int, seed: int = 7) -> None:
 def import_file(database_url: str, path: Path, queue: Queue[Any]) -> None:
     """Import `path` (run in a process of its own, as `trajcache import` runs); put
     (inserted, seconds of the import itself) on `queue`."""
-    from trajcache.cli.transfer import IMPORT_NICENESS, lower_priority
+    from trajcache.cli.transfer import IMPORT_NICENESS, lower_database_priority, lower_priority
     from trajcache.db import migrate
     from trajcache.db.session import make_engine, make_sessionmaker
     from trajcache.services.catalog.models import ModelRegistry
@@ -89,6 +89,7 @@ def import_file(database_url: str, path: Path, queue: Queue[Any]) -> None:
     engine = make_engine(settings.database_url)
     queue.put("ready")
     with path.open("rb") as raw, make_sessionmaker(engine)() as session:
+        lower_database_priority(session, IMPORT_NICENESS)  # as `trajcache import` does
         lines = export_lines(chunks=iter(lambda: raw.read(CHUNK_BYTES), b""), what="file")
         started = time.perf_counter()
         report = import_lines(

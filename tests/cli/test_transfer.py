@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -18,10 +19,11 @@ from typer.testing import CliRunner
 
 from tests.robots import TWO_JOINT_URDF
 from trajcache.cli import app
-from trajcache.cli.transfer import parse_duration
+from trajcache.cli.transfer import lower_database_priority, parse_duration
 from trajcache.core.config import Settings
 from trajcache.db import migrate
 from trajcache.db.models import Trajectory, TrajectoryTombstone, utcnow
+from trajcache.db.session import make_engine, make_sessionmaker
 from trajcache.services.catalog.models import ModelRegistration, register_model
 from trajcache.services.catalog.trajectories import NewTrajectory, store_trajectory
 from trajcache.services.context import ServiceContext
@@ -190,3 +192,34 @@ def test_an_import_lowers_its_own_cpu_priority_by_its_niceness() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "3"
+
+
+@pytest.mark.postgres
+def test_an_import_lowers_its_database_backends_priority_too(postgres_url: str) -> None:
+    """On a PostgreSQL server of this machine, the import's backend (which does its COPY and
+    index work) gets the niceness too, where this user may renice it (root here)."""
+    engine = make_engine(postgres_url)
+    try:
+        with make_sessionmaker(engine)() as session:
+            pid = int(session.execute(sa.text("SELECT pg_backend_pid()")).scalar_one())
+            before = os.getpriority(os.PRIO_PROCESS, pid)
+            lowered = lower_database_priority(session, 3)
+            after = os.getpriority(os.PRIO_PROCESS, pid)
+    finally:
+        engine.dispose()  # the reniced backend ends with its connection
+    assert lowered or os.geteuid() != 0
+    assert after - before == (min(3, 19 - before) if lowered else 0)
+
+
+@pytest.mark.parametrize(
+    "url", ["sqlite:///:memory:", "postgresql+psycopg://u@db.example.invalid:5432/x"]
+)
+def test_no_other_process_is_reniced(url: str) -> None:
+    """A SQLite file has no backend, and a remote server's backend pid would name some other
+    process of this machine: neither is touched (the remote one is not even connected)."""
+    engine = make_engine(url)
+    try:
+        with make_sessionmaker(engine)() as session:
+            assert not lower_database_priority(session, 3)
+    finally:
+        engine.dispose()

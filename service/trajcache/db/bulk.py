@@ -34,8 +34,9 @@ def insert_rows(
     columns = ", ".join(quote(name) for name in names)
     raw = connection.connection.driver_connection
     assert raw is not None  # a live connection of the session's transaction
-    with raw.cursor() as cursor, cursor.copy(
-        f"COPY {quote(table.name)} ({columns}) FROM STDIN"
-    ) as copy:
+    with (
+        raw.cursor() as cursor,
+        cursor.copy(f"COPY {quote(table.name)} ({columns}) FROM STDIN") as copy,
+    ):
         for row in rows:
             copy.write_row(row)
