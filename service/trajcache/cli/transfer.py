@@ -174,7 +174,7 @@ def lower_database_priority(session: Session, niceness: int) -> bool:
     bind = session.get_bind()
     if niceness <= 0 or not hasattr(os, "setpriority") or bind.dialect.name != "postgresql":
         return False
-    if bind.url.host not in _LOCAL_HOSTS:
+    if bind.engine.url.host not in _LOCAL_HOSTS:
         return False
     pid = int(session.execute(sa.text("SELECT pg_backend_pid()")).scalar_one())
     try:
