@@ -20,7 +20,6 @@ from trajcache.geometry.path_quality import (
     Quality,
     ee_path_length,
     end_effector_link,
-    link_origins,
     min_clearance,
 )
 from trajcache.geometry.scene.parse import parse_scene
@@ -51,18 +50,6 @@ def test_end_effector_is_the_tip_of_the_longest_chain_or_the_configured_link(
     assert camera.link_names[end_effector_link(camera)] == "camera"
     with pytest.raises(ValueError, match="nowhere"):
         end_effector_link(dataclasses.replace(branched, end_effector_link="nowhere"))
-
-
-@pytest.mark.parametrize("which", ["reference", "branched"])
-def test_link_origins_match_full_forward_kinematics(branched: RobotModel, which: str) -> None:
-    model = reference_model() if which == "reference" else branched
-    rng = np.random.default_rng(3)
-    lower, upper = np.clip(model.lower, -4, 4), np.clip(model.upper, -4, 4)
-    states = rng.uniform(lower, upper, (50, model.dof))
-    full = link_transforms(model, states)
-    for link in range(len(model.link_names)):
-        origins = link_origins(model, states, link)
-        np.testing.assert_allclose(origins, full[:, link, :3, 3], atol=1e-12)
 
 
 def test_end_effector_length_of_a_rotation_is_the_arc(branched: RobotModel) -> None:

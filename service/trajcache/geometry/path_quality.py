@@ -21,8 +21,8 @@ import fcl
 import numpy as np
 
 from trajcache.geometry.collision.checker import CollisionChecker
-from trajcache.geometry.model.kinematics import link_motion_bounds
-from trajcache.geometry.model.robot import BaseType, RobotModel
+from trajcache.geometry.model.kinematics import forward_kinematics, link_motion_bounds
+from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import segment_deltas
 from trajcache.geometry.validation.validator import Resolution, interpolate
@@ -102,112 +102,8 @@ def ee_path_length(
     first = np.repeat(np.cumsum(counts) - counts, counts)
     frac = (np.arange(len(segment)) - first) / counts[segment]
     dense = np.concatenate([array[segment] + frac[:, None] * deltas[segment], array[-1:]])
-    points = link_origins(model, dense, end_effector_link(model))
+    points = forward_kinematics(model, dense)[:, end_effector_link(model), :3, 3]
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
-
-
-@dataclass(frozen=True)
-class _ChainStep:
-    """A movable joint on a link's chain to the root, with the fixed joints below it folded in.
-
-    Maps a point v in the joint's child frame to its parent frame: for a revolute joint,
-    O·R(q)·v + t = cos·(A v) + sin·(B v) + (1 − cos)·(C v) + t with A = O, B = O·[k]×,
-    C = O·k·kᵀ (Rodrigues); stacked as one (3, 9) matrix so that each joint is one matmul.
-    """
-
-    index: int  # state index, or -1 for a joint held at `default`
-    kind: str  # "revolute" | "continuous" | "prismatic"
-    default: float
-    stacked_t: FloatArray  # (3, 9): v @ stacked_t = [A v, B v, C v]
-    axis_world: FloatArray  # O·k, for prismatic joints
-    translation: FloatArray
-
-
-@dataclass(frozen=True)
-class _Chain:
-    tip: FloatArray  # the link origin in the frame of the first movable joint below it
-    steps: list[_ChainStep]
-    root: FloatArray  # 4×4 rigid transform above the last movable joint (fixed joints)
-
-
-_CHAINS: weakref.WeakKeyDictionary[RobotModel, dict[int, _Chain]] = weakref.WeakKeyDictionary()
-_SUM_OF_THREE = np.vstack([np.eye(3)] * 3)  # (9, 3): [a | b | c] ↦ a + b + c
-
-
-def _chain(model: RobotModel, link: int) -> _Chain:
-    chains = _CHAINS.setdefault(model, {})
-    if link in chains:
-        return chains[link]
-    by_child = {joint.child: joint for joint in model.joints}
-    pending = np.eye(4)  # fixed transforms met since the last movable joint
-    tip: FloatArray | None = None
-    steps: list[_ChainStep] = []
-    current = link
-    while current in by_child:
-        joint = by_child[current]
-        current = joint.parent
-        if joint.kind == "fixed":
-            pending = joint.origin @ pending
-            continue
-        if tip is None:
-            tip = pending[:3, 3].copy()
-        else:  # fold the fixed joints into the previous movable joint's output
-            prev = steps[-1]
-            rot, shift = pending[:3, :3], pending[:3, 3]
-            steps[-1] = _ChainStep(
-                prev.index,
-                prev.kind,
-                prev.default,
-                prev.stacked_t @ np.kron(np.eye(3), rot.T),
-                rot @ prev.axis_world,
-                rot @ prev.translation + shift,
-            )
-        rot, k = joint.origin[:3, :3], np.asarray(joint.axis, dtype=float)
-        skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-        stacked = np.vstack([rot, rot @ skew, rot @ np.outer(k, k)])
-        steps.append(
-            _ChainStep(
-                joint.index, joint.kind, joint.default, stacked.T, rot @ k, joint.origin[:3, 3]
-            )
-        )
-        pending = np.eye(4)
-    chains[link] = _Chain(
-        tip if tip is not None else pending[:3, 3].copy(),
-        steps,
-        pending if tip is not None else np.eye(4),
-    )
-    return chains[link]
-
-
-def link_origins(model: RobotModel, states: FloatArray, link: int) -> FloatArray:
-    """World position (N, 3) of one link's origin: forward kinematics of its chain only.
-
-    Transforms a point rather than composing 4×4 matrices (same convention as
-    `link_transforms`: child = parent · origin · motion(q)); several times cheaper for one link.
-    """
-    q = np.asarray(states, dtype=float)
-    chain = _chain(model, link)
-    n = len(q)
-    values = np.empty((n, len(chain.steps)))
-    for k, step in enumerate(chain.steps):
-        values[:, k] = q[:, step.index] if step.index >= 0 else step.default
-    cos, sin = np.cos(values), np.sin(values)
-    # per step, the weights of [A v, B v, C v] spread over their 9 columns (N, steps, 9)
-    weights = np.stack([cos, cos, cos, sin, sin, sin, 1 - cos, 1 - cos, 1 - cos], axis=2)
-    point = np.broadcast_to(chain.tip, (n, 3))
-    for k, step in enumerate(chain.steps):
-        if step.kind == "prismatic":
-            point = point @ step.stacked_t[:, :3] + values[:, k, None] * step.axis_world
-        else:
-            point = ((point @ step.stacked_t) * weights[:, k]) @ _SUM_OF_THREE
-        point = point + step.translation
-    point = point @ chain.root[:3, :3].T + chain.root[:3, 3]
-    if model.base is BaseType.PLANAR:
-        c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
-        x, y = point[:, 0].copy(), point[:, 1].copy()
-        point[:, 0] = c * x - s * y + q[:, 0]
-        point[:, 1] = s * x + c * y + q[:, 1]
-    return np.asarray(point)
 
 
 def min_clearance(
