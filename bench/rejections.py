@@ -13,7 +13,7 @@ validation memo helps):
 
 Server timings come from each answer (`timings_ms`). `explain` is what the record writer spends,
 off the request path, on one rejection: placing the failing state on the path's samples and
-asking for every contact there (`services.plan.rejections.rejection_entries`), measured in
+asking for every contact there (`services.bookkeeping.rejections.rejection_entries`), measured in
 process on the same candidates. A request that explained its own rejections would pay it before
 answering. The last line printed is one JSON object.
 
@@ -45,7 +45,7 @@ from trajcache.geometry.validation.validator import TrajectoryValidator, Validat
 from trajcache.main import create_app
 from trajcache.reference.cleaning import cleaning_run
 from trajcache.reference.robot import reference_urdf
-from trajcache.services.plan.rejections import RejectedCandidate, rejection_entries
+from trajcache.services.bookkeeping.rejections import RejectedCandidate, rejection_entries
 
 BOX = 0.09  # m, the side of the box put in a stored path's way
 

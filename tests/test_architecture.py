@@ -5,6 +5,9 @@
   order: a module imports from its own layer and the layers below, never from one above nor from
   a peer of its rank; every module lies in a layer, so a new package must be given its place;
 - `api/` reaches the database only through `services/`;
+- what happens after an answer has one home, `services/bookkeeping/`: its metrics are the only
+  ones (no other module imports the Prometheus client but the route that serves them), and
+  everything else counts in them through the bookkeeping (`outcomes`, `refusals`);
 - geometry's stages import only from their own stage and earlier ones;
 - no function outside numba's kernels takes more than eight parameters.
 """
@@ -36,17 +39,20 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 )
 # The services' concepts (sub-packages and top modules of services/), bottom first, as LAYERS.
 SERVICE_LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "quality"),
+    ("errors", "quality"),  # quality: a trajectory's, which the catalog stores and answers carry
     ("catalog",),
-    ("bookkeeping",),  # what happens after an answer
+    ("bookkeeping",),  # what happens after an answer: records, rejections, quality, metrics
     ("context",),  # holds the catalog's caches and the bookkeeping
-    ("robot_model", "prometheus", "stats"),
+    ("robot_model", "stats"),
     ("ik",),
     ("plan",),
     ("cartesian", "seeding", "maintenance", "view"),
     ("background",),
 )
 FORBIDDEN = [("api", ("db",))]  # (importing layer, layers it must not import though below)
+BOOKKEEPING = f"{PACKAGE}.services.bookkeeping"
+METRICS = f"{BOOKKEEPING}.metrics"  # every metric of the service
+METRICS_ROUTE = f"{PACKAGE}.api.prometheus"  # serves them at GET /metrics
 
 
 @pytest.fixture(scope="module")
@@ -159,6 +165,58 @@ def test_no_import_cycles(graph: Graph) -> None:
 @pytest.mark.parametrize(("layer", "forbidden"), FORBIDDEN, ids=[f[0] for f in FORBIDDEN])
 def test_layers_import_only_downwards(graph: Graph, layer: str, forbidden: tuple[str, ...]) -> None:
     assert violations(graph, layer, forbidden) == []
+
+
+def metrics_reached(graph: Graph) -> list[str]:
+    """Modules outside the bookkeeping, but the metrics' route, that import the metrics."""
+    return sorted(
+        module
+        for module, targets in graph.items()
+        if METRICS in targets
+        and not _in(module, "services.bookkeeping")
+        and module != METRICS_ROUTE
+    )
+
+
+def importers_of(package: str, library: str) -> list[str]:
+    """The modules of `package` that import `library` (or a module of it), anywhere in them."""
+    root = Path(importlib.import_module(package).__file__ or "").parent
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        names = _absolute_imports(ast.parse(path.read_text(encoding="utf-8")))
+        if any(name == library or name.startswith(library + ".") for name in names):
+            parts = path.relative_to(root).with_suffix("").parts
+            parts = parts[:-1] if parts[-1] == "__init__" else parts
+            found.append(".".join((package, *parts)))
+    return found
+
+
+def _absolute_imports(tree: ast.AST) -> set[str]:
+    """The modules `tree` imports by absolute name, anywhere in it."""
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names.add(node.module)
+    return names
+
+
+def test_metrics_finder_finds_a_count_outside_the_bookkeeping() -> None:
+    toy = {
+        "trajcache.services.plan.answers": {METRICS, "trajcache.services.bookkeeping.outcomes"},
+        "trajcache.services.bookkeeping.outcomes": {METRICS},
+        METRICS_ROUTE: {METRICS},
+    }
+    assert metrics_reached(toy) == ["trajcache.services.plan.answers"]
+
+
+def test_only_the_bookkeeping_counts_in_the_metrics(graph: Graph) -> None:
+    assert metrics_reached(graph) == []
+
+
+def test_the_metrics_have_one_home() -> None:
+    assert sorted(importers_of(PACKAGE, "prometheus_client")) == [METRICS_ROUTE, METRICS]
 
 
 PIPELINE = ("model", "scene", "collision", "validation")  # geometry's stages, in order

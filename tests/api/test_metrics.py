@@ -212,7 +212,7 @@ def test_metrics_stay_open_when_keys_are_required(client_factory: ClientFactory)
 RECORDER = """
 import os
 import sys
-from trajcache.services.prometheus import POOL_QUEUE_DEPTH, record_plan
+from trajcache.services.bookkeeping.metrics import POOL_QUEUE_DEPTH, record_plan
 
 hits, depth = int(sys.argv[1]), int(sys.argv[2])
 timings = {"lookup": 0.5, "validate": 4.0, "plan": 0.0, "total": 6.0}

@@ -1,5 +1,6 @@
 """Plan-answer extras in the API's shapes: the timing and quality options, the JointTrajectory
-and quality fields. What they hold is computed by the plan service (`services.plan.quality`)."""
+and quality fields. What they hold is computed by the services
+(`services.bookkeeping.answer_quality`)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,11 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from trajcache.core.request_model import RequestModel
-from trajcache.services.plan.quality import AnswerDetails, AnswerExtras, QualityLevel
+from trajcache.services.bookkeeping.answer_quality import (
+    AnswerDetails,
+    AnswerExtras,
+    QualityLevel,
+)
 from trajcache.services.quality import TimingRequest
 from trajcache.timing import PathShape, TimingMethod
 

@@ -1,5 +1,5 @@
-"""`GET /metrics`: the Prometheus exposition of `services.prometheus`, and the planner pool's
-sampler running while the app does."""
+"""`GET /metrics`: the Prometheus exposition of `services.bookkeeping.metrics`, and the planner
+pool's sampler running while the app does."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from fastapi import FastAPI, Request, Response
 from prometheus_client import CONTENT_TYPE_LATEST, multiprocess
 
 from trajcache.core.prometheus_dir import MULTIPROC_ENV
-from trajcache.services.prometheus import PoolSampler, render
+from trajcache.jobs.pool import PlannerPool
+from trajcache.services.bookkeeping.metrics import PoolSampler, render
 
 _EXAMPLE = """\
 # HELP trajcache_plan_requests_total Plan requests answered, by where the trajectory came from \
@@ -34,7 +35,7 @@ def install_metrics(app: FastAPI) -> None:
         sampler: PoolSampler | None = getattr(request.app.state, "pool_sampler", None)
         if sampler is not None:
             sampler.sample()
-        return Response(render(request.app.state.ctx), media_type=CONTENT_TYPE_LATEST)
+        return Response(render(request.app.state.ctx.sessions), media_type=CONTENT_TYPE_LATEST)
 
     app.add_api_route(
         "/metrics",
@@ -59,7 +60,7 @@ def install_metrics(app: FastAPI) -> None:
     @asynccontextmanager
     async def lifespan(app_: FastAPI) -> AsyncIterator[Any]:
         async with inner(app_) as state:
-            sampler = PoolSampler(lambda: getattr(app_.state, "ctx", None))
+            sampler = PoolSampler(lambda: _running_pool(app_))
             app_.state.pool_sampler = sampler
             sampler.start()
             try:
@@ -70,3 +71,9 @@ def install_metrics(app: FastAPI) -> None:
                     multiprocess.mark_process_dead(os.getpid())
 
     app.router.lifespan_context = lifespan
+
+
+def _running_pool(app: FastAPI) -> PlannerPool | None:
+    """The app's planner pool if it has started one (sampling never starts it)."""
+    ctx = getattr(app.state, "ctx", None)
+    return ctx.planner if ctx is not None else None

@@ -1,5 +1,5 @@
-"""Refused plan requests leave a plan event (`services.plan.refusals`): the 4xx answers of the
-plan routes, once the caller passed the API-key check.
+"""Refused plan requests leave a plan event (`services.bookkeeping.refusals`): the 4xx answers
+of the plan routes, once the caller passed the API-key check.
 
 `authorize` (`api.auth`) marks the request when it lets the caller through; an error answer of
 a plan route to a marked request records the refusal with the answer's message as its reason.
@@ -19,8 +19,8 @@ from starlette.background import BackgroundTask
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import Response
 
+from trajcache.services.bookkeeping.refusals import record_refusal
 from trajcache.services.context import ServiceContext
-from trajcache.services.plan.refusals import record_refusal
 
 __all__ = ["PLAN_ROUTES", "mark_authorized", "record", "recording_refusals"]
 
@@ -49,7 +49,13 @@ def record(ctx: ServiceContext, request: Request, reason: str) -> BackgroundTask
     robot_id = request.path_params.get("robot_id")
     if elapsed is None or not isinstance(robot_id, str):
         return None
-    seq = record_refusal(ctx=ctx, robot_id=robot_id, reason=reason, total_ms=elapsed)
+    seq = record_refusal(
+        sessions=ctx.sessions,
+        records=ctx.records,
+        robot_id=robot_id,
+        reason=reason,
+        total_ms=elapsed,
+    )
     # the cycle ends once it is written
     return None if seq is None else BackgroundTask(ctx.records.written, seq)
 

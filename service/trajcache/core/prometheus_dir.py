@@ -1,8 +1,8 @@
 """The directory where several server processes share their Prometheus samples.
 
-Kept apart from `services.prometheus` on purpose: it must run before any metric exists in the
-process, and importing `services.prometheus` creates them. The command line calls it, and the
-metrics read where it points, so it lives in the bottom layer both reach.
+Kept apart from `services.bookkeeping.metrics` on purpose: it must run before any metric exists
+in the process, and importing `services.bookkeeping.metrics` creates them. The command line
+calls it, and the metrics read where it points, so it lives in the bottom layer both reach.
 """
 
 from __future__ import annotations

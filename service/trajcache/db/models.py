@@ -260,7 +260,8 @@ class PlanEvent(Base):
     # The planner's random seed when the request planned (run it again with it to reproduce).
     seed: Mapped[int | None] = mapped_column(Integer)
     # Why each cached candidate was rejected: its first failing validation sample, the state
-    # there and the pairs (or joints) at fault (`services/plan/rejections.py`); None: none was.
+    # there and the pairs (or joints) at fault (`services/bookkeeping/rejections.py`); None:
+    # none was.
     rejections: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON)
     # The goal as a link's pose when the request gave one: {link, position, orientation,
     # position_tolerance, orientation_tolerance} (the model's base frame; the world for a

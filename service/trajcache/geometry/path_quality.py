@@ -3,7 +3,7 @@
 Cheap metrics (state-space and end-effector path length, tens of microseconds) are computed for
 every answer; clearance (FCL distances) costs milliseconds and is computed when a trajectory is
 stored (`services.quality`, which also times trajectories), or when a request asks for it
-(`services.plan.quality`).
+(`services.bookkeeping.answer_quality`).
 
 Clearance is the smallest FCL distance between a robot collision element and a scene object over
 states sampled along the trajectory (at the validator's resolution). It is found by branch and

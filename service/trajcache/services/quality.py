@@ -1,7 +1,9 @@
 """Quality and timing of one trajectory, which every concept of the service shares: the
 columns a stored trajectory carries (`services.catalog.trajectories`), the timing and quality of
-an answer (`services.plan.quality`), a Cartesian path's timing. The metrics themselves are
-`trajcache.geometry.path_quality`; nothing here reads the database.
+an answer (`services.bookkeeping.answer_quality`), a Cartesian path's timing. It lies in the
+bottom layer of the services, below the catalog that stores the columns, not in the bookkeeping
+above it. The metrics themselves are `trajcache.geometry.path_quality`; nothing here reads the
+database.
 """
 
 from __future__ import annotations

@@ -25,12 +25,13 @@ from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 from trajcache.planning.run import run_planning
+from trajcache.services.bookkeeping import rejections
 from trajcache.services.bookkeeping.records import PlanRecord
 from trajcache.services.catalog.robots import put_robot
 from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import UnavailableError
-from trajcache.services.plan import flow, rejections
+from trajcache.services.plan import flow
 from trajcache.services.plan.flow import PlanAnswer, PlanRequest, PlanSource, PlanStatus, plan
 
 ARM_PATH = [[0.0, 0.0], [0.3, 0.2], [0.7, 0.2], [1.0, 0.0]]

@@ -1,15 +1,16 @@
 """Plan bookkeeping written off the request path: usage counters and plan events, in order.
 
-An answered plan does not wait for its bookkeeping. The plan flow submits a :class:`PlanRecord`
-(the trajectory that served, the candidates that failed validation, the plan event, and for a
-newly planned trajectory its quality metrics and timing, a :class:`QualityJob` the writer
-computes just before the record's transaction) and gets a sequence number; one writer thread
-per process commits records in submission order, many per transaction: counter updates grouped
-per trajectory (in id order, so replicas writing the same rows cannot deadlock), the events as
-one multi-row insert, and the quality columns of new trajectories (`record_batch`).
-Records are stamped by the recorder's clock (`now`, injectable) when the plan is answered, not
-when they are written. Every answer of the plan flow — hit, miss, failure, planned — is recorded
-here, and nothing else writes those counters or plan events.
+An answered plan does not wait for its bookkeeping. Its outcome (`outcomes.record_outcome`), or
+a refusal (`refusals`), submits a :class:`PlanRecord` (the trajectory that served, the
+candidates that failed validation, the plan event, and for a newly planned trajectory its
+quality metrics and timing, a :class:`QualityJob` the writer computes just before the record's
+transaction) and gets a sequence number; one writer thread per process commits records in
+submission order, many per transaction: counter updates grouped per trajectory (in id order, so
+replicas writing the same rows cannot deadlock), the events as one multi-row insert, and the
+quality columns of new trajectories (`record_batch`). Records are stamped by the recorder's
+clock (`now`, injectable) when the plan is answered, not when they are written. Every answer of
+the plan flow — hit, miss, failure, planned — is recorded here, and nothing else writes those
+counters or plan events.
 
 The writer lingers up to `linger_s` after the first record of a batch, so that an answer goes
 out before the write competes with it for the interpreter, and more records share a transaction.

@@ -6,8 +6,8 @@ computed by `planning.cartesian`, its joint motions checked by the robot's certi
 (the plan flow's, `validator_for`) whatever `avoid_collisions` says (false is listed in the
 warnings as not honoured: a motion is never left unchecked), its distance from the lines
 bounded (`geometry.model.cartesian_bound`: `max_deviation_m`), and the answer timed as a plan
-answer is (`services.plan.quality.answer_details`). A stopped path is an answer, not an error:
-`fraction` and `status` say how far it went and why.
+answer is (`services.bookkeeping.answer_quality.answer_details`). A stopped path is an answer,
+not an error: `fraction` and `status` say how far it went and why.
 """
 
 from __future__ import annotations
@@ -41,13 +41,17 @@ from trajcache.planning.cartesian import (
     cartesian_path,
     sample_count,
 )
+from trajcache.services.bookkeeping.answer_quality import (
+    AnswerDetails,
+    QualityLevel,
+    answer_details,
+)
 from trajcache.services.cartesian.store import CacheQuery, lookup_path, store_path
 from trajcache.services.catalog.models import get_model, model_source
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.ik.solve import link_of
-from trajcache.services.plan.quality import AnswerDetails, QualityLevel, answer_details
 from trajcache.services.quality import TimingRequest
 
 __all__ = ["CartesianAnswer", "CartesianRequest", "Waypoint", "answer_cartesian"]
@@ -134,7 +138,8 @@ def answer_cartesian(
     solved = time.perf_counter()
     bounds = deviation_bounds(checked, link, path.states, path.lines, path.line_of)
     details = answer_details(
-        ctx=ctx,
+        settings=ctx.settings,
+        validators=ctx.validators,
         model=checked,
         scene=robot.scene,
         states=path.states,

@@ -1,12 +1,9 @@
-"""The answers of a plan attempt, each with its bookkeeping: a record and the metrics.
+"""The answers of a plan attempt: a hit, a planned path, or none, and the extras asked for.
 
-Whatever the outcome — a hit, a miss, a planner failure, a planned trajectory — the usage counters
-of the candidates and the plan event go to `ctx.records` (`services.bookkeeping.records`) as one
-:class:`PlanRecord`, stamped with the writer's clock, and the answer is counted in the Prometheus
-metrics (`services.prometheus.record_plan`) with the same status, source, requester and timings as
-its plan event: `_record` is the one place of the plan flow that does both, whoever asked (a robot
-or a seed job), so `/metrics` and `/v1/stats` count the same requests. Nothing here writes to the
-database.
+Each answer is built here from its attempt, and what it leaves behind (its record, the ranking
+facts, its count in the metrics) is described once, as a `PlanOutcome`, and handed to
+`services.bookkeeping.outcomes.record_outcome`, whatever the outcome and whoever asked (a robot
+or a seed job). Nothing here writes to the database.
 """
 
 from __future__ import annotations
@@ -19,14 +16,12 @@ import numpy as np
 from trajcache.cache.memo import MemoUse
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.scene import Scene
-from trajcache.services.bookkeeping.record_batch import EventDetails
-from trajcache.services.bookkeeping.records import PlanRecord, QualityJob
+from trajcache.services.bookkeeping.answer_quality import AnswerExtras, answer_details
+from trajcache.services.bookkeeping.outcomes import PlanOutcome, record_outcome
+from trajcache.services.bookkeeping.record_batch import QualityJob
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
-from trajcache.services.plan.quality import AnswerExtras, answer_details
-from trajcache.services.plan.rejections import rejection_entries
-from trajcache.services.prometheus import record_plan
 from trajcache.timing import TimingError
 
 __all__ = [
@@ -42,7 +37,7 @@ def answer_hit(
     attempt: PlanAttempt, trajectory_id: int, states: np.ndarray, memo: MemoUse
 ) -> PlanAnswer:
     """Answer with a validated cached trajectory; its bookkeeping is queued, not awaited."""
-    attempt.tried = len(attempt.failed) + 1
+    attempt.tried = len(attempt.rejections) + 1
     timings = attempt.clock.timings()
     outcome = _Outcome(
         PlanStatus.SUCCESS, PlanSource.CACHE, trajectory_id=trajectory_id, served=trajectory_id
@@ -55,7 +50,7 @@ def answer_hit(
         states,
         attempt.tried,
         timings,
-        rejected=attempt.rejected,
+        rejected=attempt.rejections.listed(),
         record=record,
         memo=memo,
         certificate=attempt.certificate_use if memo is MemoUse.CERTIFICATE else None,
@@ -95,7 +90,7 @@ def answer_planned(
         p.states,
         attempt.tried,
         {**timings, **(p.phases or {})},
-        rejected=attempt.rejected,
+        rejected=attempt.rejections.listed(),
         record=record,
         planner=p.planner,
         stored=p.stored,
@@ -116,15 +111,15 @@ def answer_without_path(
         attempt.tried,
         timings,
         message,
-        attempt.rejected,
+        attempt.rejections.listed(),
         record=record,
     )
 
 
 @dataclass(frozen=True)
 class _Outcome:
-    """How a request ended, as its record keeps it; `served` is the cached trajectory a hit
-    returned."""
+    """How a request ended, in the plan's terms (its event and `PlanOutcome` are made of it);
+    `served` is the cached trajectory a hit returned."""
 
     status: PlanStatus
     source: PlanSource | None = None
@@ -141,49 +136,33 @@ def _record(
     *,
     quality: QualityJob | None = None,
 ) -> int:
-    """Queue the answer's record and count it in the metrics; a served candidate also updates
-    the ranking facts now."""
-    status, source, served = outcome.status, outcome.source, outcome.served
+    """Hand the answer's outcome to the bookkeeping (`services.bookkeeping.outcomes`)."""
     event = attempt.event(
-        status,
-        source=source,
+        outcome.status,
+        source=outcome.source,
         trajectory_id=outcome.trajectory_id,
         timings=timings,
         error=outcome.error,
         seed=outcome.seed,
     )
-    records = attempt.ctx.records
-    at = records.now()
-    real = attempt.origin.real and served is not None
-    failed = tuple(attempt.failed)
+    ctx, origin, rejections = attempt.ctx, attempt.origin, attempt.rejections
     details = None
-    if attempt.rejections:  # where each failed: worked out by the writer, not here
-        validator, start, goal = attempt.validator, attempt.start, attempt.goal
-        rejected, held = tuple(attempt.rejections), attempt.origin.held
-        details = EventDetails(
-            lambda: {"rejections": rejection_entries(validator, start, goal, rejected, held)}
-        )
-    record = records.submit(
-        PlanRecord(
-            at,
-            served,
-            failed,
+    if rejections:  # where each failed: worked out by the writer, not here
+        details = rejections.details(attempt.validator, attempt.start, attempt.goal, origin.held)
+    return record_outcome(
+        PlanOutcome(
             event,
-            real=real,
-            quality=quality,
+            timings,
+            served=outcome.served,
+            real=origin.real,
+            failed=rejections.ids(),
             details=details,
+            quality=quality,
             certificates=tuple(attempt.certificates),
-        )
+        ),
+        records=ctx.records,
+        facts=ctx.facts,
     )
-    if served is not None:
-        attempt.ctx.facts.record(served=served, failed=attempt.failed, real=real, at=at)
-    record_plan(
-        status=status.value,
-        source=source.value if source is not None else None,
-        requester=attempt.origin.requester.value,
-        timings=timings,
-    )
-    return record
 
 
 def describe_answer(
@@ -202,7 +181,8 @@ def describe_answer(
         return answer
     try:
         details = answer_details(
-            ctx=ctx,
+            settings=ctx.settings,
+            validators=ctx.validators,
             model=model,
             scene=scene,
             states=answer.states,

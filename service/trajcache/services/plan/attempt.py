@@ -3,7 +3,9 @@
 A :class:`PlanAttempt` is built once per request (as OMPL's `ProblemDefinition` is per problem)
 and handed to each step of the flow (`services.plan.flow`): the context, the caller and its
 origin, the model and scene, the request with its start and goal resolved, the validator (built
-once, on first use), the clock that times each phase, and the candidates that failed validation.
+once, on first use), the clock that times each phase, and the candidates that failed validation
+(one list, `services.bookkeeping.rejections.Rejections`, that the answer and its bookkeeping
+read).
 """
 
 from __future__ import annotations
@@ -24,10 +26,11 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certificates import CertificateUse
 from trajcache.geometry.validation.validator import TrajectoryValidator, validator_for
+from trajcache.services.bookkeeping.answer_quality import AnswerDetails
+from trajcache.services.bookkeeping.outcomes import Requester
+from trajcache.services.bookkeeping.rejections import Rejections
 from trajcache.services.catalog.certificates import CertificateWrite
 from trajcache.services.context import ServiceContext
-from trajcache.services.plan.quality import AnswerDetails
-from trajcache.services.plan.rejections import RejectedCandidate
 
 __all__ = [
     "GoalKind",
@@ -39,7 +42,6 @@ __all__ = [
     "PlanRequest",
     "PlanSource",
     "PlanStatus",
-    "Requester",
 ]
 
 PHASES = ("lookup", "validate", "plan", "db")
@@ -59,13 +61,6 @@ class GoalKind(str, Enum):
 
     JOINT = "joint"
     POSE = "pose"
-
-
-class Requester(str, Enum):
-    """Who asked for a plan: a robot, or a seed job planning for the simulated fleet."""
-
-    ROBOT = "robot"
-    SEED_JOB = "seed_job"
 
 
 class PlanSource(str, Enum):
@@ -186,27 +181,13 @@ class PlanAttempt:
     checked: RobotModel  # `model` as the robot holds its joints in `scene`: what is validated
     start: np.ndarray
     goal: np.ndarray
-    rejections: list[RejectedCandidate] = field(default_factory=list)  # failed validation
+    rejections: Rejections = field(default_factory=Rejections)  # failed validation, in order
     candidates: dict[int, np.ndarray] = field(default_factory=dict)  # key states, by id
     tried: int = 0  # candidates counted in the answer and its plan event
     certificates: list[CertificateWrite] = field(default_factory=list)  # to write with the record
     certificate_use: CertificateUse | None = None  # the last certificate a validation used
     goal_found_by: str | None = None  # a pose goal's state came from: "cached" or "ik"
     pose_goal_ms: float = 0.0  # finding a pose goal's state (part of the lookup phase)
-
-    @property
-    def failed(self) -> list[int]:
-        """The candidates that failed validation, in the order they were tried."""
-        return [r.trajectory_id for r in self.rejections]
-
-    @property
-    def rejected(self) -> list[dict[str, object]]:
-        """Why each failed, as the answer lists it."""
-        return [
-            {"trajectory_id": r.trajectory_id, "status": r.result.status.value,
-             "reason": r.result.message}
-            for r in self.rejections
-        ]  # fmt: skip
 
     @functools.cached_property
     def validator(self) -> TrajectoryValidator:
@@ -249,7 +230,7 @@ class PlanAttempt:
             "total_ms": timings["total"],
             "error": (error or None) and error[:500],
             "seed": seed,
-            "rejections": None,  # the record writer fills it in (`services.plan.rejections`)
+            "rejections": None,  # the record writer fills it in (`bookkeeping.rejections`)
             "goal_kind": self.goal_kind.value,
             "goal_pose": _pose_record(self.request.goal_pose),
         }

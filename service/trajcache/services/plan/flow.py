@@ -34,12 +34,13 @@ only skip checks whose outcome is already known to be "valid". Candidates that a
 path as one already rejected in this request (two-state trajectories all become the straight
 line from start to goal) reuse that verdict.
 
-Bookkeeping of every answer (usage counters of the served and the rejected candidates, the plan
-event) goes to `ctx.records` (`services.bookkeeping.records`), the only writer of those counters and
-events: written in order by a background writer, many per transaction, flushed at shutdown. The
-HTTP layer keeps the request's cycle open, after sending the answer, until its record is
-committed. The same step counts the answer in the Prometheus metrics (`services.plan.answers`),
-so robots' requests and seed jobs' are counted alike.
+What every answer leaves behind (usage counters of the served and the rejected candidates, the
+plan event, its count in the Prometheus metrics) is one `PlanOutcome` handed to
+`services.bookkeeping.outcomes` (`services.plan.answers` builds it), so robots' requests and
+seed jobs' are counted alike. The record goes to `ctx.records` (`services.bookkeeping.records`),
+the only writer of those counters and events: written in order by a background writer, many per
+transaction, flushed at shutdown. The HTTP layer keeps the request's cycle open, after sending
+the answer, until its record is committed.
 """
 
 from __future__ import annotations
@@ -67,7 +68,9 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.space import base_is_still
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.scene.variant import model_in_scene
-from trajcache.geometry.validation.validator import ValidationResult
+from trajcache.services.bookkeeping.answer_quality import AnswerExtras
+from trajcache.services.bookkeeping.outcomes import Requester
+from trajcache.services.bookkeeping.rejections import RejectedCandidate
 from trajcache.services.catalog.models import get_model
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
@@ -82,14 +85,11 @@ from trajcache.services.plan.attempt import (
     PlanRequest,
     PlanSource,
     PlanStatus,
-    Requester,
 )
 from trajcache.services.plan.certified import validate_candidate
 from trajcache.services.plan.fallback import plan_fallback
 from trajcache.services.plan.options import PlanOptions, resolve_request
 from trajcache.services.plan.pose_goal import resolve_pose_goal
-from trajcache.services.plan.quality import AnswerExtras
-from trajcache.services.plan.rejections import RejectedCandidate
 from trajcache.services.plan.repair import repair_candidate
 
 __all__ = [
@@ -303,7 +303,7 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
 def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | None:
     """The first candidate valid once adapted; the rejected ones are noted on the attempt."""
     attempt.tried = len(matches)
-    seen: list[tuple[np.ndarray, ValidationResult]] = []  # adapted paths rejected so far
+    rejections = attempt.rejections
     with attempt.clock.measure("validate"):
         for match in matches:
             stored = attempt.candidates.get(match.trajectory_id)
@@ -316,17 +316,14 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
                 base=attempt.model.base,
                 reverse=match.reversed,
             )
-            result = next((r for path, r in seen if np.array_equal(path, adapted)), None)
+            result = rejections.verdict(adapted)  # the same path as one rejected already
             if result is None:
                 result, memo_use = validate_candidate(attempt, match, adapted)
                 if result.valid:
                     return _Hit(match, adapted, memo_use)
-                seen.append((adapted, result))
-            attempt.rejections.append(
-                RejectedCandidate(match.trajectory_id, match.reversed, adapted, result)
-            )
+            rejections.add(RejectedCandidate(match.trajectory_id, match.reversed, adapted, result))
     attempt.ctx.facts.record(
-        served=None, failed=attempt.failed, real=False, at=attempt.ctx.records.now()
+        served=None, failed=rejections.ids(), real=False, at=attempt.ctx.records.now()
     )
     return None
 

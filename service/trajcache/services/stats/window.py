@@ -15,7 +15,7 @@ Groups by robot are keyed by the robot id and the requester together: a seed job
 Definitions: a hit is a trajectory served from the cache; a planner call is a request that
 reached the fallback planner (whether it found a path, failed or could not run); failures are
 requests that ended `failure` or `error`; misses ended without planning; refusals were not
-answered (a 4xx of a plan route, `services.plan.refusals`): they are counted on their own,
+answered (a 4xx of a plan route, `services.bookkeeping.refusals`): they are counted on their own,
 not among the requests, the hit rate or the latencies; `repaired` requests
 were served a cached path whose failing stretch the planner replaced (planner calls too, but not
 in the median planning time: a repair plans a stretch only). Lookup and validation

@@ -50,7 +50,7 @@ class FailureView:
     """Where a rejected candidate failed: its event entry, its frame and the failing poses."""
 
     candidate: int  # index in the event's rejections
-    entry: Mapping[str, Any]  # the event's record (`services.plan.rejections`)
+    entry: Mapping[str, Any]  # the event's record (`services.bookkeeping.rejections`)
     frame: int  # the frame at (or just before) the failing sample
     poses: FloatArray  # (K, 7) the posed links at the failing state
 

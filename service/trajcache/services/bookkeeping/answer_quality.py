@@ -1,8 +1,10 @@
-"""Quality and timing of answers, when a plan request asks for them.
+"""Quality and timing of an answer, when its request asks for them.
 
-`answer_details` gives what a plan request asked for (`AnswerExtras`): quality at a level, and
-the answer timed (`services.plan.answers.describe_answer` adds it to the answer). A stored
-trajectory's quality columns, and the timing both share, are `services.quality`.
+`answer_details` gives what a request asked for (`AnswerExtras`): quality at a level, and the
+answer timed; `services.plan.answers.describe_answer` adds it to a plan answer, and a Cartesian
+path's answer carries it too (`services.cartesian.path`). It is handed the settings and the
+validator cache it needs, so it works for any concept that answers, below the service context.
+A stored trajectory's quality columns, and the timing both share, are `services.quality`.
 """
 
 from __future__ import annotations
@@ -13,21 +15,17 @@ from enum import Enum
 
 import numpy as np
 
+from trajcache.core.config import Settings
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import path_length
 from trajcache.geometry.path_quality import Quality, ee_path_length, min_clearance
 from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.validation.validator import (
-    validator_for,
-)
-from trajcache.services.context import ServiceContext
+from trajcache.geometry.validation.validator import ValidatorCache, validator_for
 from trajcache.services.quality import TimingRequest, time_states
-from trajcache.timing import (
-    Samples,
-    TimedTrajectory,
-    TimingMethod,
-)
+from trajcache.timing import Samples, TimedTrajectory, TimingMethod
+
+__all__ = ["AnswerDetails", "AnswerExtras", "QualityLevel", "answer_details"]
 
 
 class QualityLevel(str, Enum):
@@ -58,7 +56,8 @@ class AnswerDetails:
 
 def answer_details(
     *,
-    ctx: ServiceContext,
+    settings: Settings,
+    validators: ValidatorCache,
     model: RobotModel,
     scene: Scene,
     states: FloatArray,
@@ -77,16 +76,14 @@ def answer_details(
     if not timed_wanted and level is QualityLevel.BASIC:
         details.timings_ms["quality"] = (time.perf_counter() - began) * 1e3
         return details
-    validator = validator_for(model, scene, ctx.settings, cache=ctx.validators)
+    validator = validator_for(model, scene, settings, cache=validators)
     duration = None
     if timed_wanted:
         assert timing is not None
         t = time.perf_counter()
-        details.timed = time_states(
-            model, states, ctx.settings, timing, validator_fn=lambda: validator
-        )
+        details.timed = time_states(model, states, settings, timing, validator_fn=lambda: validator)
         details.samples = details.timed.sample(
-            timing.sample_period_s, max_points=ctx.settings.timing_max_points
+            timing.sample_period_s, max_points=settings.timing_max_points
         )
         duration = details.timed.duration
         details.timings_ms["timing"] = (time.perf_counter() - t) * 1e3
@@ -94,7 +91,7 @@ def answer_details(
     if level is QualityLevel.FULL:
         if duration is None:
             default = time_states(
-                model, states, ctx.settings, TimingRequest(), validator_fn=lambda: validator
+                model, states, settings, TimingRequest(), validator_fn=lambda: validator
             )
             duration = default.duration
         found = min_clearance(validator.checker, states, resolution=validator.resolution)

@@ -1,8 +1,11 @@
-"""Why cached candidates were rejected, as the plan event records it.
+"""The cached candidates a plan request rejected, and why, as its answer and plan event say it.
 
 The plan flow notes each rejected candidate as validated (`RejectedCandidate`: the path adapted
-to the request and the validator's verdict) and nothing more: a request that ends in a hit
-after rejections answers as fast as without them. Where each failed is worked out by the
+to the request and the validator's verdict) in the request's one list, :class:`Rejections`, and
+nothing more: a request that ends in a hit after rejections answers as fast as without them.
+Everything else is read from that list: the ids whose usage counters and ranking facts record a
+failure, the reasons the answer lists, the verdict a later candidate that adapts to the same
+path reuses, and the candidate a repair starts from. Where each failed is worked out by the
 record writer, off the request path (`EventDetails`, `geometry.validation.failure`), into one
 entry per candidate of the event's `rejections` column:
 
@@ -20,7 +23,7 @@ entry per candidate of the event's `rejections` column:
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,8 +32,9 @@ import numpy as np
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.validation.failure import locate_failure
 from trajcache.geometry.validation.validator import TrajectoryValidator, ValidationResult
+from trajcache.services.bookkeeping.record_batch import EventDetails
 
-__all__ = ["RejectedCandidate", "rejection_entries"]
+__all__ = ["RejectedCandidate", "Rejections", "rejection_entries"]
 
 MAX_REASON = 500
 
@@ -43,6 +47,54 @@ class RejectedCandidate:
     reversed: bool
     states: FloatArray  # the candidate adapted to the request: the path that was validated
     result: ValidationResult
+
+
+class Rejections:
+    """The candidates one request rejected, in the order they were tried."""
+
+    __slots__ = ("_items",)
+
+    def __init__(self) -> None:
+        self._items: list[RejectedCandidate] = []
+
+    def add(self, candidate: RejectedCandidate) -> None:
+        """Note a candidate that failed validation."""
+        self._items.append(candidate)
+
+    def __iter__(self) -> Iterator[RejectedCandidate]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def ids(self) -> tuple[int, ...]:
+        """The rejected trajectories, in the order they were tried."""
+        return tuple(r.trajectory_id for r in self._items)
+
+    def verdict(self, states: FloatArray) -> ValidationResult | None:
+        """The verdict of a rejected candidate adapted to exactly `states`, if one was."""
+        return next((r.result for r in self._items if np.array_equal(r.states, states)), None)
+
+    def listed(self) -> list[dict[str, object]]:
+        """Why each failed, as the answer lists it."""
+        return [
+            {"trajectory_id": r.trajectory_id, "status": r.result.status.value,
+             "reason": r.result.message}
+            for r in self._items
+        ]  # fmt: skip
+
+    def details(
+        self,
+        validator: TrajectoryValidator,
+        start: FloatArray,
+        goal: FloatArray,
+        held: Mapping[str, float] | None,
+    ) -> EventDetails:
+        """The event's `rejections` column, worked out by the record writer when it writes."""
+        rejected = tuple(self._items)
+        return EventDetails(
+            lambda: {"rejections": rejection_entries(validator, start, goal, rejected, held)}
+        )
 
 
 def rejection_entries(

@@ -1,9 +1,10 @@
 """Prometheus metrics, served at `GET /metrics` (`api.prometheus`): plan requests, step
-latencies, cache size, planner pool.
+latencies, cache size, planner pool; one module holds every metric of the service, the sampler
+that copies the planner pool's counters into them and the collector of the cache size.
 
 Every answered plan request is counted, a robot's and a seed job's alike (label `requester`:
-`robot` or `seed_job`), by the plan flow where it records the request's plan event
-(`services.plan.answers`): the counts agree with `/v1/stats`.
+`robot` or `seed_job`), where its plan event is recorded (`outcomes.record_outcome`), and so is
+every refused one (`refusals`): the counts agree with `/v1/stats`.
 
 One process keeps its metrics in the default registry. Several uvicorn workers are one service
 only if their metrics are merged: when `PROMETHEUS_MULTIPROC_DIR` is set, every process writes
@@ -25,7 +26,6 @@ import logging
 import os
 import threading
 from collections.abc import Callable, Iterator, Mapping
-from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
 from prometheus_client import (
@@ -40,12 +40,11 @@ from prometheus_client import (
 from prometheus_client.core import GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 from sqlalchemy.exc import SQLAlchemyError
+from sqlalchemy.orm import Session, sessionmaker
 
 from trajcache.core.prometheus_dir import MULTIPROC_ENV
 from trajcache.db.models import Trajectory
-
-if TYPE_CHECKING:
-    from trajcache.services.context import ServiceContext
+from trajcache.jobs.pool import PlannerPool
 
 _log = logging.getLogger(__name__)
 SAMPLE_INTERVAL_S = 1.0
@@ -103,7 +102,7 @@ _POOL_COUNTERS = {
 
 
 def record_refusal(*, requester: str) -> None:
-    """Count one plan request refused before an answer (`services.plan.refusals`)."""
+    """Count one plan request refused before an answer (`refusals`)."""
     PLAN_REQUESTS.labels(source="none", status="refused", requester=requester).inc()
 
 
@@ -125,18 +124,17 @@ def record_plan(
 class PoolSampler:
     """Copies the planner pool's queue depth and failure counters into the metrics."""
 
-    def __init__(self, ctx_fn: Callable[[], ServiceContext | None]) -> None:
-        self._ctx_fn = ctx_fn
+    def __init__(self, pool_fn: Callable[[], PlannerPool | None]) -> None:
+        self._pool_fn = pool_fn  # the running pool, if any (sampling never starts one)
         self._lock = threading.Lock()
-        self._pool: object | None = None
+        self._pool: PlannerPool | None = None
         self._seen: dict[str, int] = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
     def sample(self) -> None:
         """Read the pool's counters now (the pool is not started for this)."""
-        ctx = self._ctx_fn()
-        pool = ctx.planner if ctx is not None else None
+        pool = self._pool_fn()
         with self._lock:
             if pool is None:
                 POOL_QUEUE_DEPTH.set(0)
@@ -176,8 +174,8 @@ class PoolSampler:
 class CacheSizeCollector(Collector):
     """Cached trajectories per model, counted in the database at scrape time."""
 
-    def __init__(self, ctx: ServiceContext) -> None:
-        self._ctx = ctx
+    def __init__(self, sessions: sessionmaker[Session]) -> None:
+        self._sessions = sessions
 
     def collect(self) -> Iterator[Metric]:
         """One sample per model; nothing (not an error) while the database is unreachable."""
@@ -186,7 +184,7 @@ class CacheSizeCollector(Collector):
         )
         up = GaugeMetricFamily("trajcache_database_up", "Whether /metrics could read the database.")
         try:
-            with self._ctx.sessions() as session:
+            with self._sessions() as session:
                 counts = session.execute(
                     sa.select(Trajectory.model_id, sa.func.count()).group_by(Trajectory.model_id)
                 ).all()
@@ -201,10 +199,11 @@ class CacheSizeCollector(Collector):
         yield up
 
 
-def render(ctx: ServiceContext) -> bytes:
-    """The exposition text: this process's metrics, or every process's in multiprocess mode."""
+def render(sessions: sessionmaker[Session]) -> bytes:
+    """The exposition text: this process's metrics, or every process's in multiprocess mode,
+    and the cache size read through `sessions`."""
     database = CollectorRegistry(auto_describe=True)
-    database.register(CacheSizeCollector(ctx))
+    database.register(CacheSizeCollector(sessions))
     if os.environ.get(MULTIPROC_ENV):
         merged = CollectorRegistry()
         multiprocess.MultiProcessCollector(merged)

@@ -5,7 +5,8 @@ collision, an unknown robot, a malformed body, no scene under `require_scene`), 
 route's in-band refusal of the same mistakes. Its event keeps the reason (the answer's message,
 cut to the column's 500 characters), never the request body, and no timing but the total: a
 refusal is counted apart from the answered requests (`services.stats.window`). It goes to
-`ctx.records` like every plan event, so it is written in order, off the request path.
+the record writer like every plan event, so it is written in order, off the request path, and
+is counted in the Prometheus metrics (`metrics.record_refusal`).
 
 Only callers the service let through leave one: the HTTP layer records a refusal only after the
 request passed the API-key check (`api.auth`), so an unauthenticated caller (401), a key without
@@ -17,14 +18,14 @@ its refusal names no robot it could be counted for, so only the Prometheus count
 from __future__ import annotations
 
 import sqlalchemy as sa
+from sqlalchemy.orm import Session, sessionmaker
 
 from trajcache.db.models import Robot
-from trajcache.services.bookkeeping.records import PlanRecord
+from trajcache.services.bookkeeping.metrics import record_refusal as count_refusal
+from trajcache.services.bookkeeping.outcomes import Requester
+from trajcache.services.bookkeeping.records import PlanRecord, PlanRecorder
 from trajcache.services.catalog.robots import check_robot_id
-from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
-from trajcache.services.plan.attempt import Requester
-from trajcache.services.prometheus import record_refusal as count_refusal
 
 __all__ = ["REFUSED", "record_refusal"]
 
@@ -33,7 +34,12 @@ _REASON_CHARS = 500  # plan_events.error
 
 
 def record_refusal(
-    *, ctx: ServiceContext, robot_id: str, reason: str, total_ms: float
+    *,
+    sessions: sessionmaker[Session],
+    records: PlanRecorder,
+    robot_id: str,
+    reason: str,
+    total_ms: float,
 ) -> int | None:
     """Queue the plan event of a refused request of robot `robot_id`; its record's number (None:
     no event, for an id that cannot name a robot).
@@ -44,7 +50,7 @@ def record_refusal(
         check_robot_id(robot_id)
     except InvalidInputError:
         return None
-    with ctx.sessions() as session:
+    with sessions() as session:
         model_id = session.scalar(sa.select(Robot.model_id).where(Robot.id == robot_id))
     event = {
         "robot_id": robot_id,
@@ -58,7 +64,6 @@ def record_refusal(
         "total_ms": round(total_ms, 3),
         "error": _reason(reason),
     }
-    records = ctx.records
     return records.submit(PlanRecord(records.now(), None, (), event))
 
 
