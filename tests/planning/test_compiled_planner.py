@@ -7,6 +7,7 @@ from functools import cache
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial.transform import Rotation
 
 from tests.robots import TWO_JOINT_URDF
 from tests.waiting import NEVER_BINDS_S
@@ -96,12 +97,30 @@ def _shelf() -> Scene:
     )
 
 
+def _mixed() -> Scene:
+    """Round and tilted objects near the arm: their boxes' bounding balls and their boxes
+    differ most, where the state check tests the ball first."""
+    tilted = np.eye(4)
+    tilted[:3, :3] = Rotation.from_euler("xyz", [0.4, -0.3, 0.7]).as_matrix()
+    tilted[:3, 3] = (0.45, 0.15, 0.45)
+    post, ball = np.eye(4), np.eye(4)
+    post[:3, 3], ball[:3, 3] = (0.35, -0.25, 0.5), (0.2, 0.35, 0.7)
+    return make_scene(
+        [
+            SceneObject("tilted", Shape(ShapeKind.BOX, (0.3, 0.04, 0.2)), tilted),
+            SceneObject("post", Shape(ShapeKind.CYLINDER, (0.04, 0.5)), post),
+            SceneObject("ball", Shape(ShapeKind.SPHERE, (0.09,)), ball),
+        ]
+    )
+
+
+@pytest.mark.parametrize("scene", ["shelf", "mixed"])
 @pytest.mark.parametrize("name", ["panda", "ur5"])
-def test_the_state_check_proves_only_what_the_exact_check_finds(name: str) -> None:
+def test_the_state_check_proves_only_what_the_exact_check_finds(name: str, scene: str) -> None:
     """FREE only where FCL finds no contact, COLLIDING only where it finds one; and the covers
     settle most states (else the planner would hand everything to the exact check)."""
     model = _robot(name)
-    checker = CollisionChecker(model, _shelf())
+    checker = CollisionChecker(model, _shelf() if scene == "shelf" else _mixed())
     tables = sphere_tables(checker)
     work = tables.work()
     rng = np.random.default_rng(11)

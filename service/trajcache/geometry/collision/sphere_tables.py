@@ -132,6 +132,7 @@ def sphere_tables(checker: CollisionChecker, table_budget_s: float = math.inf) -
     objects = scene.scene.objects
     kinds = np.array([_KINDS[o.shape.kind] for o in objects], dtype=np.int64)
     position = np.array([o.pose[:3, 3] for o in objects], dtype=float).reshape(-1, 3)
+    half = np.ascontiguousarray(scene.half, dtype=float).reshape(-1, 3)
     allowed = checker.clearance.allowed
     if allowed is None:
         allowed = np.zeros((elements, len(objects)), dtype=np.bool_)
@@ -152,7 +153,8 @@ def sphere_tables(checker: CollisionChecker, table_budget_s: float = math.inf) -
             np.ascontiguousarray(allowed, dtype=np.bool_),
             np.ascontiguousarray(np.array([o.pose[:3, :] for o in objects]).reshape(-1, 3, 4)),
             scene.support.kernel_args,
-            np.ascontiguousarray(scene.half, dtype=float).reshape(-1, 3),
+            half,
+            np.sqrt((half**2).sum(axis=1)) + 1e-9,  # the boxes' bounding balls (round-off: grown)
         ),
         pairs=(
             np.ascontiguousarray(robot.pair_i),

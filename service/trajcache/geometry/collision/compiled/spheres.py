@@ -26,7 +26,8 @@ the object (negative inside):
   (E, 4, 4), support table, element box centres (E, 3) and half extents (E, 3) in the element's
   frame;
 - scene: kind (M,), rotation (M, 3, 3), position (M, 3), size (M, 3), allowed (E, M), poses
-  (M, 3, 4), support table, box half extents (M, 3);
+  (M, 3, 4), support table, box half extents (M, 3) and the radius of each box's bounding
+  ball (M,), both about the object's position;
 - pairs: i (P,), j (P,), then the distance tables of `pair_tables.py`;
 - work: links (1, L, 4, 4), world centres (N, 3), stamps (N,), clock (1,), stack (S,), pair
   stack (S, 2), element poses (E, 3, 4), counts (2,) of the states checked and of those found
@@ -165,7 +166,9 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     docstring lays them out.
 
     Before trees are descended, the cheaper proofs: for a scene row, the element's root ball
-    (which holds all its tree covers) missing the object's box, then the oriented boxes apart
+    (which holds all its tree covers) missing the object's box (first its bounding ball: the
+    box lies within it, so a root ball apart from that ball misses the box; this only skips the
+    box test where the box test would pass), then the oriented boxes apart
     (an element's box holds it; an object's box holds it); for a pair its distance table, the
     elements' root balls apart, their boxes apart and separating slabs (`slabs.py`, as the
     certification uses them). Every root ball is placed once per state, first."""
@@ -177,16 +180,17 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     allowed = scene[4]
     status = FREE
     poses, box_centre, box_half = work[6], work[8], robot[10]
-    rot_m, centre_m, half_m = scene[1], scene[2], scene[7]
+    rot_m, centre_m, half_m, ball_m = scene[1], scene[2], scene[7], scene[8]
     for e in range(root.shape[0]):
         k = root[e]
+        x, y, z, r = world[k, 0], world[k, 1], world[k, 2], radius[k]
         for m in range(scene[0].shape[0]):
             if allowed[e, m]:
                 continue
-            if (
-                box_distance_at(world[k, 0], world[k, 1], world[k, 2], rot_m, centre_m, half_m, m)
-                > radius[k]
-            ):
+            dx, dy, dz = x - centre_m[m, 0], y - centre_m[m, 1], z - centre_m[m, 2]
+            if dx * dx + dy * dy + dz * dz > (r + ball_m[m]) ** 2:
+                continue  # the element's bounding ball misses the ball that holds the box
+            if box_distance_at(x, y, z, rot_m, centre_m, half_m, m) > r:
                 continue  # the element's bounding ball misses the object's box
             if obb_apart(poses, e, box_centre, box_half, rot_m, m, centre_m, half_m):
                 continue
