@@ -318,6 +318,12 @@ class Settings(BaseSettings):
     quality_backfill_per_s: float = Field(
         default=50.0, ge=0, description="Background quality and end-pose rows per second (0: off)."
     )
+    commit_log_retention_s: float = Field(
+        default=86400.0,
+        ge=600,
+        description="Seconds the trajectory commit log keeps its rows for replicas' syncs; a "
+        "replica that synced less recently reloads its indexes.",
+    )
 
     @field_validator("database_url")
     @classmethod

@@ -17,6 +17,7 @@ from sqlalchemy.orm import Session, defer
 
 from trajcache.core.config import Settings
 from trajcache.db import models as tables
+from trajcache.db.commit_log import log_commits
 from trajcache.db.states import state_columns
 from trajcache.geometry.errors import GeometryError, StateError
 from trajcache.geometry.model.kinematics import check_limits, check_states
@@ -84,7 +85,8 @@ def store_trajectory(
     and, in the trajectory's scene or else the stored scene version with its `scene_hash`, the
     minimum clearance. A metric that cannot be computed is left empty; the store proceeds.
     `scenes` and `validators` (the service's caches) spare parsing the scene and building its
-    validator again. A new row's end poses are indexed in the same transaction (`end_poses`).
+    validator again. A new row's end poses are indexed in the same transaction (`end_poses`),
+    and so is its row of the commit log, by which other replicas pick it up.
     """
     t, model = trajectory, trajectory.model
     array = _validated(
@@ -113,6 +115,7 @@ def store_trajectory(
     if new_id is None:  # stored concurrently by another request or replica
         return _stored_meanwhile(session, row), False
     write_end_poses(session, model, [new_id], array[:1], array[-1:])
+    log_commits(session, [(new_id, new_id)])  # replicas' syncs read the new row through it
     if commit:
         session.commit()
     return new_id, True
