@@ -31,6 +31,7 @@ TABLES = {
     "seed_jobs",
     "trajectories",
     "trajectory_certificates",
+    "trajectory_commits",
     "trajectory_end_poses",
     "trajectory_tombstones",
 }
@@ -182,7 +183,7 @@ def test_sqlite_ids_are_never_reused(tmp_path: Path) -> None:
             )
     finally:
         engine.dispose()
-    for table in ("trajectories", "trajectory_tombstones", "plan_events"):
+    for table in ("trajectories", "trajectory_tombstones", "trajectory_commits", "plan_events"):
         assert "AUTOINCREMENT" in sql[table]
 
 

@@ -20,7 +20,6 @@ from enum import Enum
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Annotated
 
-import sqlalchemy as sa
 import typer
 from rich.console import Console
 from rich.progress import (
@@ -176,6 +175,8 @@ def lower_database_priority(session: Session, niceness: int) -> bool:
         return False
     if bind.engine.url.host not in _LOCAL_HOSTS:
         return False
+    import sqlalchemy as sa  # here: `--help` loads no database layer
+
     pid = int(session.execute(sa.text("SELECT pg_backend_pid()")).scalar_one())
     try:
         if Path(f"/proc/{pid}/comm").read_text().strip() != "postgres":

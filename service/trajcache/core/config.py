@@ -298,12 +298,8 @@ class Settings(BaseSettings):
         ge=1,
         description="Consecutive validation failures after which a candidate is tried last.",
     )
-    cache_max_per_model: int = Field(
-        default=0,
-        ge=0,
-        description="Most trajectories kept per robot model; beyond it the eviction policy "
-        "deletes the rest (0 = no cap).",
-    )
+    cache_max_per_model: int = Field(default=0, ge=0, description="Most trajectories kept per "
+        "robot model; beyond it the eviction policy deletes the rest (0 = no cap).")  # fmt: skip
     eviction_policy: Literal["lru", "least_hit"] = Field(
         default="lru",
         description="What eviction deletes first: `lru` (least recently used, never-used ones "
@@ -318,6 +314,9 @@ class Settings(BaseSettings):
     quality_backfill_per_s: float = Field(
         default=50.0, ge=0, description="Background quality and end-pose rows per second (0: off)."
     )
+    commit_log_retention_s: float = Field(default=86400.0, ge=600, description="Seconds the "
+        "trajectory commit log keeps its rows for replicas' syncs; a replica that synced less "
+        "recently reloads its indexes.")  # fmt: skip
 
     @field_validator("database_url")
     @classmethod

@@ -227,6 +227,19 @@ class TrajectoryTombstone(Base):
     deleted_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
 
+class TrajectoryCommit(Base):
+    """One write of trajectories, logged in its own transaction: the ids it inserted lie in
+    `first_id`..`last_id`. Replicas sync by reading this log (`services.catalog.index_store`)."""
+
+    __tablename__ = "trajectory_commits"
+    __table_args__ = ({"sqlite_autoincrement": True},)
+
+    id: Mapped[int] = mapped_column(BigIntPK, primary_key=True, autoincrement=True)
+    first_id: Mapped[int] = mapped_column(BigInteger)
+    last_id: Mapped[int] = mapped_column(BigInteger)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow, index=True)
+
+
 class PlanEvent(Base):
     """One answered (or failed) plan request, for statistics and the dashboard."""
 

@@ -1,5 +1,6 @@
 """Background work of one service process: the seed job scheduler (which also prunes old seed
-jobs' scenes), timed eviction and the quality of imported trajectories."""
+jobs' scenes), timed eviction, the quality of imported trajectories and the pruning of the
+trajectory commit log."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from dataclasses import dataclass
 
 from trajcache.services.context import ServiceContext
 from trajcache.services.maintenance.backfill import QualityBackfill
+from trajcache.services.maintenance.commit_log import CommitLogPruner
 from trajcache.services.maintenance.eviction import EvictionTimer
 from trajcache.services.seeding.scheduler import SeedScheduler
 
@@ -18,9 +20,12 @@ class Background:
     seeds: SeedScheduler
     eviction: EvictionTimer | None
     quality: QualityBackfill | None = None
+    commit_log: CommitLogPruner | None = None
 
     def stop(self) -> None:
         """Hand running seed jobs back and stop the timers."""
+        if self.commit_log is not None:
+            self.commit_log.stop()
         if self.quality is not None:
             self.quality.stop()
         if self.eviction is not None:
@@ -29,11 +34,17 @@ class Background:
 
 
 def start_background(ctx: ServiceContext) -> Background:
-    """Start the seed scheduler (it resumes unfinished jobs at once), timed eviction and the
-    background quality of imports (it resumes rows left pending, at once)."""
+    """Start the seed scheduler (it resumes unfinished jobs at once), timed eviction, the
+    background quality of imports (it resumes rows left pending, at once) and the commit log's
+    pruning."""
     settings = ctx.settings
     eviction = None
     if settings.cache_max_per_model > 0 and settings.eviction_interval_s > 0:
         eviction = EvictionTimer(ctx).start()
     quality = QualityBackfill(ctx).start() if settings.quality_backfill_per_s > 0 else None
-    return Background(seeds=SeedScheduler(ctx).start(), eviction=eviction, quality=quality)
+    return Background(
+        seeds=SeedScheduler(ctx).start(),
+        eviction=eviction,
+        quality=quality,
+        commit_log=CommitLogPruner(ctx).start(),
+    )

@@ -12,11 +12,16 @@ import sqlalchemy as sa
 
 from tests.services.hit_setup import context, count_statements, store, two_joint
 from tests.waiting import CountingLock, wait_until
+from trajcache.core.config import Settings
 from trajcache.db.models import Trajectory
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.catalog.index_store import StatesCache
 from trajcache.services.catalog.robots import ROBOT_SCENE, put_robot
-from trajcache.services.catalog.trajectories import delete_trajectory
+from trajcache.services.catalog.trajectories import (
+    NewTrajectory,
+    delete_trajectory,
+    store_trajectory,
+)
 from trajcache.services.context import ServiceContext
 
 
@@ -154,19 +159,24 @@ def test_a_row_committed_after_a_higher_id_is_still_picked_up(postgres_url: str)
         with ctx.sessions() as session:
             ctx.indexes.index(session, model)
         slow = ctx.sessions()
-        row = Trajectory(model_id=model.model_id, source="sim")
-        row.set_states([[0.3, 0.0], [1.0, 0.5]])
-        slow.add(row)
-        slow.flush()  # id taken, not committed
+        early, _ = store_trajectory(  # ids (trajectory and log row) taken, not committed
+            session=slow,
+            settings=Settings(),
+            compute_quality=False,
+            commit=False,
+            trajectory=NewTrajectory(
+                model=model, states=np.array([[0.3, 0.0], [1.0, 0.5]]), source="sim"
+            ),
+        )
         later = store(ctx, model, [[0.6, 0.0], [1.0, 0.5]])
-        assert later > row.id
+        assert later > early
         with ctx.sessions() as session:
             index = ctx.indexes.index(session, model)
-        assert later in index and row.id not in index
+        assert later in index and early not in index
         slow.commit()
         slow.close()
         with ctx.sessions() as session:
-            assert row.id in ctx.indexes.index(session, model)
+            assert early in ctx.indexes.index(session, model)
 
 
 def test_key_states_are_loaded_once_and_dropped_with_their_tombstone(database_url: str) -> None:

@@ -1,19 +1,52 @@
 """Per-model in-memory trajectory indexes, kept in step with the shared database.
 
 Every replica keeps its own `TrajectoryIndex` per model. Before it answers a plan it reads what
-other replicas wrote since it last looked: trajectory rows above its high-water mark, and
-tombstones (deletions) above a second high-water mark.
+other replicas wrote since it last looked: the rows of the trajectory commit log above its
+high-water mark, each joined to the trajectories of its id range, and tombstones (deletions)
+above a second high-water mark. Every transaction that inserts trajectories logs the range of
+each write (`db.commit_log`: `store_trajectory` one id, an import one range per batch), in the
+same transaction, as its last writes before the commit.
+
+The sync never walks trajectory ids: an import holding 100,000 uncommitted rows in one long
+transaction leaves only its few log rows in the log's index, and those only in its last moment.
+(Reading `trajectories.id > mark` walked every uncommitted row above the mark and checked each
+one's visibility, on every sync.)
 
 Ids come from one sequence per table, and on PostgreSQL transactions can commit out of id
-order: a row with a lower id may become visible after a higher one was read. So every id
+order: a log row with a lower id may become visible after a higher one was read. So every log id
 skipped over is remembered as a gap and asked for again on each sync until it shows up or
-`gap_ttl_s` passes (a rolled-back insert leaves a gap forever). Adding and removing are
+`gap_ttl_s` passes (a rolled-back write leaves a gap forever). Adding and removing are
 idempotent, so reading a row twice is harmless.
 
-One sync is one query: new and missing trajectory rows and tombstones are read together (UNION
-ALL), so both come from the same snapshot. With `sync_interval_s=0` every plan needs a sync that
-began after the plan arrived (so it sees every row committed before); requests that arrive while
-a sync runs share the next one instead of queueing one each.
+Why no committed trajectory is missed. A model's index is loaded (`_load_model`) with every row
+of the model committed when the load reads. A trajectory committed later was logged in its own
+transaction, so its log row became visible with it, after the load; that log id is either above
+the high-water mark, or below it and then a gap (the mark passed it while it was not visible:
+`IdStream.advance` marks every id skipped over), or it was read before it committed, which
+cannot be. It is missed only if its log row waited longer than `gap_ttl_s` between taking its id
+and committing (log rows are the last writes, so this is the commit's own latency), or lies more
+than `_STARTUP_WINDOW` ids below the first mark of a replica started while it was in flight.
+A replica started while writers are active takes as its mark the highest visible log id, with
+the invisible ids of the window below it as gaps, and loads each model later: whatever commits
+after the load is above the mark or a gap. A log row pruned before this replica read it
+(`commit_log_retention_s`, far above `gap_ttl_s`) is noticed: pruning deletes a prefix of the
+log and keeps its newest row, so the oldest id left (read in the same query) then lies above
+the mark + 1, and the replica starts over, loading its indexes again (`_reload`).
+
+Why nothing is read that should not be. A log row joins the trajectories of its range as they
+are now: rows of other transactions inside the range are committed ones (they have log rows of
+their own; adding is idempotent) and an uncommitted one is invisible; a rolled-back write has no
+visible log row and no rows. A deleted trajectory is not in the table, so a log row read after
+the deletion adds nothing (the outer join still yields the log row, so it advances the mark and
+does not stay a gap); a deletion that commits after a row was added comes as a tombstone, and
+tombstones are applied after rows in the same sync. A load and a sync read different snapshots,
+but each only adds what is committed and each deletion has a tombstone read after it commits.
+
+One sync is one query: new and missing log rows with their trajectories, tombstones and the
+oldest log id are read together (UNION ALL), so they come from the same snapshot. With
+`sync_interval_s=0` every plan needs a sync that began after the plan arrived (so it sees every
+row committed before); requests that arrive while a sync runs share the next one instead of
+queueing one each.
 
 A plan's own first read (its robot and scene) can ride along as one more branch of that query
 (`read_with_sync`): a cache hit then needs one round trip before lookup, not two. Both calls are
@@ -38,7 +71,7 @@ from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from trajcache.cache.index import TrajectoryIndex
 from trajcache.core.lru import LRU
-from trajcache.db.models import Trajectory, TrajectoryTombstone, unpack_states
+from trajcache.db.models import Trajectory, TrajectoryCommit, TrajectoryTombstone, unpack_states
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 
@@ -49,7 +82,7 @@ if TYPE_CHECKING:
 
 _STARTUP_WINDOW = 10_000  # ids below the first high-water mark that may still be in flight
 _MAX_GAPS = 100_000
-_ROW, _TOMBSTONE, _RIDER = 0, 1, 2
+_ROW, _TOMBSTONE, _RIDER, _OLDEST = 0, 1, 2, 3
 _SYNC_COLUMNS = 6  # kind, id, model_id, start, goal, ref: a rider's columns follow them
 
 
@@ -93,8 +126,9 @@ class IndexStore:
         self.sync_interval_s = sync_interval_s
         self.gap_ttl_s = gap_ttl_s
         self.syncs = 0  # sync queries run (for tests and metrics)
+        self.reloads = 0  # times the commit log was found pruned past this replica's mark
         self._indexes: dict[str, TrajectoryIndex] = {}
-        self._rows = IdStream()
+        self._commits = IdStream()
         self._tombs = IdStream()
         self._started = False
         self._synced_from = -float("inf")  # when the last completed sync began (monotonic)
@@ -155,7 +189,10 @@ class IndexStore:
             return {m: len(i) for m, i in self._indexes.items()}
 
     def _start(self, session: Session, now: float) -> None:
-        for stream, column in ((self._rows, Trajectory.id), (self._tombs, TrajectoryTombstone.id)):
+        for stream, column in (
+            (self._commits, TrajectoryCommit.id),
+            (self._tombs, TrajectoryTombstone.id),
+        ):
             top = session.execute(sa.select(sa.func.max(column))).scalar() or 0
             floor = max(0, top - _STARTUP_WINDOW)
             seen = session.execute(sa.select(column).where(column > floor)).scalars().all()
@@ -189,26 +226,38 @@ class IndexStore:
         rider: AnySelect | None,
         rider_params: Mapping[str, Any],
     ) -> tuple[Any, ...] | None:
-        """New and missing rows and tombstones (and `rider`'s row) in one query; rows are
-        applied first. Returns the row of `rider`, if any."""
-        row_gaps = self._rows.wanted_gaps(now, self.gap_ttl_s)
+        """New and missing commit-log rows with their trajectories, tombstones, the oldest log
+        id (and `rider`'s row) in one query; rows are applied before tombstones. Returns the
+        row of `rider`, if any."""
+        commit_gaps = self._commits.wanted_gaps(now, self.gap_ttl_s)
         tomb_gaps = self._tombs.wanted_gaps(now, self.gap_ttl_s)
-        params: dict[str, Any] = {"row_hwm": self._rows.hwm, "tomb_hwm": self._tombs.hwm}
-        if row_gaps:
-            params["row_gaps"] = row_gaps
+        params: dict[str, Any] = {"commit_hwm": self._commits.hwm, "tomb_hwm": self._tombs.hwm}
+        if commit_gaps:
+            params["commit_gaps"] = commit_gaps
         if tomb_gaps:
             params["tomb_gaps"] = tomb_gaps
-        statement = _changes_statement(bool(row_gaps), bool(tomb_gaps), rider)
+        statement = _changes_statement(bool(commit_gaps), bool(tomb_gaps), rider)
         if rider is not None:
             params.update(rider_params)
         changes = session.connection().execute(statement, params).all()
-        new_rows = [c for c in changes if c.kind == _ROW]
-        tombstones = [c for c in changes if c.kind == _TOMBSTONE]
         ridden = next((tuple(c)[_SYNC_COLUMNS:] for c in changes if c.kind == _RIDER), None)
-        by_model: dict[str, list[Any]] = {}
-        for row in new_rows:
-            if row.model_id in self._indexes:
-                by_model.setdefault(row.model_id, []).append(row)
+        oldest = next((c.id for c in changes if c.kind == _OLDEST), None)
+        if oldest is not None and oldest > self._commits.hwm + 1:
+            self._reload(session, now)  # log rows above the mark were pruned unread
+            return ridden
+        logged = [c for c in changes if c.kind == _ROW]
+        tombstones = [c for c in changes if c.kind == _TOMBSTONE]
+        self._apply(logged, tombstones)
+        self._commits.advance([int(c.id) for c in logged], now)
+        self._tombs.advance([int(t.id) for t in tombstones], now)
+        return ridden
+
+    def _apply(self, logged: Sequence[Any], tombstones: Sequence[Any]) -> None:
+        """Add the logged trajectories of loaded models, then drop the tombstoned ones."""
+        by_model: dict[str, list[tuple[int, Any, Any]]] = {}
+        for row in logged:
+            if row.ref is not None and row.model_id in self._indexes:
+                by_model.setdefault(row.model_id, []).append((row.ref, row.start, row.goal))
         for model_id, model_rows in by_model.items():
             _add_rows(self._indexes[model_id], model_rows)
         for tomb in tombstones:
@@ -216,18 +265,23 @@ class IndexStore:
             index = self._indexes.get(tomb.model_id)
             if index is not None and tomb.ref in index:
                 index.remove(np.array([tomb.ref], dtype=np.int64))
-        self._rows.advance([int(r.id) for r in new_rows], now)
-        self._tombs.advance([int(t.id) for t in tombstones], now)
-        return ridden
+
+    def _reload(self, session: Session, now: float) -> None:
+        """Start over as a new replica: indexes load again when next asked for."""
+        self.reloads += 1
+        self._indexes.clear()
+        self._states.clear()
+        self._commits, self._tombs = IdStream(), IdStream()
+        self._start(session, now)
 
     def _load_model(self, session: Session, model: RobotModel) -> TrajectoryIndex:
         rows = session.execute(
-            sa.select(Trajectory.id, Trajectory.model_id, Trajectory.start, Trajectory.goal).where(
-                Trajectory.model_id == model.model_id, Trajectory.id <= self._rows.hwm
+            sa.select(Trajectory.id, Trajectory.start, Trajectory.goal).where(
+                Trajectory.model_id == model.model_id
             )
         ).all()
         index = TrajectoryIndex(model.dof, base=model.base)
-        _add_rows(index, rows)
+        _add_rows(index, [(r.id, r.start, r.goal) for r in rows])
         self._indexes[model.model_id] = index
         return index
 
@@ -265,44 +319,64 @@ def _nbytes(states: FloatArray) -> int:
 
 @functools.cache
 def _changes_statement(
-    row_gaps: bool, tomb_gaps: bool, rider: AnySelect | None = None
+    commit_gaps: bool, tomb_gaps: bool, rider: AnySelect | None = None
 ) -> sa.CompoundSelect[Any]:
-    """Rows and tombstones above their high-water marks (`:row_hwm`, `:tomb_hwm`) or, when
-    asked, among the gaps (`:row_gaps`, `:tomb_gaps`), and the row of `rider` if given (its
-    columns after the sync's, null in the other branches); built once per shape and rider."""
+    """Commit-log rows above their high-water mark (`:commit_hwm`) or, when asked, among the
+    gaps (`:commit_gaps`), each with the trajectories in its id range (one row with none when
+    they are gone); tombstones likewise (`:tomb_hwm`, `:tomb_gaps`); the oldest log id; and
+    the row of `rider` if given (its columns after the sync's, null in the other branches).
+    Built once per shape and rider."""
     extra = list(rider.selected_columns) if rider is not None else []
     blanks = [sa.cast(sa.null(), c.type).label(f"rider_{i}") for i, c in enumerate(extra)]
-    rows = sa.select(
-        sa.literal_column(str(_ROW), sa.Integer).label("kind"),
-        Trajectory.id.label("id"),
-        Trajectory.model_id.label("model_id"),
-        Trajectory.start.label("start"),
-        Trajectory.goal.label("goal"),
-        sa.cast(sa.null(), sa.BigInteger).label("ref"),
-        *blanks,
-    ).where(_above_or_in(Trajectory.id, "row", row_gaps))
+    logged = (
+        sa.select(
+            _kind(_ROW).label("kind"),
+            TrajectoryCommit.id.label("id"),
+            Trajectory.model_id.label("model_id"),
+            Trajectory.start.label("start"),
+            Trajectory.goal.label("goal"),
+            Trajectory.id.label("ref"),
+            *blanks,
+        )
+        .select_from(TrajectoryCommit)
+        .outerjoin(
+            Trajectory, Trajectory.id.between(TrajectoryCommit.first_id, TrajectoryCommit.last_id)
+        )
+        .where(_above_or_in(TrajectoryCommit.id, "commit", commit_gaps))
+    )
     tombs = sa.select(
-        sa.literal_column(str(_TOMBSTONE), sa.Integer),
+        _kind(_TOMBSTONE),
         TrajectoryTombstone.id,
         TrajectoryTombstone.model_id,
-        sa.cast(sa.null(), Trajectory.start.type),
-        sa.cast(sa.null(), Trajectory.goal.type),
+        *_nulls(Trajectory.start, Trajectory.goal),
         TrajectoryTombstone.trajectory_id,
         *blanks,
     ).where(_above_or_in(TrajectoryTombstone.id, "tomb", tomb_gaps))
+    oldest = sa.select(
+        _kind(_OLDEST),
+        sa.func.min(TrajectoryCommit.id),
+        *_nulls(Trajectory.model_id, Trajectory.start, Trajectory.goal, Trajectory.id),
+        *blanks,
+    )
     if rider is None:
-        return sa.union_all(rows, tombs)
+        return sa.union_all(logged, tombs, oldest)
     ridden = rider.with_only_columns(
-        sa.literal_column(str(_RIDER), sa.Integer),
-        sa.cast(sa.null(), sa.BigInteger),
-        sa.cast(sa.null(), Trajectory.model_id.type),
-        sa.cast(sa.null(), Trajectory.start.type),
-        sa.cast(sa.null(), Trajectory.goal.type),
+        _kind(_RIDER),
+        *_nulls(Trajectory.id, Trajectory.model_id, Trajectory.start, Trajectory.goal),
         sa.cast(sa.null(), sa.BigInteger),
         *extra,
         maintain_column_froms=True,
     )
-    return sa.union_all(rows, tombs, ridden)
+    return sa.union_all(logged, tombs, oldest, ridden)
+
+
+def _kind(kind: int) -> sa.ColumnElement[int]:
+    return sa.literal_column(str(kind), sa.Integer)
+
+
+def _nulls(*columns: InstrumentedAttribute[Any]) -> list[sa.ColumnElement[Any]]:
+    """Nulls of the types of `columns`, for the branches that have no such value."""
+    return [sa.cast(sa.null(), c.type) for c in columns]
 
 
 def _above_or_in(
@@ -314,11 +388,10 @@ def _above_or_in(
     return sa.or_(above, column.in_(sa.bindparam(f"{name}_gaps", expanding=True)))
 
 
-def _add_rows(index: TrajectoryIndex, rows: Sequence[Any]) -> None:
-    fresh = [r for r in rows if r.id not in index]
+def _add_rows(index: TrajectoryIndex, rows: Sequence[tuple[int, Any, Any]]) -> None:
+    """Add the (id, start, goal) rows not indexed yet (adding is idempotent)."""
+    fresh = [r for r in rows if r[0] not in index]
     if not fresh:
         return
-    ids = np.array([r.id for r in fresh], dtype=np.int64)
-    index.add(
-        ids, np.array([r.start for r in fresh], float), np.array([r.goal for r in fresh], float)
-    )
+    ids = np.array([r[0] for r in fresh], dtype=np.int64)
+    index.add(ids, np.array([r[1] for r in fresh], float), np.array([r[2] for r in fresh], float))

@@ -17,6 +17,7 @@ from sqlalchemy.orm import Session, defer
 
 from trajcache.core.config import Settings
 from trajcache.db import models as tables
+from trajcache.db.commit_log import log_commits
 from trajcache.db.states import state_columns
 from trajcache.geometry.errors import GeometryError, StateError
 from trajcache.geometry.model.kinematics import check_limits, check_states
@@ -75,16 +76,15 @@ def store_trajectory(
 ) -> tuple[int, bool]:
     """Store `trajectory`; an identical one already stored is returned, not copied.
 
-    States are checked for length, finiteness and joint limits (StateError names the joint).
-    With `commit=False` the row is only flushed, so the caller can commit it together with
-    other writes.
+    States are checked for length, finiteness and joint limits (StateError names the joint);
+    with `commit=False` the row is only flushed (the caller commits it with other writes).
 
     A new row gets its quality columns (`compute_quality`) under the caller's `settings` (the
     app's, never the process environment's): path lengths, duration after time-optimal timing
     and, in the trajectory's scene or else the stored scene version with its `scene_hash`, the
     minimum clearance. A metric that cannot be computed is left empty; the store proceeds.
     `scenes` and `validators` (the service's caches) spare parsing the scene and building its
-    validator again. A new row's end poses are indexed in the same transaction (`end_poses`).
+    validator again. A new row's end poses (`end_poses`) and commit-log row go in its transaction.
     """
     t, model = trajectory, trajectory.model
     array = _validated(
@@ -113,6 +113,7 @@ def store_trajectory(
     if new_id is None:  # stored concurrently by another request or replica
         return _stored_meanwhile(session, row), False
     write_end_poses(session, model, [new_id], array[:1], array[-1:])
+    log_commits(session, [(new_id, new_id)])  # replicas' syncs read the new row through it
     if commit:
         session.commit()
     return new_id, True

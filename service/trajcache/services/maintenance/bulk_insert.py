@@ -9,7 +9,10 @@ the transaction and inserted from there with one `INSERT … SELECT … ON CONFL
 VALUES list of 25 parameters a row costs more to build and parse than the rows cost to insert.
 The writer never commits: the importer's one transaction holds every batch. The rows a batch
 inserted (their ids read back by model and content hash) go to `inserted_fn`, which writes what
-belongs with them in the same transaction (their end poses).
+belongs with them in the same transaction (their end poses). `finish` writes the last batch and
+one commit-log row per batch (its lowest and highest new id), the transaction's last writes: a
+log id taken at the first batch of a long import would keep replicas waiting on it as a gap for
+the whole import, longer than they wait (`db.commit_log`).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
 from trajcache.db import models as tables
+from trajcache.db.commit_log import log_commits
 
 DEFAULT_BATCH_ROWS = 1000
 _TABLE: sa.Table = tables.Trajectory.__table__  # type: ignore[assignment]
@@ -78,6 +82,7 @@ class BatchWriter:
         self._dialect = session.get_bind().dialect.name
         self._statement = _insert_statement(self._dialect)
         self._staged = False  # the PostgreSQL staging table exists
+        self._ranges: list[tuple[int, int]] = []  # each batch's new ids, lowest and highest
 
     def add(self, values: Mapping[str, Any]) -> None:
         """Queue one row (the columns of `_KEYS`; missing ones are null)."""
@@ -107,10 +112,20 @@ class BatchWriter:
             keys = [tuple(r) for r in self.session.connection().execute(self._statement, rows)]
         self.inserted += len(keys)
         self.duplicates += len(rows) - len(keys)
+        if keys:
+            ids = [int(k[0]) for k in keys]
+            self._ranges.append((min(ids), max(ids)))
         if self.inserted_fn is not None and keys:
             by_key = {(row["model_id"], row["content_hash"]): row for row in rows}
             new = [{**by_key[(m, h)], "id": int(i)} for i, m, h in keys]
             self.inserted_fn(self.session, new)
+
+    def finish(self) -> None:
+        """Insert the queued rows and log every batch's ids (`db.commit_log`); the caller
+        commits next."""
+        self.flush()
+        log_commits(self.session, self._ranges)
+        self._ranges.clear()
 
 
 def _insert_statement(dialect: str) -> sa.Insert | None:

@@ -188,6 +188,7 @@ class Importer:
             )
         self._writer.flush()
         self._paths.flush()
+        self._writer.finish()  # the commit-log rows go last, just before the commit
         self.report.inserted += self._writer.inserted
         self.report.duplicates += self._writer.duplicates
         self.report.cartesian_inserted += self._paths.inserted

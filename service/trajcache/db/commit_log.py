@@ -1,0 +1,43 @@
+"""Writing and pruning the trajectory commit log (`TrajectoryCommit`).
+
+Every transaction that inserts trajectories logs the id range of each write, in that same
+transaction and as its last write before the commit: a log row's id is then taken moments before
+it becomes visible, so replicas wait for it as a gap only that long (see
+`services.catalog.index_store`). Pruning deletes a prefix of the log by id and keeps the newest
+row always: a replica compares its high-water mark with the oldest row left, and a hole in the
+middle, or an empty log, would hide that rows were pruned.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from datetime import datetime
+
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from trajcache.db.models import TrajectoryCommit, utcnow
+
+
+def log_commits(session: Session, ranges: Iterable[tuple[int, int]]) -> None:
+    """Add one log row per (first id, last id) range, in the session's transaction."""
+    now = utcnow()
+    rows = [{"first_id": a, "last_id": b, "created_at": now} for a, b in ranges]
+    if rows:
+        session.execute(sa.insert(TrajectoryCommit), rows)
+
+
+def prune_commit_log(session: Session, *, before: datetime) -> int:
+    """Delete the log rows below the first one created at or after `before` (all but the
+    newest when none is); commit; how many went.
+
+    What is left is a suffix of the log by id, so a replica whose high-water mark lies below
+    the oldest id left knows it missed rows, even if clocks disagree about `created_at`."""
+    recent = sa.select(sa.func.min(TrajectoryCommit.id)).where(
+        TrajectoryCommit.created_at >= before
+    )
+    newest = sa.select(sa.func.max(TrajectoryCommit.id))
+    keep_from = sa.func.coalesce(recent.scalar_subquery(), newest.scalar_subquery())
+    deleted = session.execute(sa.delete(TrajectoryCommit).where(TrajectoryCommit.id < keep_from))
+    session.commit()
+    return int(deleted.rowcount or 0)  # type: ignore[attr-defined]
