@@ -67,3 +67,23 @@ def test_a_connection_handed_back_moments_ago_is_not_pinged(postgres_url: str) -
         assert len(pings) == 1
     finally:
         engine.dispose()
+
+
+def test_postgresql_connections_do_not_jit_compile(postgres_url: str) -> None:
+    """Every pooled connection has JIT off (`session._without_jit`): the sync query's cost
+    estimate passes `jit_above_cost` while an import is in flight, and compiling it cost each
+    plan 55 ms. (A plain connection shows the server's default: on, on this machine.)"""
+    plain = sa.create_engine(postgres_url.replace("postgresql://", "postgresql+psycopg://", 1))
+    try:
+        with plain.connect() as conn:
+            default = conn.exec_driver_sql("SHOW jit").scalar()
+    finally:
+        plain.dispose()
+    engine = make_engine(postgres_url, pool_size=1)
+    try:
+        with engine.connect() as first, engine.connect() as second:  # the overflow connects too
+            assert first.exec_driver_sql("SHOW jit").scalar() == "off"
+            assert second.exec_driver_sql("SHOW jit").scalar() == "off"
+    finally:
+        engine.dispose()
+    assert default in ("on", "off")

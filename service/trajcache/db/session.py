@@ -57,8 +57,25 @@ def make_engine(url: str, *, pool_size: int = 10, echo: bool = False) -> Engine:
     if backend == "postgresql":
         engine = create_engine(sa_url, echo=echo, pool_size=pool_size, max_overflow=pool_size)
         _ping_idle_connections(engine)
+        event.listen(engine, "connect", _without_jit)
         return engine
     return create_engine(sa_url, echo=echo, pool_pre_ping=True)
+
+
+def _without_jit(dbapi_connection: Any, _record: Any) -> None:
+    """Switch PostgreSQL's JIT compilation off for the service's connections.
+
+    Every query here is small, but the planner's cost estimate of one can pass `jit_above_cost`:
+    the replica sync's range join over the trajectories grows with the rows an import has
+    inserted and not yet committed (2 million estimated rows at 60,000 in flight). JIT then
+    compiled the query on every plan, 12 ms of code generation and 55 ms in all for a query
+    that runs in 0.1 ms.
+    """
+    if dbapi_connection.info.server_version < 110000:  # no JIT before PostgreSQL 11
+        return
+    with dbapi_connection.cursor() as cursor:
+        cursor.execute("SET jit = off")
+    dbapi_connection.commit()
 
 
 PING_IDLE_S = 1.0  # a pooled connection unused for longer is checked before it is handed out
