@@ -11,9 +11,7 @@ import numpy as np
 import pytest
 
 from tests.robots import TWO_JOINT_URDF, two_joint_arm
-from tests.services.hit_setup import count_statements
-from trajcache.core.config import Settings
-from trajcache.db import migrate
+from tests.services.hit_setup import context, count_statements
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.path_quality import ee_path_length, min_clearance
 from trajcache.geometry.scene.parse import parse_scene
@@ -30,13 +28,8 @@ SCENE = parse_scene({"objects": [BALL]})
 
 @pytest.fixture
 def ctx(tmp_path: Path) -> Iterator[ServiceContext]:
-    url = f"sqlite:///{tmp_path / 'q.db'}"
-    migrate.upgrade(url)
-    context = ServiceContext.create(Settings(database_url=url, worker_prestart=False))
-    try:
-        yield context
-    finally:
-        context.close()
+    with context(f"sqlite:///{tmp_path / 'q.db'}", worker_prestart=False) as service:
+        yield service
 
 
 def test_answer_quality_uses_the_model_and_scene_of_the_plan_without_reading_them(

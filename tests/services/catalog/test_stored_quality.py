@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from tests.robots import TWO_JOINT_URDF
+from tests.services.hit_setup import context
 from trajcache.core.config import Settings
-from trajcache.db import migrate
 from trajcache.db.models import Trajectory
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.robot import BaseType
@@ -33,13 +33,8 @@ SCENE = parse_scene({"objects": [BALL]})
 
 @pytest.fixture
 def ctx(tmp_path: Path) -> Iterator[ServiceContext]:
-    url = f"sqlite:///{tmp_path / 'q.db'}"
-    migrate.upgrade(url)
-    context = ServiceContext.create(Settings(database_url=url, worker_prestart=False))
-    try:
-        yield context
-    finally:
-        context.close()
+    with context(f"sqlite:///{tmp_path / 'q.db'}", worker_prestart=False) as service:
+        yield service
 
 
 def test_store_computes_quality_columns(ctx: ServiceContext) -> None:
