@@ -186,9 +186,8 @@ class Importer:
             raise ImportFormatError(
                 "the export ends without its end line: it was cut short; nothing was imported"
             )
-        self._writer.flush()
         self._paths.flush()
-        self._writer.finish()  # the commit-log rows go last, just before the commit
+        self._writer.finish()  # its last batch, then the commit-log rows, just before the commit
         self.report.inserted += self._writer.inserted
         self.report.duplicates += self._writer.duplicates
         self.report.cartesian_inserted += self._paths.inserted
