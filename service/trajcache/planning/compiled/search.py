@@ -13,6 +13,9 @@ the exact check finds free, they only delay it by one round.
 Trees: `nodes` (2, C, D), `parent` (2, C), `count` (2,): tree 0 grows from the start, tree 1
 from the goal. Pending: `p_tree`, `p_parent`, `p_state` (P, D), `p_target` (the node of the
 other tree it reaches, or −1), `p_ok` (set by Python), `p_count` (1,).
+
+The helpers that allocate nothing compile without reference counting (`_nrt=False`, as
+`spheres.py` explains); they copy values in loops, since numba's slice assignment needs it.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ SOLVED, ROUND, FULL = 1, 0, -1
 WAIT = -2  # `_connect`: a motion that would join the trees awaits the exact check
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def _diff(a, b, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     for d in range(a.shape[0]):
         out[d] = b[d] - a[d]
@@ -36,7 +39,7 @@ def _diff(a, b, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cove
         out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def distance(a, b, planar):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Euclidean distance, the base angle (when planar) the short way."""
     total = 0.0
@@ -48,7 +51,7 @@ def distance(a, b, planar):  # type: ignore[no-untyped-def]  # pragma: no cover
     return math.sqrt(total)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def sample_count(a, b, space):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Samples of a → b (a excluded): no value steps more than its resolution."""
     step, planar = space[2], space[3]
@@ -61,7 +64,7 @@ def sample_count(a, b, space):  # type: ignore[no-untyped-def]  # pragma: no cov
     return int(math.ceil(need - 1e-9))  # noqa: RUF046  (an integer in compiled code too)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def _at(a, b, k, n, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The state k/n of the way a → b into out."""
     t = k / n
@@ -73,7 +76,8 @@ def _at(a, b, k, n, planar, out):  # type: ignore[no-untyped-def]  # pragma: no 
     if planar:
         out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
     if k == n:
-        out[:] = b
+        for d in range(a.shape[0]):
+            out[d] = b[d]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -107,7 +111,7 @@ def motion(a, b, space, fk, robot, scene, pairs, work, open_out):  # type: ignor
     return status, opened
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def _nearest(nodes, count, q, planar):  # type: ignore[no-untyped-def]  # pragma: no cover
     best, best_d = 0, np.inf
     for i in range(count):
@@ -117,12 +121,13 @@ def _nearest(nodes, count, q, planar):  # type: ignore[no-untyped-def]  # pragma
     return best
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def _steer(a, b, reach, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The state `reach` along a → b, or b when closer; True when that is b."""
     d = distance(a, b, planar)
     if d <= reach:
-        out[:] = b
+        for k in range(a.shape[0]):
+            out[k] = b[k]
         return True
     _diff(a, b, planar, out)
     for k in range(a.shape[0]):
@@ -132,19 +137,20 @@ def _steer(a, b, reach, planar, out):  # type: ignore[no-untyped-def]  # pragma:
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def _add(tree, t, parent_index, q):  # type: ignore[no-untyped-def]  # pragma: no cover
     nodes, parent, count = tree[0], tree[1], tree[2]
     n = count[t]
     if n >= nodes.shape[1]:
         return -1
-    nodes[t, n] = q
+    for d in range(q.shape[0]):
+        nodes[t, n, d] = q[d]
     parent[t, n] = parent_index
     count[t] = n + 1
     return n
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def _pend(pending, t, parent_index, q, target):  # type: ignore[no-untyped-def]  # pragma: no cover
     p_tree, p_parent, p_state, p_target, p_count = (
         pending[0], pending[1], pending[2], pending[3], pending[5],
@@ -152,17 +158,19 @@ def _pend(pending, t, parent_index, q, target):  # type: ignore[no-untyped-def] 
     n = p_count[0]
     if n < p_tree.shape[0]:
         p_tree[n], p_parent[n], p_target[n] = t, parent_index, target
-        p_state[n] = q
+        for d in range(q.shape[0]):
+            p_state[n, d] = q[d]
         p_count[0] = n + 1
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def _trace(tree, t, i, out, start):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Write tree t's branch from node i to its root into out from row `start`; the count."""
     nodes, parent = tree[0], tree[1]
     n = 0
     while i >= 0:
-        out[start + n] = nodes[t, i]
+        for d in range(out.shape[1]):
+            out[start + n, d] = nodes[t, i, d]
         i = parent[t, i]
         n += 1
     return n
