@@ -80,6 +80,7 @@ class SphereTables:
             np.zeros((len(self.robot[1]), 3, 4)),  # type: ignore[arg-type]
             np.zeros(2, dtype=np.int64),
             np.zeros((len(self.robot[1]), 3)),  # type: ignore[arg-type]
+            np.full(len(self.robot[1]), -1, dtype=np.int64),  # type: ignore[arg-type]
         )
 
 

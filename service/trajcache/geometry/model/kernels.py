@@ -20,7 +20,7 @@ from trajcache.geometry.model.shapes import FloatArray
 IntArray = NDArray[np.int64]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def hull_support_climb(
     vertices: FloatArray,
     start: np.ndarray,
@@ -53,7 +53,7 @@ def hull_support_climb(
             )  # fmt: skip
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def hull_climb(
     vertices: FloatArray,
     anchors: np.ndarray,
@@ -89,7 +89,7 @@ def hull_climb(
     return best
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, _nrt=False)
 def forward_kinematics_kernel(
     q: FloatArray,
     planar: bool,

@@ -31,7 +31,7 @@ the object (negative inside):
 - pairs: i (P,), j (P,), then the distance tables of `pair_tables.py`;
 - work: links (1, L, 4, 4), world centres (N, 3), stamps (N,), clock (1,), stack (S,), pair
   stack (S, 2), element poses (E, 3, 4), counts (2,) of the states checked and of those found
-  OPEN, element box centres (E, 3).
+  OPEN, element box centres (E, 3), element pose stamps (E,).
 
 Every kernel here compiles without numba's reference counting (`_nrt=False`): they allocate
 nothing and return no array, so every array they touch is borrowed from the caller, which holds
@@ -175,11 +175,12 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     box test where the box test would pass), then the oriented boxes apart
     (an element's box holds it; an object's box holds it); for a pair its distance table, the
     elements' root balls apart, their boxes apart and separating slabs (`slabs.py`, as the
-    certification uses them). Every root ball is placed once per state, first."""
+    certification uses them). Every root ball is placed once per state, first; an element's pose
+    and box only when a box test needs them."""
     pose_links(q, fk, work[0])
     work[3][0] += 1
     work[7][0] += 1
-    _pose_elements(robot, work)
+    _place_roots(robot, work)
     root, radius, world = robot[1], robot[3], work[1]
     allowed = scene[4]
     status = FREE
@@ -196,6 +197,7 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
                 continue  # the element's bounding ball misses the ball that holds the box
             if box_distance_at(x, y, z, rot_m, centre_m, half_m, m) > r:
                 continue  # the element's bounding ball misses the object's box
+            _pose_element(e, robot, work)
             if obb_apart(poses, e, box_centre, box_half, rot_m, m, centre_m, half_m):
                 continue
             row = _scene_row(e, m, robot, scene, work)
@@ -215,6 +217,8 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
         if math.sqrt(dx * dx + dy * dy + dz * dz) > radius[a] + radius[b]:
             continue  # the elements' bounding balls are apart
         i, j = pi[p], pj[p]
+        _pose_element(i, robot, work)
+        _pose_element(j, robot, work)
         if obb_apart(poses, i, box_centre, box_half, poses, j, box_centre, box_half):
             continue
         if _pair_slab(i, j, robot, work):
@@ -282,13 +286,11 @@ def obb_apart(ra, i, ca, ha, rb, j, cb, hb):  # type: ignore[no-untyped-def]  # 
 
 
 @numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _pose_elements(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """World poses (E, 3, 4) of the elements into work[6], their box centres into work[8], and
-    their root balls' centres placed (work[1], stamped): the loops after only read them."""
-    links, poses, link, origin, local, centre = (
-        work[0], work[6], robot[0], robot[7], robot[9], work[8],
-    )  # fmt: skip
-    root, node, world, stamp, clock = robot[1], robot[2], work[1], work[2], work[3][0]
+def _place_roots(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Every element's root ball centre placed in the world (work[1], stamped): the loops after
+    read them for every row and pair."""
+    links, link, node = work[0], robot[0], robot[2]
+    root, world, stamp, clock = robot[1], work[1], work[2], work[3][0]
     for e in range(link.shape[0]):
         f, k = link[e], root[e]  # written out: a call per element costs more than this
         for r in range(3):
@@ -297,16 +299,28 @@ def _pose_elements(robot, work):  # type: ignore[no-untyped-def]  # pragma: no c
                 + links[0, f, r, 2] * node[k, 2] + links[0, f, r, 3]
             )  # fmt: skip
         stamp[k] = clock
-        for r in range(3):
-            for c in range(4):
-                acc = links[0, f, r, 0] * origin[e, 0, c] + links[0, f, r, 1] * origin[e, 1, c]
-                acc += links[0, f, r, 2] * origin[e, 2, c]
-                poses[e, r, c] = acc + (links[0, f, r, 3] if c == 3 else 0.0)
-        for r in range(3):
-            centre[e, r] = (
-                poses[e, r, 0] * local[e, 0] + poses[e, r, 1] * local[e, 1]
-                + poses[e, r, 2] * local[e, 2] + poses[e, r, 3]
-            )  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _pose_element(e, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Element e's world pose (3, 4) into work[6][e] and its box centre into work[8][e], once
+    per state (stamped in work[9]): only rows and pairs that reach a box test need them."""
+    links, poses, origin, local, centre = work[0], work[6], robot[7], robot[9], work[8]
+    stamp, clock = work[9], work[3][0]
+    if stamp[e] == clock:
+        return
+    f = robot[0][e]
+    for r in range(3):
+        for c in range(4):
+            acc = links[0, f, r, 0] * origin[e, 0, c] + links[0, f, r, 1] * origin[e, 1, c]
+            acc += links[0, f, r, 2] * origin[e, 2, c]
+            poses[e, r, c] = acc + (links[0, f, r, 3] if c == 3 else 0.0)
+    for r in range(3):
+        centre[e, r] = (
+            poses[e, r, 0] * local[e, 0] + poses[e, r, 1] * local[e, 1]
+            + poses[e, r, 2] * local[e, 2] + poses[e, r, 3]
+        )  # fmt: skip
+    stamp[e] = clock
 
 
 @numba.njit(cache=True, nogil=True, _nrt=False)
