@@ -27,7 +27,7 @@ from trajcache.geometry.collision.shared import PROCESS_GEOMETRY, robot_geometry
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.variant import model_in_scene
-from trajcache.geometry.warm import warm
+from trajcache.planning.warm import warm
 from trajcache.planning import run
 from trajcache.planning.problem import SEED_LIMIT, ModelSource, PlanningProblem, SceneSource
 
