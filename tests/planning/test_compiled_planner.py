@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections import defaultdict
 from functools import cache
 
 import numpy as np
@@ -21,7 +22,7 @@ from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
 from trajcache.planning.compiled_planner import plan_compiled
 from trajcache.planning.options import SearchOptions
-from trajcache.planning.problem import PlannerStatus
+from trajcache.planning.problem import PlannerStatus, PlanResult
 from trajcache.reference.example_robots import ROBOTS
 
 
@@ -210,3 +211,42 @@ def test_oriented_boxes_said_apart_are_apart_and_overlapping_ones_are_not() -> N
             missed += 1
     assert said > count // 4
     assert missed == 0  # the separating axis theorem is exact for boxes
+
+
+def test_pending_motions_are_decided_as_each_ones_exact_check_decides_it() -> None:
+    """`_resolve` checks the open states of all pending motions in two batches; each motion's
+    verdict is the one its own exact check gives: free when none of its open states collides."""
+    from trajcache.planning.compiled.search import motion, sample_count
+    from trajcache.planning.compiled_planner import PENDING, _Search
+    from trajcache.planning.query import prepare_query
+
+    model = _robot("panda")
+    scene = _shelf()
+    rng = np.random.default_rng(5)
+    states = model.lower + rng.random((200, model.dof)) * (model.upper - model.lower)
+    free = states[CollisionChecker(model, scene).check(states, stop_at_first=False).status == FREE]
+    query = prepare_query(model, scene, free[0], free[1])
+    assert not isinstance(query, PlanResult)
+    search = _Search(query, sphere_tables(query.checker.checker), defaultdict(float))
+    nodes = np.zeros((2, 2 * PENDING, model.dof))
+    chosen: list[tuple[np.ndarray, np.ndarray]] = []
+    while len(chosen) < PENDING:
+        a = model.lower + rng.random(model.dof) * (model.upper - model.lower)
+        b = np.clip(a + rng.uniform(-0.4, 0.4, model.dof), model.lower, model.upper)
+        out = np.empty((sample_count(a, b, search.space), model.dof))
+        if motion(a, b, *search._args(), out)[0] == OPEN:  # type: ignore[call-arg]
+            chosen.append((a, b))
+    for k, (a, _) in enumerate(chosen):
+        nodes[0, k] = a
+    pending = (
+        np.zeros(PENDING, dtype=np.int64),
+        np.arange(PENDING, dtype=np.int64),
+        np.array([b for _, b in chosen]),
+        np.full(PENDING, -1, dtype=np.int64),
+        np.zeros(PENDING, dtype=np.int8),
+        np.array([PENDING], dtype=np.int64),
+    )
+    search._resolve((nodes, None, None), pending)  # type: ignore[arg-type]
+    alone = [search.motion_free(a, b) for a, b in chosen]
+    assert [bool(v) for v in pending[4]] == alone
+    assert any(alone) and not all(alone)

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from trajcache.geometry.collision.checker import COLLIDING as EXACT_COLLIDING
 from trajcache.geometry.collision.sphere_tables import SphereTables, sphere_tables
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
@@ -133,14 +134,40 @@ class _Search:
         return np.array(out[:count])
 
     def _resolve(self, tree: tuple[np.ndarray, ...], pending: tuple[np.ndarray, ...]) -> None:
-        """Decide each pending motion by the exact check of its open states."""
+        """Decide each pending motion by the exact check of its open states: free when none of
+        them collides. Checked in two batches, since a batch costs ~40 µs and a state ~9 µs
+        more (Panda, cage): first every motion's first open state (coarse first: nearly always
+        the one that collides), then the other open states of the motions still undecided."""
         nodes = tree[0]
         p_tree, p_parent, p_state, _, p_ok, p_count = pending
-        self.stats["open_motions"] += float(p_count[0])
-        for k in range(int(p_count[0])):
-            a = nodes[p_tree[k], p_parent[k]]
-            b = p_state[k]
-            p_ok[k] = 1 if self.motion_free(a, b) else 0
+        count = int(p_count[0])
+        self.stats["open_motions"] += float(count)
+        opened: list[FloatArray] = []
+        for k in range(count):
+            a, b = nodes[p_tree[k], p_parent[k]], p_state[k]
+            out = np.empty((sample_count(a, b, self.space), len(a)))
+            status, n = motion(a, b, *self._args(), out)  # type: ignore[call-arg]
+            opened.append(out[:n] if status == OPEN else out[:0])
+            p_ok[k] = 1 if status == FREE else 0
+        firsts = [k for k in range(count) if len(opened[k])]
+        if not firsts:
+            return
+        first_free = self._free_states(np.stack([opened[k][0] for k in firsts]))
+        rest = [k for k, free in zip(firsts, first_free, strict=True) if free]
+        if not rest:
+            return
+        states = [opened[k][1:] for k in rest]
+        verdicts = self._free_states(np.concatenate(states)) if sum(map(len, states)) else []
+        at = 0
+        for k, some in zip(rest, states, strict=True):
+            p_ok[k] = 1 if all(verdicts[at : at + len(some)]) else 0
+            at += len(some)
+
+    def _free_states(self, states: FloatArray) -> list[bool]:
+        """Whether each state is free by the exact check (one batch)."""
+        self.stats["exact_checks"] += len(states)
+        verdict = self.query.checker.checker.check(states, stop_at_first=False)
+        return [bool(s != EXACT_COLLIDING) for s in verdict.status]
 
 
 def plan_compiled(
