@@ -232,7 +232,7 @@ class RobotRun:
                 self.tally.plan_parts_ms.setdefault(part, []).append(float(value))
             self.check(answer, problem.start, problem.goal)
         elif answer is not None:
-            self.tally.notes[f"{answer.status}: {answer.message[:120]}"] += 1
+            self.tally.notes[f"{answer.status} ({robot_id}): {answer.message[:120]}"] += 1
 
     def replay(self, problem: Problem, options: dict[str, Any], rng: np.random.Generator) -> None:
         """Ask the problem again with noisy start and goal, both free."""
