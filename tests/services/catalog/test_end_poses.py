@@ -17,6 +17,7 @@ from tests.services.maintenance.test_transfer import run_import
 from tests.services.plan.test_flow import FakePlanner, use_planner
 from trajcache.core.config import Settings
 from trajcache.db.end_poses import EndPoseBacklog, TrajectoryEndPose
+from trajcache.db.models import TrajectoryCommit
 from trajcache.geometry.model.end_poses import anchor_of, indexed_anchors
 from trajcache.geometry.model.ik import PoseTarget
 from trajcache.geometry.model.kinematics import link_transforms
@@ -122,8 +123,12 @@ def test_a_stored_trajectory_gets_the_poses_of_its_ends(
     for row, state in zip(rows, (start, goal), strict=True):
         pose = link_transforms(tooled, np.array(state))[0, fore]
         np.testing.assert_allclose([row.x, row.y, row.z], pose[:3, 3], atol=1e-12)
+    with ctx.sessions() as session:
+        logged = session.scalar(sa.select(sa.func.count()).select_from(TrajectoryCommit))
     assert store(ctx, tooled, start, [0.5, 0.0], goal) == trajectory_id  # stored once
     assert len(rows_of(ctx)) == 2
+    with ctx.sessions() as session:  # and no second commit-log row
+        assert session.scalar(sa.select(sa.func.count()).select_from(TrajectoryCommit)) == logged
     unstored = store(ctx, tooled, [0.0, 0.0], [0.3, 0.3], commit=False)  # rolled back
     assert rows_of(ctx, unstored) == []
 

@@ -101,16 +101,16 @@ def store_trajectory(
     row.scene_hash, row.env = t.scene_hash, parse_env(dict(t.env or {}))
     row.planning_time_ms = t.planning_time_ms
     row.set_states(array)
-    existing = _find(session, model.model_id, row.content_hash)
-    if existing is not None:
-        return existing, False
-    if compute_quality:
+    if compute_quality:  # a stored copy needs no quality: look first (else the insert finds it)
+        existing = _find(session, model.model_id, row.content_hash)
+        if existing is not None:
+            return existing, False
         scene = t.scene
         if scene is None and t.scene_hash is not None:
             scene = scene_with_hash(session, t.scene_hash, scenes)
         _fill_quality(row, model, array, settings, scene, validators)
     new_id = _insert_unless_present(session, row)
-    if new_id is None:  # stored concurrently by another request or replica
+    if new_id is None:  # stored before, or concurrently by another request or replica
         return _stored_meanwhile(session, row), False
     write_end_poses(session, model, [new_id], array[:1], array[-1:])
     log_commits(session, [(new_id, new_id)])  # replicas' syncs read the new row through it
@@ -191,7 +191,8 @@ def set_parent(session: Session, trajectory_id: int, parent_id: int) -> None:
 
 
 def _stored_meanwhile(session: Session, row: tables.Trajectory) -> int:
-    """The id of the identical trajectory another writer stored first."""
+    """The id of the identical trajectory stored before this insert (earlier, or by a concurrent
+    writer)."""
     existing = _find(session, row.model_id, row.content_hash)
     if existing is None:
         raise ConflictError("trajectory was stored and deleted concurrently; retry")
