@@ -85,6 +85,12 @@ _MAX_GAPS = 100_000
 _ROW, _TOMBSTONE, _RIDER, _OLDEST = 0, 1, 2, 3
 _SYNC_COLUMNS = 6  # kind, id, model_id, start, goal, ref: a rider's columns follow them
 
+# The key states of given trajectories (a hit's candidates): built once, so that SQLAlchemy
+# keeps its compiled form and cache key.
+_STATES = sa.select(Trajectory.id, Trajectory.states, Trajectory.n_states, Trajectory.dof).where(
+    Trajectory.id.in_(sa.bindparam("ids", expanding=True))
+)
+
 
 @dataclass
 class IdStream:
@@ -171,12 +177,8 @@ class IndexStore:
     def states(self, session: Session, ids: Iterable[int]) -> dict[int, FloatArray]:
         """Key states (read-only arrays) of the trajectories `ids` that exist, by id."""
         found, missing = self._states.get_many(ids)
-        if missing:
-            rows = session.execute(
-                sa.select(
-                    Trajectory.id, Trajectory.states, Trajectory.n_states, Trajectory.dof
-                ).where(Trajectory.id.in_(missing))
-            ).all()
+        if missing:  # one prepared Core statement: the ORM's layer cost more than the read
+            rows = session.connection().execute(_STATES, {"ids": missing}).all()
             for row in rows:
                 states = unpack_states(row.states, n_states=row.n_states, dof=row.dof)
                 states.flags.writeable = False
