@@ -27,9 +27,9 @@ from trajcache.geometry.collision.shared import PROCESS_GEOMETRY, robot_geometry
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.scene.variant import model_in_scene
-from trajcache.planning.warm import warm
 from trajcache.planning import run
 from trajcache.planning.problem import SEED_LIMIT, ModelSource, PlanningProblem, SceneSource
+from trajcache.planning.warm import warm
 
 # the service's default (its settings: TRAJCACHE_DEFAULT_PLANNER), when --planner is not given
 DEFAULT_PLANNER = Settings.model_fields["default_planner"].default

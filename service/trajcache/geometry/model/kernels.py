@@ -15,12 +15,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trajcache.geometry import kernel_cache  # noqa: F401  (first: its locators stamp the kernels)
+from trajcache.geometry.kernel_cache import BORROWED
 from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def hull_support_climb(
     vertices: FloatArray,
     start: np.ndarray,
@@ -53,7 +54,7 @@ def hull_support_climb(
             )  # fmt: skip
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def hull_climb(
     vertices: FloatArray,
     anchors: np.ndarray,
@@ -89,7 +90,7 @@ def hull_climb(
     return best
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def forward_kinematics_kernel(
     q: FloatArray,
     planar: bool,

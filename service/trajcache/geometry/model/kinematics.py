@@ -192,7 +192,7 @@ def link_transforms(model: RobotModel, states: ArrayLike) -> FloatArray:
 def forward_kinematics(model: RobotModel, q: FloatArray) -> FloatArray:
     """`link_transforms` of states already checked: a finite (N, D) float array (compiled)."""
     tf = np.empty((q.shape[0], len(model.link_names), 4, 4))
-    forward_kinematics_kernel(np.ascontiguousarray(q, dtype=float), *fk_tables(model), tf)  # type: ignore[call-arg, arg-type]
+    forward_kinematics_kernel(np.ascontiguousarray(q, dtype=float), *fk_tables(model), tf)
     return tf
 
 

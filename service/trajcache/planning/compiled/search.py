@@ -14,7 +14,7 @@ Trees: `nodes` (2, C, D), `parent` (2, C), `count` (2,): tree 0 grows from the s
 from the goal. Pending: `p_tree`, `p_parent`, `p_state` (P, D), `p_target` (the node of the
 other tree it reaches, or −1), `p_ok` (set by Python), `p_count` (1,).
 
-The helpers that allocate nothing compile without reference counting (`_nrt=False`, as
+The helpers that allocate nothing compile without reference counting (`BORROWED`, as
 `spheres.py` explains); they copy values in loops, since numba's slice assignment needs it.
 """
 
@@ -26,12 +26,13 @@ import numba
 import numpy as np
 
 from trajcache.geometry.collision.compiled.spheres import COLLIDING, FREE, OPEN, sphere_state
+from trajcache.geometry.kernel_cache import BORROWED
 
 SOLVED, ROUND, FULL = 1, 0, -1
 WAIT = -2  # `_connect`: a motion that would join the trees awaits the exact check
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _diff(a, b, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     for d in range(a.shape[0]):
         out[d] = b[d] - a[d]
@@ -39,7 +40,7 @@ def _diff(a, b, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cove
         out[2] = (out[2] + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def distance(a, b, planar):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Euclidean distance, the base angle (when planar) the short way."""
     total = 0.0
@@ -51,7 +52,7 @@ def distance(a, b, planar):  # type: ignore[no-untyped-def]  # pragma: no cover
     return math.sqrt(total)
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def sample_count(a, b, space):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Samples of a → b (a excluded): no value steps more than its resolution."""
     step, planar = space[2], space[3]
@@ -64,7 +65,7 @@ def sample_count(a, b, space):  # type: ignore[no-untyped-def]  # pragma: no cov
     return int(math.ceil(need - 1e-9))  # noqa: RUF046  (an integer in compiled code too)
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _at(a, b, k, n, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The state k/n of the way a → b into out."""
     t = k / n
@@ -111,7 +112,7 @@ def motion(a, b, space, fk, robot, scene, pairs, work, open_out):  # type: ignor
     return status, opened
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _nearest(nodes, count, q, planar):  # type: ignore[no-untyped-def]  # pragma: no cover
     best, best_d = 0, np.inf
     for i in range(count):
@@ -121,7 +122,7 @@ def _nearest(nodes, count, q, planar):  # type: ignore[no-untyped-def]  # pragma
     return best
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _steer(a, b, reach, planar, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The state `reach` along a → b, or b when closer; True when that is b."""
     d = distance(a, b, planar)
@@ -137,7 +138,7 @@ def _steer(a, b, reach, planar, out):  # type: ignore[no-untyped-def]  # pragma:
     return False
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _add(tree, t, parent_index, q):  # type: ignore[no-untyped-def]  # pragma: no cover
     nodes, parent, count = tree[0], tree[1], tree[2]
     n = count[t]
@@ -150,7 +151,7 @@ def _add(tree, t, parent_index, q):  # type: ignore[no-untyped-def]  # pragma: n
     return n
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _pend(pending, t, parent_index, q, target):  # type: ignore[no-untyped-def]  # pragma: no cover
     p_tree, p_parent, p_state, p_target, p_count = (
         pending[0], pending[1], pending[2], pending[3], pending[5],
@@ -163,7 +164,7 @@ def _pend(pending, t, parent_index, q, target):  # type: ignore[no-untyped-def] 
         p_count[0] = n + 1
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _trace(tree, t, i, out, start):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Write tree t's branch from node i to its root into out from row `start`; the count."""
     nodes, parent = tree[0], tree[1]

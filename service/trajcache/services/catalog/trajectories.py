@@ -191,8 +191,7 @@ def set_parent(session: Session, trajectory_id: int, parent_id: int) -> None:
 
 
 def _stored_meanwhile(session: Session, row: tables.Trajectory) -> int:
-    """The id of the identical trajectory stored before this insert (earlier, or by a concurrent
-    writer)."""
+    """The id of the identical trajectory stored before (earlier, or by a concurrent writer)."""
     existing = _find(session, row.model_id, row.content_hash)
     if existing is None:
         raise ConflictError("trajectory was stored and deleted concurrently; retry")

@@ -7,11 +7,13 @@ import math
 import numba
 import numpy as np
 
+from trajcache.geometry.kernel_cache import BORROWED
+
 ROUNDING = 1e-7  # added to every axis distance (as `motion.axis_distances` does)
 GROW = 1024  # rows an output array starts with; `grow` doubles it when full
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def point_motion(mo, k, a, b, pa, pb, coef, mask):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Bound on the path of a point of a link over segment k, from its world positions pa (at
     sample a) and pb (at b) and its coefficients `coef` (D,) (`motion.MotionBounds.levers`,
@@ -44,7 +46,7 @@ def point_motion(mo, k, a, b, pa, pb, coef, mask):  # type: ignore[no-untyped-de
     return total
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def turn(step, k, turning, link, mask):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Σ |Δq_d| over the revolute dofs that move `link` (and count under `mask`)."""
     total = 0.0
@@ -54,7 +56,7 @@ def turn(step, k, turning, link, mask):  # type: ignore[no-untyped-def]  # pragm
     return total
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def transform_point(pose, x, y, z):  # type: ignore[no-untyped-def]  # pragma: no cover
     """pose (3 × 4) applied to the point (x, y, z)."""
     return (
@@ -64,7 +66,7 @@ def transform_point(pose, x, y, z):  # type: ignore[no-untyped-def]  # pragma: n
     )
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def box_distance(px, py, pz, rot, pos, half):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Distance from a point to an oriented box (rotation, centre, half extents); 0 inside."""
     dx, dy, dz = px - pos[0], py - pos[1], pz - pos[2]
@@ -77,7 +79,7 @@ def box_distance(px, py, pz, rot, pos, half):  # type: ignore[no-untyped-def]  #
     return math.sqrt(total)
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def box_distance_at(px, py, pz, rot, pos, half, m):  # type: ignore[no-untyped-def]  # pragma: no cover
     """`box_distance` to box m of (rot (M, 3, 3), pos (M, 3), half (M, 3)), by index: no
     views made in hot loops (numba counts a reference for each)."""
@@ -141,7 +143,7 @@ def world_boxes(poses, half, radius):  # type: ignore[no-untyped-def]  # pragma:
     return lo, hi
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def box_gap(lo_a, hi_a, lo_b, hi_b):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The widest gap between two boxes along an axis: a lower bound on the distance of
     anything inside them (≤ 0 when they overlap)."""
@@ -151,7 +153,7 @@ def box_gap(lo_a, hi_a, lo_b, hi_b):  # type: ignore[no-untyped-def]  # pragma: 
     return gap
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def box_gap_at(lo_a, hi_a, n, e, lo_b, hi_b, m):  # type: ignore[no-untyped-def]  # pragma: no cover
     """`box_gap` between box (n, e) of (lo_a, hi_a) (N, E, 3) and box m of (lo_b, hi_b)
     (M, 3), by index."""
@@ -161,7 +163,7 @@ def box_gap_at(lo_a, hi_a, n, e, lo_b, hi_b, m):  # type: ignore[no-untyped-def]
     return gap
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def box_gap_pair(lo, hi, n, i, j):  # type: ignore[no-untyped-def]  # pragma: no cover
     """`box_gap` between boxes (n, i) and (n, j) of (lo, hi) (N, E, 3), by index."""
     gap = -np.inf
@@ -192,7 +194,7 @@ def object_poses(rot_m, pos_m):  # type: ignore[no-untyped-def]  # pragma: no co
     return pose_obj
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def place_cover(links, link, local, count, k, balls, known):  # type: ignore[no-untyped-def]  # pragma: no cover
     """World centres balls[n] (S, 3) of an element's cover balls (centres `local` (S, 3) in the
     frame of `link`) at samples k and k + 1, each sample once (`known`)."""
@@ -205,7 +207,7 @@ def place_cover(links, link, local, count, k, balls, known):  # type: ignore[no-
             known[n] = True
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def cover_motion(mo, k, balls, coef, count, mask, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """out[s]: the motion over segment k of the centre of each cover ball s (`point_motion`)."""
     for s in range(count):

@@ -20,11 +20,12 @@ from trajcache.geometry.collision.compiled.primitives import (
     world_boxes,
 )
 from trajcache.geometry.collision.compiled.slabs import scene_slabs, slab_bound
+from trajcache.geometry.kernel_cache import BORROWED
 
 _COVER_SLABS = 4  # slabs along the ways of the closest cover balls, per end
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _ball_bound(n, ball, poses, e, radius, rot_m, pos_m, half_m, m):  # type: ignore[no-untyped-def]  # pragma: no cover
     """`scene_bound`'s level 1 (the element's ball against object m's box at sample n), with
     arrays and indices only: it runs for every (sample, element, object) the advancement
@@ -37,7 +38,7 @@ def _ball_bound(n, ball, poses, e, radius, rot_m, pos_m, half_m, m):  # type: ig
     return ball[n]
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def scene_bound(n, want, ball, low, level, poses, e, radius, sup_r, pose_m, sup_s, m, scene):  # type: ignore[no-untyped-def]  # pragma: no cover
     """A lower bound for element e and object m at sample n: with `want` 1, of the element's
     ball (whose points move as its centre does); with 2, of the element itself, by slabs with
@@ -219,7 +220,7 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     return rows[:found], lows[:found]
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _motion_sums(step, coef, radius, turning, link, ones, centre_sum, whole_sum, turns):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Running sums over the segments of the configuration-independent motion of an element's
     centre and of the whole element (turns[k]: the turn of the dofs that move it); returns the
@@ -237,7 +238,7 @@ def _motion_sums(step, coef, radius, turning, link, ones, centre_sum, whole_sum,
     return widest
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _reach(poses, e, reach, near):  # type: ignore[no-untyped-def]  # pragma: no cover
     """near[0], near[1]: the box (low, high) of element e's origins at every sample, grown by
     `reach`."""
@@ -251,7 +252,7 @@ def _reach(poses, e, reach, near):  # type: ignore[no-untyped-def]  # pragma: no
         near[0, a], near[1, a] = near[0, a] - reach, near[1, a] + reach
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _out_of_reach(lo_m, hi_m, m, near):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Whether object m's box lies wholly outside the box `near` (low, high)."""
     apart = False
@@ -260,7 +261,7 @@ def _out_of_reach(lo_m, hi_m, m, near):  # type: ignore[no-untyped-def]  # pragm
     return apart
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _cover_gaps(balls, k, count, rad, rot, pos, half, cover):  # type: ignore[no-untyped-def]  # pragma: no cover
     """cover[end, s]: the gap between cover ball s and the object's box at sample k + end; the
     least at each end, and whether a ball touches the box at both."""
@@ -277,7 +278,7 @@ def _cover_gaps(balls, k, count, rad, rot, pos, half, cover):  # type: ignore[no
     return low_a, low_b, touching
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _cover_settles(cover, motion, count, rad, turned):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Whether every cover ball is certified with the motion of its centre, and the motion of
     the whole cover (its widest ball's, grown by its radius times the turn)."""
@@ -290,7 +291,7 @@ def _cover_settles(cover, motion, count, rad, turned):  # type: ignore[no-untype
     return every, ball_whole
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _cover_slabs(balls, k, count, cover, poses, e, sup_r, pose_m, sup_s, m, scene):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The best slab at samples k and k + 1 along the ways from the closest cover balls' centres
     to the nearest points of the object's box (consumes `cover`)."""

@@ -19,9 +19,10 @@ from trajcache.geometry.collision.compiled.primitives import (
     world_boxes,
 )
 from trajcache.geometry.collision.compiled.slabs import self_slabs, slab_bound
+from trajcache.geometry.kernel_cache import BORROWED
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _ball_bound(n, ball, poses, i, j, radius):  # type: ignore[no-untyped-def]  # pragma: no cover
     """`self_bound`'s level 1 (the elements' balls) at sample n, by index: it runs for every
     (sample, pair) the advancement visits, where the support tuple would cost more."""
@@ -35,7 +36,7 @@ def _ball_bound(n, ball, poses, i, j, radius):  # type: ignore[no-untyped-def]  
     return ball[n]
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def self_bound(n, want, ball, low, level, poses, i, j, radius, sup):  # type: ignore[no-untyped-def]  # pragma: no cover
     """A lower bound for elements i and j at sample n, as `scene_bound`."""
     pi, pj = poses[n, i], poses[n, j]
@@ -175,7 +176,7 @@ def self_open_kernel(links, step, robot, half, sup, motion, pairs, first_only): 
     return rows[:found], lows[:found]
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _motion_sums(step, pair_centre, pair_whole, p, centre_sum, whole_sum):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Running sums over the segments of the configuration-independent motion of pair p's
     element centres and of its whole elements."""
@@ -188,7 +189,7 @@ def _motion_sums(step, pair_centre, pair_whole, p, centre_sum, whole_sum):  # ty
         whole_sum[k + 1] = whole_sum[k] + whole
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _cover_gaps(bi, bj, k, count_i, count_j, rad_i, rad_j, motion_i, motion_j, cover_low):  # type: ignore[no-untyped-def]  # pragma: no cover
     """cover_low[end, s, t]: the gap between ball s of one cover and ball t of the other at
     sample k + end; whether every pair of balls is certified with their centres' motion, and
@@ -211,7 +212,7 @@ def _cover_gaps(bi, bj, k, count_i, count_j, rad_i, rad_j, motion_i, motion_j, c
     return every, low_a, low_b
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _cover_slabs(bi, bj, k, count_i, count_j, cover_low, poses, i, j, sup):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The best slab at samples k and k + 1 between the four closest pairs of balls there
     (consumes `cover_low`)."""

@@ -12,13 +12,14 @@ import math
 import numba
 import numpy as np
 
+from trajcache.geometry.kernel_cache import BORROWED
 from trajcache.geometry.model.kernels import hull_climb
 
 _TINY = 1e-12
 _EXACT_DIRECTIONS = 3  # directions a slab level looks at meshes as hulls along
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def support_at(sup, k, x, y, z, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
     """h(n) of shape k of a packed support table (`support.SupportTable`) at local direction
     (x, y, z); a mesh as its bounding box unless `exact`, then as its hull (hill climbing)."""
@@ -39,7 +40,7 @@ def support_at(sup, k, x, y, z, exact):  # type: ignore[no-untyped-def]  # pragm
     return hull_climb(vertices, anchors, anchor_start, anchor_count, neighbours, start, s, x, y, z)
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def slab_bound(nx, ny, nz, pose_a, sup_a, ka, pose_b, sup_b, kb, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The slab bound along world direction n (any length; zero gives 0) between shape ka of
     `sup_a` at pose_a (3 × 4) and shape kb of `sup_b` at pose_b: the width of the gap between
@@ -62,7 +63,7 @@ def slab_bound(nx, ny, nz, pose_a, sup_a, ka, pose_b, sup_b, kb, exact):  # type
     return gap - support_at(sup_a, ka, ax, ay, az, exact) - support_at(sup_b, kb, bx, by, bz, exact)
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _keep(value, q, v1, q1, v2, q2, v3, q3):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The best three (value, direction index) after `value` at q is seen (first on ties)."""
     if value > v1:
@@ -74,7 +75,7 @@ def _keep(value, q, v1, q1, v2, q2, v3, q3):  # type: ignore[no-untyped-def]  # 
     return v1, q1, v2, q2, v3, q3
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _scene_direction(q, pose_e, pose_m, half):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Direction q of `scene_slabs`: 0-11 the box's and the element's face normals (each
     axis, each sign, box first), 12 the way from the element's origin to the nearest point
@@ -97,7 +98,7 @@ def _scene_direction(q, pose_e, pose_m, half):  # type: ignore[no-untyped-def]  
     return x, y, z
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _self_direction(q, pose_i, pose_j):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Direction q of `self_slabs`: 0 the line between the elements, 1 and 2 across both z
     axes (both ways), 3-14 both elements' face normals (each axis, each sign, i first)."""
@@ -118,7 +119,7 @@ def _self_direction(q, pose_i, pose_j):  # type: ignore[no-untyped-def]  # pragm
 _SCENE_DIRECTIONS, _SELF_DIRECTIONS = 13, 15
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _best_slab(pose_a, sup_a, ka, pose_b, sup_b, kb, half, count, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The max of the slab bounds along the `count` directions of `scene_slabs` (13, `half` the
     object's box) or `self_slabs` (15), meshes as their boxes; with `exact`, also along the
@@ -141,14 +142,14 @@ def _best_slab(pose_a, sup_a, ka, pose_b, sup_b, kb, half, count, exact):  # typ
     return best
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _direction(q, count, pose_a, pose_b, half):  # type: ignore[no-untyped-def]  # pragma: no cover
     if count == _SCENE_DIRECTIONS:
         return _scene_direction(q, pose_a, pose_b, half)
     return _self_direction(q, pose_a, pose_b)
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def scene_slabs(pose_e, sup_r, e, pose_m, sup_s, m, half, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Level 2 for an element and an object (`_best_slab`): along the box's and the element's
     face normals and the way from the element's origin to the nearest point of the object's
@@ -156,7 +157,7 @@ def scene_slabs(pose_e, sup_r, e, pose_m, sup_s, m, half, exact):  # type: ignor
     return _best_slab(pose_e, sup_r, e, pose_m, sup_s, m, half, _SCENE_DIRECTIONS, exact)
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def self_slabs(pose_i, pose_j, sup, i, j, exact):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Level 2 for a robot pair (`_best_slab`): along the line between the elements, across
     both z axes (both ways) and both elements' face normals (`_self_direction`)."""

@@ -33,11 +33,11 @@ the object (negative inside):
   stack (S, 2), element poses (E, 3, 4), counts (2,) of the states checked and of those found
   OPEN, element box centres (E, 3), element pose stamps (E,).
 
-Every kernel here compiles without numba's reference counting (`_nrt=False`): they allocate
-nothing and return no array, so every array they touch is borrowed from the caller, which holds
-it for the call. With counting, each array taken out of a tuple or viewed cost an atomic
-increment and decrement, and that was most of a state's time (2.05 → 0.78 µs per state on the
-start–goal line of a bookshelf, 6.8 → 2.1 µs on random states). `tests/geometry/
+Every kernel here compiles without numba's reference counting (`kernel_cache.BORROWED`): they
+allocate nothing and return no array, so every array they touch is borrowed from the caller,
+which holds it for the call. With counting, each array taken out of a tuple or viewed cost an
+atomic increment and decrement, and that was most of a state's time (2.05 → 0.78 µs per state
+on the start–goal line of a bookshelf, 6.8 → 2.1 µs on random states). `tests/geometry/
 test_kernel_refcounts.py` holds the rule: no such kernel returns an array.
 """
 
@@ -49,17 +49,18 @@ import numba
 
 from trajcache.geometry.collision.compiled.primitives import box_distance_at
 from trajcache.geometry.collision.compiled.slabs import self_slabs
+from trajcache.geometry.kernel_cache import BORROWED
 from trajcache.geometry.model.kernels import forward_kinematics_kernel
 
 FREE, OPEN, COLLIDING = 0, 1, 2
 BOX, SPHERE, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def signed_distance(kind, rot, pos, size, m, x, y, z):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Signed distance from world point (x, y, z) to object m of kind `kind` (negative
     inside); a mesh is its oriented bounding box (`size` = half extents), which contains it.
-"""
+    """
     dx, dy, dz = x - pos[m, 0], y - pos[m, 1], z - pos[m, 2]
     px = rot[m, 0, 0] * dx + rot[m, 1, 0] * dy + rot[m, 2, 0] * dz
     py = rot[m, 0, 1] * dx + rot[m, 1, 1] * dy + rot[m, 2, 1] * dz
@@ -79,7 +80,7 @@ def signed_distance(kind, rot, pos, size, m, x, y, z):  # type: ignore[no-untype
     return math.sqrt(px * px + py * py + (pz - cz) ** 2) - size[m, 0]
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def pose_links(q, fk, links):  # type: ignore[no-untyped-def]  # pragma: no cover
     """World poses of every link at state q (D,) into links (1, L, 4, 4)."""
     forward_kinematics_kernel(
@@ -88,7 +89,7 @@ def pose_links(q, fk, links):  # type: ignore[no-untyped-def]  # pragma: no cove
     )  # fmt: skip
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _node(k, link, links, local, world, stamp, clock):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Place node k (of an element on link `link`) in the world (world[k]), once per state."""
     if stamp[k] != clock:
@@ -100,14 +101,14 @@ def _node(k, link, links, local, world, stamp, clock):  # type: ignore[no-untype
         stamp[k] = clock
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _gap(a, b, world):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Distance between the placed centres of nodes a and b."""
     dx, dy, dz = world[a, 0] - world[b, 0], world[a, 1] - world[b, 1], world[a, 2] - world[b, 2]
     return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _scene_row(e, m, robot, scene, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """FREE, OPEN or COLLIDING for element e and object m, down e's tree."""
     link, local, radius, first, count, reach = (
@@ -136,7 +137,7 @@ def _scene_row(e, m, robot, scene, work):  # type: ignore[no-untyped-def]  # pra
     return status
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _pair_open(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Whether leaves of elements i and j meet (down both trees, the larger ball split)."""
     link_i, link_j, local, radius, first, count = (
@@ -164,19 +165,17 @@ def _pair_open(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no
     return False
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """FREE, OPEN or COLLIDING (module docstring) for state q (D,); the arrays as the module
     docstring lays them out.
 
     Before trees are descended, the cheaper proofs: for a scene row, the element's root ball
-    (which holds all its tree covers) missing the object's box (first its bounding ball: the
-    box lies within it, so a root ball apart from that ball misses the box; this only skips the
-    box test where the box test would pass), then the oriented boxes apart
-    (an element's box holds it; an object's box holds it); for a pair its distance table, the
-    elements' root balls apart, their boxes apart and separating slabs (`slabs.py`, as the
-    certification uses them). Every root ball is placed once per state, first; an element's pose
-    and box only when a box test needs them."""
+    (which holds all its tree covers) missing the object's box (first its bounding ball: the box
+    lies within it, so this only skips a box test that would pass), then the oriented boxes
+    apart (an element's box holds it; an object's box holds it); for a pair its distance table,
+    the elements' root balls apart, their boxes apart and separating slabs (`slabs.py`). Every
+    root ball is placed once per state, first; an element's pose only when a box test needs it."""
     pose_links(q, fk, work[0])
     work[3][0] += 1
     work[7][0] += 1
@@ -229,7 +228,7 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     return FREE
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _axis_terms(ra, i, rb, j, row):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Row `row` of C = R_aᵀ R_b, and of |C| grown by 1e-9."""
     c0 = ra[i, 0, row] * rb[j, 0, 0] + ra[i, 1, row] * rb[j, 1, 0] + ra[i, 2, row] * rb[j, 2, 0]
@@ -238,7 +237,7 @@ def _axis_terms(ra, i, rb, j, row):  # type: ignore[no-untyped-def]  # pragma: n
     return c0, c1, c2, abs(c0) + 1e-9, abs(c1) + 1e-9, abs(c2) + 1e-9
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def obb_apart(ra, i, ca, ha, rb, j, cb, hb):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Whether oriented boxes i of (ra, ca, ha) and j of (rb, cb, hb) are apart (rotations
     (·, 3, ≥3) whose columns are the axes, centres (·, 3), half extents (·, 3)): a separating
@@ -285,7 +284,7 @@ def obb_apart(ra, i, ca, ha, rb, j, cb, hb):  # type: ignore[no-untyped-def]  # 
     return abs(t1 * c02 - t0 * c12) > h0 * a12 + h1 * a02 + g0 * a21 + g1 * a20
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _place_roots(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Every element's root ball centre placed in the world (work[1], stamped): the loops after
     read them for every row and pair."""
@@ -301,7 +300,7 @@ def _place_roots(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cov
         stamp[k] = clock
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _pose_element(e, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Element e's world pose (3, 4) into work[6][e] and its box centre into work[8][e], once
     per state (stamped in work[9]): only rows and pairs that reach a box test need them."""
@@ -323,7 +322,7 @@ def _pose_element(e, robot, work):  # type: ignore[no-untyped-def]  # pragma: no
     stamp[e] = clock
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False)
+@numba.njit(cache=True, nogil=True, **BORROWED)
 def _pair_slab(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Whether a separating slab (`slabs.self_slabs`, with meshes as boxes, then as hulls)
     proves elements i and j apart."""
@@ -335,7 +334,7 @@ def _pair_slab(i, j, robot, work):  # type: ignore[no-untyped-def]  # pragma: no
     return False
 
 
-@numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _table_bound(q, p, pairs):  # type: ignore[no-untyped-def]  # pragma: no cover
     """A lower bound on pair p's distance at q from its table (`pair_tables.py`)."""
     dofs, start, step, nodes, offset, bound, table = (
