@@ -54,7 +54,10 @@ SIMPLIFY_ITERATIONS = 24
 RANGE = 1.0  # extension step (rad, over all planning values)
 REPAIR_S = 0.1  # one path's repair: past that, a new compiled search is the better bet
 TABLE_SHARE = 0.2  # of the budget, at most, for building missing pair tables (kept after)
-_COUNTERS = ("search_ms", "simplify_ms", "rounds", "open_motions", "exact_checks", "tree_nodes")
+_COUNTERS = (
+    "search_ms", "simplify_ms", "simplify_states", "rounds", "open_motions", "exact_checks",
+    "tree_nodes",
+)  # fmt: skip
 
 
 @dataclass
@@ -129,7 +132,9 @@ class _Search:
         self.stats["search_ms"] += (time.perf_counter() - began) * 1e3
         self.stats["tree_nodes"] += float(tree[2].sum())
         began = time.perf_counter()
+        checked = self.work[7][0]
         count = simplify(out, length, *self._args(), SIMPLIFY_ITERATIONS)  # type: ignore[call-arg]
+        self.stats["simplify_states"] += float(self.work[7][0] - checked)
         self.stats["simplify_ms"] += (time.perf_counter() - began) * 1e3
         return np.array(out[:count])
 
