@@ -21,19 +21,7 @@ from typing import Any
 from numba.core import caching
 from numba.core.caching import InTreeCacheLocator, UserProvidedCacheLocator, UserWideCacheLocator
 
-__all__ = [
-    "BORROWED",
-    "KERNEL_SOURCES",
-    "LOCATORS",
-    "install",
-    "is_kernel_source",
-    "kernel_sources_stamp",
-]
-
-# numba options of a kernel that allocates nothing and returns no array: it compiles without
-# reference counting, borrowing every array from its caller (`collision/compiled/spheres.py`
-# says why; `tests/geometry/test_kernel_refcounts.py` holds the rule).
-BORROWED: dict[str, Any] = {"_nrt": False}
+__all__ = ["KERNEL_SOURCES", "LOCATORS", "install", "is_kernel_source", "kernel_sources_stamp"]
 
 _GEOMETRY = Path(__file__).resolve().parent
 # The kernels and everything they compile in: the collision kernels, the model's and the

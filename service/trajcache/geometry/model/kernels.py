@@ -9,16 +9,22 @@ once per machine (numba's on-disk cache, filled by `make setup`) and warmed by `
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from trajcache.geometry import kernel_cache  # noqa: F401  (first: its locators stamp the kernels)
-from trajcache.geometry.kernel_cache import BORROWED
 from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
+
+# numba options of a kernel that allocates nothing and returns no array: it compiles without
+# reference counting, borrowing every array from its caller (`collision/compiled/spheres.py`
+# says why; `tests/geometry/test_kernel_refcounts.py` holds the rule). Defined here, in a
+# stamped kernel source, as everything the kernels compile in is (`kernel_cache.py`).
+BORROWED: dict[str, Any] = {"_nrt": False}
 
 
 @numba.njit(cache=True, nogil=True, **BORROWED)

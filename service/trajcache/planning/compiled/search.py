@@ -26,7 +26,7 @@ import numba
 import numpy as np
 
 from trajcache.geometry.collision.compiled.spheres import COLLIDING, FREE, OPEN, sphere_state
-from trajcache.geometry.kernel_cache import BORROWED
+from trajcache.geometry.model.kernels import BORROWED
 
 SOLVED, ROUND, FULL = 1, 0, -1
 WAIT = -2  # `_connect`: a motion that would join the trees awaits the exact check

@@ -7,7 +7,7 @@ import math
 import numba
 import numpy as np
 
-from trajcache.geometry.kernel_cache import BORROWED
+from trajcache.geometry.model.kernels import BORROWED
 
 ROUNDING = 1e-7  # added to every axis distance (as `motion.axis_distances` does)
 GROW = 1024  # rows an output array starts with; `grow` doubles it when full

@@ -20,7 +20,7 @@ from trajcache.geometry.collision.compiled.primitives import (
     world_boxes,
 )
 from trajcache.geometry.collision.compiled.slabs import scene_slabs, slab_bound
-from trajcache.geometry.kernel_cache import BORROWED
+from trajcache.geometry.model.kernels import BORROWED
 
 _COVER_SLABS = 4  # slabs along the ways of the closest cover balls, per end
 

@@ -19,7 +19,7 @@ from trajcache.geometry.collision.compiled.primitives import (
     world_boxes,
 )
 from trajcache.geometry.collision.compiled.slabs import self_slabs, slab_bound
-from trajcache.geometry.kernel_cache import BORROWED
+from trajcache.geometry.model.kernels import BORROWED
 
 
 @numba.njit(cache=True, nogil=True, inline="always", **BORROWED)

@@ -12,8 +12,7 @@ import math
 import numba
 import numpy as np
 
-from trajcache.geometry.kernel_cache import BORROWED
-from trajcache.geometry.model.kernels import hull_climb
+from trajcache.geometry.model.kernels import BORROWED, hull_climb
 
 _TINY = 1e-12
 _EXACT_DIRECTIONS = 3  # directions a slab level looks at meshes as hulls along

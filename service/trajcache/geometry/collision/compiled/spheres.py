@@ -33,7 +33,7 @@ the object (negative inside):
   stack (S, 2), element poses (E, 3, 4), counts (2,) of the states checked and of those found
   OPEN, element box centres (E, 3), element pose stamps (E,).
 
-Every kernel here compiles without numba's reference counting (`kernel_cache.BORROWED`): they
+Every kernel here compiles without numba's reference counting (`model/kernels.BORROWED`): they
 allocate nothing and return no array, so every array they touch is borrowed from the caller,
 which holds it for the call. With counting, each array taken out of a tuple or viewed cost an
 atomic increment and decrement, and that was most of a state's time (2.05 → 0.78 µs per state
@@ -49,8 +49,7 @@ import numba
 
 from trajcache.geometry.collision.compiled.primitives import box_distance_at
 from trajcache.geometry.collision.compiled.slabs import self_slabs
-from trajcache.geometry.kernel_cache import BORROWED
-from trajcache.geometry.model.kernels import forward_kinematics_kernel
+from trajcache.geometry.model.kernels import BORROWED, forward_kinematics_kernel
 
 FREE, OPEN, COLLIDING = 0, 1, 2
 BOX, SPHERE, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
