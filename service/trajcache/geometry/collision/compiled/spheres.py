@@ -31,7 +31,8 @@ the object (negative inside):
 - pairs: i (P,), j (P,), then the distance tables of `pair_tables.py`;
 - work: links (1, L, 4, 4), world centres (N, 3), stamps (N,), clock (1,), stack (S,), pair
   stack (S, 2), element poses (E, 3, 4), counts (2,) of the states checked and of those found
-  OPEN, element box centres (E, 3), element pose stamps (E,).
+  OPEN, element box centres (E, 3), element pose stamps (E,), and every element's root ball
+  (E, 4): its placed centre and radius side by side, which every row and pair reads.
 
 Every kernel here compiles without numba's reference counting (`model/kernels.BORROWED`): they
 allocate nothing and return no array, so every array they touch is borrowed from the caller,
@@ -179,14 +180,14 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     work[3][0] += 1
     work[7][0] += 1
     _place_roots(robot, work)
-    root, radius, world = robot[1], robot[3], work[1]
+    root = robot[1]
     allowed = scene[4]
     status = FREE
     poses, box_centre, box_half = work[6], work[8], robot[10]
     rot_m, centre_m, half_m, ball_m = scene[1], scene[2], scene[7], scene[8]
+    balls = work[10]
     for e in range(root.shape[0]):
-        k = root[e]
-        x, y, z, r = world[k, 0], world[k, 1], world[k, 2], radius[k]
+        x, y, z, r = balls[e, 0], balls[e, 1], balls[e, 2], balls[e, 3]
         for m in range(scene[0].shape[0]):
             if allowed[e, m]:
                 continue
@@ -210,11 +211,10 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
     for p in range(pi.shape[0]):
         if dofs[p, 0] >= 0 and _table_bound(q, p, pairs) > 0.0:
             continue
-        a, b = root[pi[p]], root[pj[p]]
-        dx, dy, dz = world[a, 0] - world[b, 0], world[a, 1] - world[b, 1], world[a, 2] - world[b, 2]
-        if math.sqrt(dx * dx + dy * dy + dz * dz) > radius[a] + radius[b]:
-            continue  # the elements' bounding balls are apart
         i, j = pi[p], pj[p]
+        dx, dy, dz = balls[i, 0] - balls[j, 0], balls[i, 1] - balls[j, 1], balls[i, 2] - balls[j, 2]
+        if math.sqrt(dx * dx + dy * dy + dz * dz) > balls[i, 3] + balls[j, 3]:
+            continue  # the elements' bounding balls are apart
         _pose_element(i, robot, work)
         _pose_element(j, robot, work)
         if obb_apart(poses, i, box_centre, box_half, poses, j, box_centre, box_half):
@@ -285,10 +285,11 @@ def obb_apart(ra, i, ca, ha, rb, j, cb, hb):  # type: ignore[no-untyped-def]  # 
 
 @numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
 def _place_roots(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Every element's root ball centre placed in the world (work[1], stamped): the loops after
-    read them for every row and pair."""
-    links, link, node = work[0], robot[0], robot[2]
-    root, world, stamp, clock = robot[1], work[1], work[2], work[3][0]
+    """Every element's root ball centre placed in the world (work[1], stamped), and copied with
+    its radius into work[10] (E, 4), which the loops after read for every row and pair: a few
+    cache lines, where the nodes' rows lie far apart (TIAGo, 948 pairs: 5.4 → 4.5 µs a state)."""
+    links, link, node, radius = work[0], robot[0], robot[2], robot[3]
+    root, world, stamp, clock, balls = robot[1], work[1], work[2], work[3][0], work[10]
     for e in range(link.shape[0]):
         f, k = link[e], root[e]  # written out: a call per element costs more than this
         for r in range(3):
@@ -296,6 +297,8 @@ def _place_roots(robot, work):  # type: ignore[no-untyped-def]  # pragma: no cov
                 links[0, f, r, 0] * node[k, 0] + links[0, f, r, 1] * node[k, 1]
                 + links[0, f, r, 2] * node[k, 2] + links[0, f, r, 3]
             )  # fmt: skip
+            balls[e, r] = world[k, r]
+        balls[e, 3] = radius[k]
         stamp[k] = clock
 
 
