@@ -90,12 +90,16 @@ class _Search:
 
     def motion_free(self, a: FloatArray, b: FloatArray) -> bool:
         """A motion the trees prove free, or whose open states the exact check finds free."""
-        n = sample_count(a, b, self.space)
-        opened = np.empty((n, len(a)))
-        status, count = motion(a, b, *self._args(), opened)  # type: ignore[call-arg]
+        status, opened = self._open_states(a, b)
         if status == OPEN:
-            return self._exact(opened[:count])
+            return self._exact(opened)
         return bool(status == FREE)
+
+    def _open_states(self, a: FloatArray, b: FloatArray) -> tuple[int, FloatArray]:
+        """The trees' verdict on the motion a → b, and its OPEN samples (coarse first)."""
+        out = np.empty((sample_count(a, b, self.space), len(a)))
+        status, count = motion(a, b, *self._args(), out)  # type: ignore[call-arg]
+        return int(status), out[:count]
 
     def _exact(self, states: FloatArray) -> bool:
         self.stats["exact_checks"] += len(states)
@@ -149,10 +153,8 @@ class _Search:
         self.stats["open_motions"] += float(count)
         opened: list[FloatArray] = []
         for k in range(count):
-            a, b = nodes[p_tree[k], p_parent[k]], p_state[k]
-            out = np.empty((sample_count(a, b, self.space), len(a)))
-            status, n = motion(a, b, *self._args(), out)  # type: ignore[call-arg]
-            opened.append(out[:n] if status == OPEN else out[:0])
+            status, found = self._open_states(nodes[p_tree[k], p_parent[k]], p_state[k])
+            opened.append(found if status == OPEN else found[:0])
             p_ok[k] = 1 if status == FREE else 0
         firsts = [k for k in range(count) if len(opened[k])]
         if not firsts:

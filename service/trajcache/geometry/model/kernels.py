@@ -118,8 +118,6 @@ def forward_kinematics_kernel(
     v·slide[j] (`kinematics._Tables`); v is q[n, value_index[j]]·scale + offset, or the held
     default when value_index[j] < 0. Joints are in an order where a parent is posed first.
     """
-    # Scalar indexing throughout: a view per joint (out[n, parent[j]]) costs numba a reference
-    # count each, more than the joint's arithmetic.
     fx, si, ve, sl = fixed, sine, versine, slide
     for n in range(q.shape[0]):
         out[n, 0, :, :] = 0.0

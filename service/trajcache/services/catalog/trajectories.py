@@ -111,7 +111,7 @@ def store_trajectory(
         _fill_quality(row, model, array, settings, scene, validators)
     new_id = _insert_unless_present(session, row)
     if new_id is None:  # stored before, or concurrently by another request or replica
-        return _stored_meanwhile(session, row), False
+        return _stored_already(session, row), False
     write_end_poses(session, model, [new_id], array[:1], array[-1:])
     log_commits(session, [(new_id, new_id)])  # replicas' syncs read the new row through it
     if commit:
@@ -190,7 +190,7 @@ def set_parent(session: Session, trajectory_id: int, parent_id: int) -> None:
     )
 
 
-def _stored_meanwhile(session: Session, row: tables.Trajectory) -> int:
+def _stored_already(session: Session, row: tables.Trajectory) -> int:
     """The id of the identical trajectory stored before (earlier, or by a concurrent writer)."""
     existing = _find(session, row.model_id, row.content_hash)
     if existing is None:
