@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from pydantic import ValidationError
 
 from tests.robots import OPAQUE_URDF
+from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.jobs.wire import (
     problem_from_message,
     result_from_message,
@@ -88,3 +91,11 @@ def test_results_round_trip_through_json() -> None:
             assert back.path is None
         else:
             assert back.path is not None and np.array_equal(back.path, result.path)
+
+
+def test_a_scene_sent_parsed_travels_as_its_payload() -> None:
+    parsed = parse_scene(PAYLOAD)
+    sent = replace(problem(stored=False), scene=SceneSource.of(parsed))
+    message = task_message(sent)
+    assert message["scene"] == {"hash": parsed.hash, "payload": scene_to_payload(parsed)}
+    assert parse_scene(message["scene"]["payload"]).hash == parsed.hash

@@ -55,6 +55,24 @@ def cache_sizes() -> tuple[int, int, int, int]:
     return len(run.MODELS), run.MODELS.hits, len(run.SCENES), run.SCENES.hits
 
 
+def test_a_scene_sent_parsed_is_planned_in_as_it_is(
+    problem: PlanningProblem, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    scene = restroom_scene(doors=45.0)
+    sent = pickle.loads(pickle.dumps(replace(problem, scene=SceneSource.of(scene), seed=3)))
+    assert sent.scene.parsed is not None and sent.scene.parsed.hash == scene.hash
+    assert sent.scene.payload is None
+    run.SCENES.clear()
+
+    def no_parsing(payload: object) -> None:
+        raise AssertionError("a scene sent parsed was parsed again")
+
+    monkeypatch.setattr(run, "parse_scene", no_parsing)
+    result = run_planning(sent)
+    assert result.status is PlannerStatus.SOLVED, result.message
+    assert run.SCENES.get(scene.hash) is sent.scene.parsed
+
+
 def test_run_planning_in_a_worker_process(problem: PlanningProblem) -> None:
     restored = pickle.loads(pickle.dumps(problem))
     context = multiprocessing.get_context("spawn")  # a fresh interpreter, as in production

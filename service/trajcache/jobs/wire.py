@@ -32,7 +32,7 @@ def task_message(problem: PlanningProblem) -> dict[str, Any]:
     message: dict[str, Any] = _PROBLEM.dump_python(problem, mode="json", exclude={"model", "scene"})
     scene = problem.scene
     message["model_id"] = problem.model.model_id
-    message["scene"] = {"hash": scene.hash, "payload": None if scene.stored else scene.payload}
+    message["scene"] = {"hash": scene.hash, "payload": None if scene.stored else scene.native()}
     return message
 
 

@@ -58,10 +58,11 @@ def model_from_source(source: ModelSource) -> RobotModel:
 
 
 def scene_from_source(source: SceneSource) -> Scene:
-    """The parsed scene of `source`, parsed once per process and scene hash."""
+    """The parsed scene of `source`, parsed once per process and scene hash (a scene sent
+    parsed is taken as it is)."""
     scene = SCENES.get(source.hash) if source.hash else None
     if scene is None:
-        scene = parse_scene(source.payload)
+        scene = source.parsed if source.parsed is not None else parse_scene(source.native())
         if source.hash:
             SCENES.put(source.hash, scene)
     return scene

@@ -14,7 +14,6 @@ from collections.abc import Mapping
 import numpy as np
 
 from trajcache.cache.memo import MemoScope, remember_path
-from trajcache.geometry.scene.payload import scene_to_payload
 from trajcache.geometry.validation.validator import certificate_for
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import (
@@ -158,9 +157,7 @@ def problem_of(attempt: PlanAttempt) -> PlanningProblem:
         model=model_source(
             session=attempt.session, model_id=attempt.model.model_id, registry=ctx.models
         ),
-        scene=SceneSource(
-            hash=scene.hash, payload=scene_to_payload(scene), stored=attempt.origin.scene_stored
-        ),
+        scene=SceneSource.of(scene, stored=attempt.origin.scene_stored),
         start=tuple(float(v) for v in attempt.start),
         goal=tuple(float(v) for v in attempt.goal),
         budget_s=attempt.request.budget_s,
