@@ -20,6 +20,7 @@ from tests.services.hit_setup import context, count_statements, store, two_joint
 from tests.waiting import NEVER_BINDS_S
 from trajcache.cache.memo import MemoUse
 from trajcache.db.models import PlanEvent, Trajectory
+from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
@@ -242,6 +243,38 @@ def test_an_endpoint_in_collision_is_refused_before_planning(
     with pytest.raises(CollisionStateError, match="goal state is in collision"):
         ask(ctx, [0.0, 0.0], [1.0, 0.0], fallback=True)
     assert not planner.problems
+
+
+def test_without_a_candidate_the_planner_checks_the_ends_and_a_refused_one_is_named(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    setup_robot(ctx, [blocker(shoulder=1.0, size=0.06)])
+    checked: list[int] = []
+    contacts = CollisionChecker.state_contacts
+
+    def counted(self: CollisionChecker, state: Any) -> Any:
+        checked.append(1)
+        return contacts(self, state)
+
+    monkeypatch.setattr(CollisionChecker, "state_contacts", counted)
+    refused = FakePlanner(PlanResult(PlannerStatus.INVALID_GOAL, message="goal in collision"))
+    use_planner(ctx, monkeypatch, refused)
+    with pytest.raises(CollisionStateError, match="goal state is in collision"):
+        ask(ctx, [0.0, 0.0], [1.0, 0.0], fallback=True, lookup=False)
+    assert len(refused.problems) == 1 and checked  # the planner first, then the contacts
+    # free ends, no candidate: the service leaves the ends to the planner
+    checked.clear()
+    timeout = FakePlanner(PlanResult(PlannerStatus.TIMEOUT, message="nothing found"))
+    use_planner(ctx, monkeypatch, timeout)
+    answer = ask(ctx, [0.0, 0.0], [-0.3, 0.0], fallback=True, lookup=False)
+    assert answer.status is PlanStatus.FAILURE and len(timeout.problems) == 1
+    assert not checked
+    # a refusal whose end is not in collision stays the planner's failure
+    near = FakePlanner(PlanResult(PlannerStatus.INVALID_GOAL, message="goal too near"))
+    use_planner(ctx, monkeypatch, near)
+    answer = ask(ctx, [0.0, 0.0], [-0.3, 0.0], fallback=True, lookup=False)
+    assert answer.status is PlanStatus.FAILURE and "goal too near" in answer.message
+    assert len(checked) == 2
 
 
 def test_a_planner_failure_is_recorded_with_its_seed(

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from trajcache.cache.memo import MemoScope, remember_path
+from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.validation.validator import certificate_for
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import (
@@ -38,7 +39,7 @@ from trajcache.services.plan.certified import certify_planned
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["plan_fallback", "store_and_answer"]
+__all__ = ["check_endpoints", "plan_fallback", "store_and_answer"]
 
 RECORD_WAIT_S = 10.0  # how long an unavailable planner's answer waits for its record
 
@@ -171,9 +172,25 @@ def problem_of(attempt: PlanAttempt) -> PlanningProblem:
     )
 
 
+def check_endpoints(attempt: PlanAttempt) -> None:
+    """A start or goal in collision is the caller's error (422), not a planning failure."""
+    with attempt.clock.measure("validate"):
+        checker = attempt.validator.checker
+        for name, state in (("start", attempt.start), ("goal", attempt.goal)):
+            contacts = checker.state_contacts(state)
+            if contacts:
+                text = "; ".join(c.describe() for c in contacts)
+                raise CollisionStateError(
+                    f"{name} state is in collision: {text}", contacts=contacts
+                )
+
+
 def _unsolved(attempt: PlanAttempt, outcome: PlanResult, seed: int | None) -> PlanAnswer:
-    """A failure answer; a planner that could not run raises a 503 the caller may retry, once
+    """A failure answer; an endpoint the planner refused is a 422 where it is in collision
+    (`check_endpoints`); a planner that could not run raises a 503 the caller may retry, once
     its plan event is written."""
+    if outcome.status in (PlannerStatus.INVALID_START, PlannerStatus.INVALID_GOAL):
+        check_endpoints(attempt)
     status = PlanStatus.ERROR if outcome.status is PlannerStatus.ERROR else PlanStatus.FAILURE
     message = f"{outcome.status.value}: {outcome.message}".rstrip(": ")
     if outcome.detail:  # the plan event and the log have it; the robot's answer does not
