@@ -52,6 +52,10 @@ def scripted_task(problem: PlanningProblem) -> PlanResult:
     status = PlannerStatus(script.get("status", "solved"))
     path = np.array([problem.start, problem.goal]) if status is PlannerStatus.SOLVED else None
     stats = {"pid": float(os.getpid())}
+    if script.get("files"):  # what the task carried of the model's files, and what it can read
+        model = problem.model
+        stats["carried"] = float(sum(map(len, model.files.values())))
+        stats["readable"] = float(sum(map(len, model.mesh_files().values())))
     if script.get("threads"):
         importlib.import_module("numba")  # as the planner's geometry kernels do
         stats.update({name: float(n) for name, n in thread_counts().items()})
@@ -94,6 +98,26 @@ WALL = {
         }
     ]
 }
+
+
+def test_a_model_s_mesh_files_wait_in_the_pool_s_spool_not_in_every_task(
+    tmp_path: Path,
+) -> None:
+    mesh = bytes(range(256)) * 2_000
+    model = ModelSource("meshy", OPAQUE_URDF, "fixed", ("j1", "j2"), files={"m.stl": mesh})
+    problem = replace(make_problem(tmp_path, files=True), model=model)
+    backend = LocalBackend(scripted_task, processes=1)
+    try:
+        first = backend.run(problem, timeout_s=NEVER_BINDS_S)
+        second = backend.run(replace(problem, seed=2), timeout_s=NEVER_BINDS_S)
+        spooled = backend._spool.source(model).files_at
+    finally:
+        backend.close()
+    for result in (first, second):
+        assert result.status is PlannerStatus.SOLVED, result.message
+        assert result.stats["carried"] == 0.0 and result.stats["readable"] == len(mesh)
+    assert spooled is not None and not Path(spooled).exists()  # gone with the pool
+    assert model.mesh_files() == {"m.stl": mesh}  # the caller's source is left as it was
 
 
 def two_link_problem(goal: tuple[float, float]) -> PlanningProblem:

@@ -47,7 +47,7 @@ def model_from_source(source: ModelSource) -> RobotModel:
     if model is None:
         model = load_robot_model(
             source.urdf,
-            files=source.files,
+            files=source.mesh_files(),
             base=source.base,
             joint_names=source.joint_names,
             srdf=source.srdf,
