@@ -221,3 +221,26 @@ def test_a_trajectory_that_starts_or_ends_in_collision_is_a_collision(panda: Rob
     assert "block" in first.message
     last = validator.validate(np.stack([goal, start]))  # the block is met on the way, or last
     assert last.status is ValidationStatus.COLLISION and "block" in last.message
+
+
+def test_the_scene_levels_return_every_open_row_however_many(panda: RobotModel) -> None:
+    """Inside a box that holds the whole arm, no bound is positive: every (segment, element)
+    row is open, thousands of them (the output grows past its first 1,024 rows)."""
+    from trajcache.geometry.collision.bodies import Posed
+    from trajcache.geometry.model.space import segment_deltas
+    from trajcache.geometry.validation.certify import SegmentCertifier
+
+    block = SceneObject("block", Shape(ShapeKind.BOX, (4.0, 4.0, 4.0)), np.eye(4))
+    checker = CollisionChecker(panda, make_scene([block]))
+    certifier = SegmentCertifier(checker, base=panda.base)
+    rng = np.random.default_rng(3)
+    states = np.linspace(*_states(panda, rng, 2), 150)
+    posed = Posed.build(checker.robot, states)
+    step = checker.robot.motion.steps(segment_deltas(states, base=panda.base))
+    scene, _ = certifier._compiled_levels(posed, step)
+    expected = {(k, e) for k in range(len(states) - 1) for e in range(len(panda.elements))}
+    assert len(scene.rows) == len(expected) > 1024
+    assert {(int(k), int(e)) for k, e, _ in scene.rows} == expected
+    assert np.all(scene.rows[:, 2] == 0) and np.all(scene.lower_a <= 0.0)
+    first, _ = certifier._compiled_levels(posed, step, first_only=True)
+    assert len(first.rows) == 1

@@ -11,7 +11,6 @@ from trajcache.geometry.collision.compiled.primitives import (
     box_distance_at,
     box_gap_at,
     cover_motion,
-    grow,
     object_poses,
     place_cover,
     point_motion,
@@ -78,146 +77,196 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     motion: rotation (D,), rotation index (D,), after (D, D), axis link (R,), axis local (R, 3);
     scene: rotation (M, 3, 3), position, half extents, AABB low and high (M, 3). With
     `first_only`, it returns as soon as it finds one open row.
+
+    It allocates what the elements share and its output, and leaves each element's rows to
+    `_element_rows`, which allocates nothing: compiled without reference counting, it works
+    on borrowed arrays alone (`model/kernels.BORROWED`), where counting the references of the
+    views and tuples it passes around cost as much as the bounds themselves.
     """
-    link_of, origin, radius, centre_coef, turning, count, sph_local, sph_rad, sph_coef = robot
-    rotation, rot_index, after, axis_link, axis_local = motion
-    rot_m, pos_m, half_m, lo_m, hi_m = scene
+    link_of, origin, radius = robot[0], robot[1], robot[2]
+    axis_link, axis_local = motion[3], motion[4]
+    rot_m, pos_m = scene[0], scene[1]
     poses, origins, dirs = pose_all(links, link_of, origin, axis_link, axis_local)
     box_lo, box_hi = world_boxes(poses, half, radius)
-    mo = (step, rotation, rot_index, after, origins, dirs)
     n_el, n_obj, dof = link_of.shape[0], rot_m.shape[0], step.shape[1]
     n_samples = links.shape[0]
-    n_seg = n_samples - 1
-    width = sph_rad.shape[1]
-    ones = np.ones(dof)
-    pose_obj = object_poses(rot_m, pos_m)
+    n_seg = max(n_samples - 1, 1)
+    width = robot[7].shape[1]
+    placed = (poses, origins, dirs, box_lo, box_hi, object_poses(rot_m, pos_m), np.ones(dof))
+    work = (
+        np.zeros(n_samples),  # centre_sum
+        np.zeros(n_samples),  # whole_sum
+        np.empty(n_seg),  # turns
+        np.empty(n_seg),  # dependent
+        np.empty(n_samples),  # low
+        np.empty(n_samples, dtype=np.int64),  # level
+        np.empty((n_samples, width, 3)),  # balls
+        np.empty(n_samples, dtype=np.bool_),  # balls_known
+        np.empty((n_seg, width)),  # ball_motion
+        np.empty((2, width)),  # cover
+        np.empty(n_seg, dtype=np.bool_),  # motion_known
+        np.empty(n_samples),  # ball_low
+        np.empty((2, 3)),  # near
+    )
+    most = n_obj * n_seg  # rows one element can leave open
     rows = np.empty((GROW, 3), dtype=np.int64)
     lows = np.empty((GROW, 3))
     found = 0
-    centre_sum = np.zeros(n_samples)
-    whole_sum = np.zeros(n_samples)
-    turns = np.empty(max(n_seg, 1))
-    dependent = np.empty(max(n_seg, 1))
-    low = np.empty(n_samples)
-    level = np.empty(n_samples, dtype=np.int64)
-    balls = np.empty((n_samples, width, 3))
-    balls_known = np.empty(n_samples, dtype=np.bool_)
-    ball_motion = np.empty((max(n_seg, 1), width))
-    cover = np.empty((2, width))
-    motion_known = np.empty(max(n_seg, 1), dtype=np.bool_)
-    ball_low = np.empty(n_samples)
-    near = np.empty((2, 3))
     for e in range(n_el):
-        link = link_of[e]
-        widest = _motion_sums(
-            step, centre_coef[e], radius[e], turning, link, ones, centre_sum, whole_sum, turns
-        )
-        # every point of the element stays within radius + widest of its origin at a sample
-        _reach(poses, e, radius[e] + widest, near)
-        dependent[:] = -1.0
-        balls_known[:] = False
-        motion_known[:] = False
-        for m in range(n_obj):
-            if allowed.shape[0] and allowed[e, m]:
-                continue
-            if _out_of_reach(lo_m, hi_m, m, near):
-                continue
-            ball_low[:] = -1.0
-            level[:] = 0
-            at = 0  # every segment before sample `at` is certified
-            while at < n_seg:
-                # ahead from `at` while the summed motion stays below the bound there
-                ahead = at
-                d = _ball_bound(at, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
-                while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
+        if found + most > rows.shape[0]:
+            size = max(2 * rows.shape[0], found + most)
+            more_rows = np.empty((size, 3), dtype=np.int64)
+            more_lows = np.empty((size, 3))
+            more_rows[:found] = rows[:found]
+            more_lows[:found] = lows[:found]
+            rows, lows = more_rows, more_lows
+        found = _element_rows(
+            e, links, step, robot, sup_r, motion, scene, sup_s, allowed, first_only, placed,
+            work, rows, lows, found,
+        )  # fmt: skip
+        if first_only and found:
+            break
+    return rows[:found], lows[:found]
+
+
+@numba.njit(cache=True, nogil=True, **BORROWED)
+def _element_rows(  # type: ignore[no-untyped-def]  # pragma: no cover
+    e,
+    links,
+    step,
+    robot,
+    sup_r,
+    motion,
+    scene,
+    sup_s,
+    allowed,
+    first_only,
+    placed,
+    work,
+    rows,
+    lows,
+    found,
+):
+    """`scene_open_kernel`'s rows of element e, written from rows[found] on (room is left for
+    every object on every segment); the new count."""
+    link_of, _origin, radius, centre_coef, turning, count, sph_local, sph_rad, sph_coef = robot
+    rotation, rot_index, after, _axis_link, _axis_local = motion
+    rot_m, pos_m, half_m, lo_m, hi_m = scene
+    poses, origins, dirs, box_lo, box_hi, pose_obj, ones = placed
+    centre_sum, whole_sum, turns, dependent, low, level, balls = work[:7]
+    balls_known, ball_motion, cover, motion_known, ball_low, near = work[7:]
+    mo = (step, rotation, rot_index, after, origins, dirs)
+    n_obj = rot_m.shape[0]
+    n_seg = links.shape[0] - 1
+    link = link_of[e]
+    widest = _motion_sums(
+        step, centre_coef[e], radius[e], turning, link, ones, centre_sum, whole_sum, turns
+    )
+    # every point of the element stays within radius + widest of its origin at a sample
+    _reach(poses, e, radius[e] + widest, near)
+    dependent[:] = -1.0
+    balls_known[:] = False
+    motion_known[:] = False
+    for m in range(n_obj):
+        if allowed.shape[0] and allowed[e, m]:
+            continue
+        if _out_of_reach(lo_m, hi_m, m, near):
+            continue
+        ball_low[:] = -1.0
+        level[:] = 0
+        at = 0  # every segment before sample `at` is certified
+        while at < n_seg:
+            # ahead from `at` while the summed motion stays below the bound there
+            ahead = at
+            d = _ball_bound(at, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
+            while ahead < n_seg and centre_sum[ahead + 1] - centre_sum[at] < d:
+                ahead += 1
+            if ahead == at:  # the world boxes' gap, with the motion of any point
+                d = box_gap_at(box_lo, box_hi, at, e, lo_m, hi_m, m)
+                while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
                     ahead += 1
-                if ahead == at:  # the world boxes' gap, with the motion of any point
-                    d = box_gap_at(box_lo, box_hi, at, e, lo_m, hi_m, m)
-                    while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
-                        ahead += 1
-                if ahead == at:
-                    d = scene_bound(
-                        at, 3, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s, m,
-                        scene,
-                    )  # fmt: skip
-                    while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
-                        ahead += 1
-                if ahead > at:
-                    at = ahead
-                    continue
-                # segment `at` on its own, from both ends
-                lo, hi = at, at + 1
-                at += 1
-                settled = False
-                moving = whole_sum[hi] - whole_sum[lo]
-                box_a = box_gap_at(box_lo, box_hi, lo, e, lo_m, hi_m, m)
-                box_b = box_gap_at(box_lo, box_hi, hi, e, lo_m, hi_m, m)
-                if box_a + box_b > moving:
-                    continue
-                da = _ball_bound(lo, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
-                db = _ball_bound(hi, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
-                settled = da + db > centre_sum[hi] - centre_sum[lo]
-                for want in range(2, 4):
-                    if settled:
-                        break
-                    da = scene_bound(
-                        lo, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
-                        m, scene,
-                    )  # fmt: skip
-                    db = scene_bound(
-                        hi, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
-                        m, scene,
-                    )  # fmt: skip
-                    settled = da + db > moving
+            if ahead == at:
+                d = scene_bound(
+                    at, 3, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s, m,
+                    scene,
+                )  # fmt: skip
+                while ahead < n_seg and whole_sum[ahead + 1] - whole_sum[at] < d:
+                    ahead += 1
+            if ahead > at:
+                at = ahead
+                continue
+            # segment `at` on its own, from both ends
+            lo, hi = at, at + 1
+            at += 1
+            settled = False
+            moving = whole_sum[hi] - whole_sum[lo]
+            box_a = box_gap_at(box_lo, box_hi, lo, e, lo_m, hi_m, m)
+            box_b = box_gap_at(box_lo, box_hi, hi, e, lo_m, hi_m, m)
+            if box_a + box_b > moving:
+                continue
+            da = _ball_bound(lo, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
+            db = _ball_bound(hi, ball_low, poses, e, radius, rot_m, pos_m, half_m, m)
+            settled = da + db > centre_sum[hi] - centre_sum[lo]
+            for want in range(2, 4):
                 if settled:
-                    continue
-                k = lo
-                if dependent[k] < 0.0:
-                    pa, pb = poses[k, e], poses[k + 1, e]
-                    dependent[k] = min(
-                        moving,
-                        point_motion(
-                            mo, k, k, k + 1, (pa[0, 3], pa[1, 3], pa[2, 3]),
-                            (pb[0, 3], pb[1, 3], pb[2, 3]), centre_coef[e], ones,
-                        )
-                        + radius[e] * turns[k],
-                    )  # fmt: skip
-                moving = dependent[k]
+                    break
+                da = scene_bound(
+                    lo, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
+                    m, scene,
+                )  # fmt: skip
+                db = scene_bound(
+                    hi, want, ball_low, low, level, poses, e, radius, sup_r, pose_obj[m], sup_s,
+                    m, scene,
+                )  # fmt: skip
+                settled = da + db > moving
+            if settled:
+                continue
+            k = lo
+            if dependent[k] < 0.0:
+                pa, pb = poses[k, e], poses[k + 1, e]
+                dependent[k] = min(
+                    moving,
+                    point_motion(
+                        mo, k, k, k + 1, (pa[0, 3], pa[1, 3], pa[2, 3]),
+                        (pb[0, 3], pb[1, 3], pb[2, 3]), centre_coef[e], ones,
+                    )
+                    + radius[e] * turns[k],
+                )  # fmt: skip
+            moving = dependent[k]
+            if da + db > moving:
+                continue
+            # an end in contact, or too close to tell: FCL's collision test decides it before
+            # anything finer is worth computing (`certify._sample_collision`)
+            in_contact = da <= 0.0 or db <= 0.0
+            if not in_contact:  # level 3: the sphere cover
+                place_cover(links, link, sph_local[e], count[e], k, balls, balls_known)
+                low_a, low_b, touching = _cover_gaps(
+                    balls, k, count[e], sph_rad[e], rot_m[m], pos_m[m], half_m[m], cover
+                )
+                ball_whole = np.inf
+                if not touching:  # no ball settles otherwise: its motion is not needed
+                    if not motion_known[k]:
+                        cover_motion(mo, k, balls, sph_coef[e], count[e], ones, ball_motion[k])
+                        motion_known[k] = True
+                    every, ball_whole = _cover_settles(
+                        cover, ball_motion[k], count[e], sph_rad[e], turns[k]
+                    )
+                    if every:
+                        continue
+                da, db = max(da, low_a), max(db, low_b)
+                moving = min(moving, ball_whole)
+                best_a, best_b = _cover_slabs(
+                    balls, k, count[e], cover, poses, e, sup_r, pose_obj[m], sup_s, m, scene
+                )
+                da, db = max(da, best_a), max(db, best_b)
                 if da + db > moving:
                     continue
-                # an end in contact, or too close to tell: FCL's collision test decides it before
-                # anything finer is worth computing (`certify._sample_collision`)
-                in_contact = da <= 0.0 or db <= 0.0
-                if not in_contact:  # level 3: the sphere cover
-                    place_cover(links, link, sph_local[e], count[e], k, balls, balls_known)
-                    low_a, low_b, touching = _cover_gaps(
-                        balls, k, count[e], sph_rad[e], rot_m[m], pos_m[m], half_m[m], cover
-                    )
-                    ball_whole = np.inf
-                    if not touching:  # no ball settles otherwise: its motion is not needed
-                        if not motion_known[k]:
-                            cover_motion(mo, k, balls, sph_coef[e], count[e], ones, ball_motion[k])
-                            motion_known[k] = True
-                        every, ball_whole = _cover_settles(
-                            cover, ball_motion[k], count[e], sph_rad[e], turns[k]
-                        )
-                        if every:
-                            continue
-                    da, db = max(da, low_a), max(db, low_b)
-                    moving = min(moving, ball_whole)
-                    best_a, best_b = _cover_slabs(
-                        balls, k, count[e], cover, poses, e, sup_r, pose_obj[m], sup_s, m, scene
-                    )
-                    da, db = max(da, best_a), max(db, best_b)
-                    if da + db > moving:
-                        continue
-                rows, lows = grow(rows, lows, found)
-                rows[found, 0], rows[found, 1], rows[found, 2] = k, e, m
-                lows[found, 0], lows[found, 1], lows[found, 2] = da, db, moving
-                found += 1
-                if first_only:
-                    return rows[:found], lows[:found]
-    return rows[:found], lows[:found]
+            rows[found, 0], rows[found, 1], rows[found, 2] = k, e, m
+            lows[found, 0], lows[found, 1], lows[found, 2] = da, db, moving
+            found += 1
+            if first_only:
+                return found
+    return found
 
 
 @numba.njit(cache=True, nogil=True, **BORROWED)
