@@ -20,6 +20,7 @@ from tests.conftest import REDIS_URL, require_service
 from tests.waiting import SOLVABLE
 from trajcache.db.models import PlanEvent
 from trajcache.geometry.validation.validator import validator_for
+from trajcache.jobs.backend import Meanwhile, run_meanwhile
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 from trajcache.services.catalog.models import get_model
@@ -75,8 +76,11 @@ class _RecordingBackend:
         self.problems: list[PlanningProblem] = []
         self.answer: PlanResult | None = None  # instead of the straight path
 
-    def run(self, problem: PlanningProblem, timeout_s: float) -> PlanResult:
+    def run(
+        self, problem: PlanningProblem, timeout_s: float, meanwhile: Meanwhile | None = None
+    ) -> PlanResult:
         self.problems.append(problem)
+        run_meanwhile(meanwhile)
         if self.answer is not None:
             return self.answer
         path = np.array([problem.start, problem.goal])
@@ -133,7 +137,9 @@ def test_unreachable_goal_fails_within_budget_then_fails_fast(
     pool = ctx_of(client).planner_pool()
     budgets: list[float] = []  # the budget of each problem given to the pool
     submit = pool.submit
-    monkeypatch.setattr(pool, "submit", lambda p: budgets.append(p.budget_s) or submit(p))
+    monkeypatch.setattr(
+        pool, "submit", lambda p, **kw: budgets.append(p.budget_s) or submit(p, **kw)
+    )
     body = _plan(client, options={"budget_s": 0.5})
     assert body["status"] == "failure" and body["states"] is None
     assert "timeout" in body["message"]

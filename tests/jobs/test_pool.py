@@ -120,6 +120,26 @@ def test_a_model_s_mesh_files_wait_in_the_pool_s_spool_not_in_every_task(
     assert model.mesh_files() == {"m.stl": mesh}  # the caller's source is left as it was
 
 
+def test_the_caller_s_work_runs_while_its_task_plans_once_the_task_is_away(
+    tmp_path: Path,
+) -> None:
+    done: list[tuple[int, bool]] = []  # (runs the worker had logged, whether it was done)
+    problem = make_problem(tmp_path, sleep=0.3, done_file=str(tmp_path / "done"))
+
+    def meanwhile() -> None:
+        wait_until(lambda: runs(tmp_path) == 1)  # the task reached its worker and started
+        done.append((runs(tmp_path), (tmp_path / "done").exists()))
+
+    backend = LocalBackend(scripted_task, processes=1)
+    try:
+        result = backend.run(problem, timeout_s=NEVER_BINDS_S, meanwhile=meanwhile)
+        failing = backend.run(problem, timeout_s=NEVER_BINDS_S, meanwhile=lambda: 1 / 0)
+    finally:
+        backend.close()
+    assert result.status is PlannerStatus.SOLVED and done == [(1, False)]
+    assert failing.status is PlannerStatus.SOLVED  # its error is logged, not the answer's
+
+
 def two_link_problem(goal: tuple[float, float]) -> PlanningProblem:
     """A real problem for `run_planning`: a planar two-link arm next to a wall."""
     model = ModelSource("two-link", BOXED_TWO_LINK_URDF, "fixed", ("shoulder", "elbow"))

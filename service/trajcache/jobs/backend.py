@@ -7,10 +7,13 @@ Backends: `LocalBackend` (worker processes on this machine, `trajcache.jobs.loca
 from __future__ import annotations
 
 import importlib
+import logging
 from collections.abc import Callable
 from typing import Protocol
 
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+
+logger = logging.getLogger(__name__)
 
 TaskFn = Callable[[PlanningProblem], PlanResult]
 
@@ -32,10 +35,28 @@ def error_result(message: str, detail: str = "") -> PlanResult:
     return PlanResult(PlannerStatus.ERROR, message=message, detail=detail)
 
 
-class PlanBackend(Protocol):
-    """Where planning runs; `run` never raises and returns within `timeout_s` (plus IPC)."""
+# Work of the caller's to do while a worker plans (`PlannerPool.submit`); its errors are logged.
+Meanwhile = Callable[[], object]
 
-    def run(self, problem: PlanningProblem, timeout_s: float) -> PlanResult: ...
+
+def run_meanwhile(meanwhile: Meanwhile | None) -> None:
+    """Run the caller's work while the task plans elsewhere; an error in it is logged, never
+    raised: the planning it waits for goes on."""
+    if meanwhile is None:
+        return
+    try:
+        meanwhile()
+    except Exception:
+        logger.warning("work done while planning failed", exc_info=True)
+
+
+class PlanBackend(Protocol):
+    """Where planning runs; `run` never raises and returns within `timeout_s` (plus IPC). Once
+    the task has left for its worker, `run` does `meanwhile` (if the answer is not back yet)."""
+
+    def run(
+        self, problem: PlanningProblem, timeout_s: float, meanwhile: Meanwhile | None = None
+    ) -> PlanResult: ...
 
     def close(self) -> None: ...
 

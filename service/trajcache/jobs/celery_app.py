@@ -26,7 +26,14 @@ from kombu.exceptions import EncodeError, OperationalError
 from redis.exceptions import RedisError
 
 from trajcache.core.config import Settings, get_settings
-from trajcache.jobs.backend import DEFAULT_TASK_FN, TaskFn, error_result, load_task_fn
+from trajcache.jobs.backend import (
+    DEFAULT_TASK_FN,
+    Meanwhile,
+    TaskFn,
+    error_result,
+    load_task_fn,
+    run_meanwhile,
+)
 from trajcache.jobs.sources import MissingSourceError, WorkerSources
 from trajcache.jobs.threads import pin_one_thread
 from trajcache.jobs.wire import (
@@ -155,8 +162,11 @@ class CeleryBackend:
         self.queue = queue
         self.time_limit_grace_s = time_limit_grace_s
 
-    def run(self, problem: PlanningProblem, timeout_s: float) -> PlanResult:
-        """Send the task and wait up to `timeout_s`; ERROR quickly when the broker is down."""
+    def run(
+        self, problem: PlanningProblem, timeout_s: float, meanwhile: Meanwhile | None = None
+    ) -> PlanResult:
+        """Send the task and wait up to `timeout_s`; ERROR quickly when the broker is down.
+        `meanwhile` runs once the task is sent."""
         deadline = time.monotonic() + timeout_s
         try:
             async_result = self.app.send_task(
@@ -179,6 +189,7 @@ class CeleryBackend:
             name="trajcache-celery-result",
             daemon=True,
         ).start()
+        run_meanwhile(meanwhile)
         check_at = deadline - min(LIVENESS_CHECK_S, max(0.0, timeout_s - problem.budget_s))
         if not wait([outcome], timeout=max(0.0, check_at - time.monotonic())).done:
             lost = self._lost_worker(async_result, outcome, deadline)

@@ -18,12 +18,13 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 
 from trajcache.core.lru import LRU
-from trajcache.jobs.backend import TaskFn, error_result
+from trajcache.jobs.backend import Meanwhile, TaskFn, error_result, run_meanwhile
 from trajcache.jobs.threads import pin_one_thread
 from trajcache.planning.problem import ModelSource, PlannerStatus, PlanningProblem, PlanResult
 
 MIN_RETRY_BUDGET_S = 0.1  # a crashed task is not run again with less budget left than this
 PARENT_GONE_EXIT = 70  # a worker's exit status when the process that started it is gone
+MEANWHILE_AFTER_S = 0.001  # a task reaches its worker in a few tenths of a millisecond
 SPOOLED_MODELS = 64  # models whose spooled source is remembered (their files stay spooled)
 
 
@@ -125,8 +126,14 @@ class LocalBackend:
         done, pending = wait(generation.warm_ups, timeout=timeout_s)
         return not pending and all(not f.cancelled() and f.exception() is None for f in done)
 
-    def run(self, problem: PlanningProblem, timeout_s: float) -> PlanResult:
-        """Run the task in a worker; ERROR on a crash, TIMEOUT or ERROR past `timeout_s`."""
+    def run(
+        self, problem: PlanningProblem, timeout_s: float, meanwhile: Meanwhile | None = None
+    ) -> PlanResult:
+        """Run the task in a worker; ERROR on a crash, TIMEOUT or ERROR past `timeout_s`.
+
+        `meanwhile` runs once the task has had `MEANWHILE_AFTER_S` to reach its worker (not
+        before: it would hold the interpreter's lock that sending the task needs), unless the
+        answer is back by then."""
         began = time.monotonic()
         deadline = began + timeout_s
         budget_ends = began + problem.budget_s  # a retry plans in what is left of the budget
@@ -143,6 +150,9 @@ class LocalBackend:
             with self._lock:
                 generation.running[future] = deadline
             future.add_done_callback(lambda done: self._release(generation, done))
+            if meanwhile is not None and not wait([future], timeout=MEANWHILE_AFTER_S).done:
+                run_meanwhile(meanwhile)
+            meanwhile = None  # once, even when a crash runs the task again
             try:
                 result = future.result(timeout=max(0.0, deadline - time.monotonic()))
             except CancelledError:  # retired before it started: try the new executor

@@ -17,7 +17,14 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import asdict, dataclass, fields, replace
 
 from trajcache.core.config import Settings
-from trajcache.jobs.backend import PlanBackend, TaskFn, error_result, load_task_fn
+from trajcache.jobs.backend import (
+    Meanwhile,
+    PlanBackend,
+    TaskFn,
+    error_result,
+    load_task_fn,
+    run_meanwhile,
+)
 from trajcache.jobs.local import LocalBackend
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 
@@ -101,10 +108,12 @@ class PlannerPool:
         self._counts: Counter[str] = Counter()
         self._closed = False
 
-    def submit(self, problem: PlanningProblem) -> PlanResult:
+    def submit(self, problem: PlanningProblem, *, meanwhile: Meanwhile | None = None) -> PlanResult:
         """Plan `problem` and block until its result; never raises, never outlives the budget.
 
-        Coalesced callers share one PlanResult object: treat it as read-only.
+        Coalesced callers share one PlanResult object: treat it as read-only. `meanwhile` is the
+        caller's work to do while the problem plans elsewhere (`PlanBackend.run`); an answer
+        known at once skips it.
         """
         if problem.budget_s > self.max_budget_s:
             problem = replace(problem, budget_s=self.max_budget_s)
@@ -113,10 +122,11 @@ class PlannerPool:
         if answer is not None:
             return answer
         if not leader:
+            run_meanwhile(meanwhile)
             return self._wait(flight, problem.budget_s)
         result = error_result("planning was interrupted")
         try:
-            result = self.backend.run(problem, problem.budget_s + self.overhead_s)
+            result = self.backend.run(problem, problem.budget_s + self.overhead_s, meanwhile)
         except Exception as exc:  # a backend must not raise; keep the service up if one does
             result = error_result("planning backend failed", repr(exc))
         finally:

@@ -23,7 +23,9 @@ from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.scene.parse import parse_scene
+from trajcache.geometry.validation import validator as validation
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
+from trajcache.jobs.backend import Meanwhile, run_meanwhile
 from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
 from trajcache.planning.run import run_planning
 from trajcache.services.bookkeeping import rejections
@@ -48,8 +50,9 @@ class FakePlanner:
         self.delay_s = delay_s
         self.problems: list[PlanningProblem] = []
 
-    def submit(self, problem: PlanningProblem) -> PlanResult:
+    def submit(self, problem: PlanningProblem, *, meanwhile: Meanwhile | None = None) -> PlanResult:
         self.problems.append(problem)
+        run_meanwhile(meanwhile)  # as a pool does while its worker plans
         time.sleep(self.delay_s)
         return self.result
 
@@ -277,6 +280,25 @@ def test_without_a_candidate_the_planner_checks_the_ends_and_a_refused_one_is_na
     assert len(checked) == 2
 
 
+def test_the_scene_s_validator_is_built_while_the_planner_plans(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    setup_robot(ctx, [blocker()])
+    builders: list[str] = []
+    build = validation.build_validator
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        builders.append("built")
+        return build(*args, **kwargs)
+
+    monkeypatch.setattr(validation, "build_validator", counted)
+    planner = FakePlanner(PlanResult(PlannerStatus.TIMEOUT, message="nothing found"))
+    use_planner(ctx, monkeypatch, planner)
+    answer = ask(ctx, [0.0, 0.0], [-0.3, 0.0], fallback=True, lookup=False)
+    assert answer.status is PlanStatus.FAILURE  # a failure needs no validator of its own
+    assert len(builders) == 1 and len(ctx.validators.validators) == 1  # for the hits to come
+
+
 def test_a_planner_failure_is_recorded_with_its_seed(
     ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -336,9 +358,9 @@ class WaitingPlanner(FakePlanner):
         super().__init__(result)
         self.clock, self.wait_s = clock, wait_s
 
-    def submit(self, problem: PlanningProblem) -> PlanResult:
+    def submit(self, problem: PlanningProblem, *, meanwhile: Meanwhile | None = None) -> PlanResult:
         self.clock.wait(self.wait_s)
-        return super().submit(problem)
+        return super().submit(problem, meanwhile=meanwhile)
 
 
 def test_the_clock_gives_each_phase_its_time(
@@ -385,8 +407,9 @@ class WorkerPlanner(FakePlanner):
         self.edit = edit or (lambda result: result)
         self.validations_before_answer = -1
 
-    def submit(self, problem: PlanningProblem) -> PlanResult:
+    def submit(self, problem: PlanningProblem, *, meanwhile: Meanwhile | None = None) -> PlanResult:
         self.problems.append(problem)
+        run_meanwhile(meanwhile)
         result = self.edit(run_planning(problem))
         self.validations_before_answer = VALIDATIONS[0]
         return result
