@@ -154,6 +154,7 @@ class ServiceRun:
             tally.hits += 1
             tally.hit_server_ms.append(float(answer.timings_ms["total"]))
             tally.hit_validate_ms.append(float(answer.timings_ms["validate"]))
+            tally.record_phases(answer.timings_ms, hit=True)
         elif answer.source == "repaired":
             tally.repaired_server_ms.append(float(answer.timings_ms["total"]))
         else:

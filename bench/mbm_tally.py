@@ -9,6 +9,8 @@ Timings, in milliseconds, over the solved problems (a failure's time is its budg
   (`run_ms − setup_ms` of `run_planning`: certification and repair too), and `setup_ms` apart.
 - `plan_ms`: the server's `timings_ms.total` of a planned answer (adds validation and storage).
 - `hit_server_ms`: the server's `timings_ms.total` of a replay answered from the cache.
+- `plan_phases_ms_median`, `hit_phases_ms_median`: the median of each phase of `timings_ms`
+  (`validate`, `lookup`, `db`, …) over the planned answers, and over the hits.
 
 From the answers' extras, where they carry them (else null): `compiled_share`, the share of
 planned answers whose `planner` names `compiled`; `sphere_flag_rate`, the share of the states
@@ -71,6 +73,7 @@ class Tally:
     counts: Counter[str] = field(default_factory=Counter)  # paths, collisions, 4xx, …
     notes: Counter[str] = field(default_factory=Counter)  # messages, contact pairs
     phases: dict[str, list[float]] = field(default_factory=dict)  # planned answers' timings_ms
+    hit_phases: dict[str, list[float]] = field(default_factory=dict)  # the hits' timings_ms
 
     def record_extras(self, extras: Mapping[str, Any]) -> None:
         """Note what a planned answer says of its planner, spheres and repairs."""
@@ -84,10 +87,11 @@ class Tally:
             elif keys is REPAIR_KEYS and "repair" in extras:  # through HTTP: its time, if any
                 seen.append(float(extras["repair"]) > 0.0)
 
-    def record_phases(self, timings: Mapping[str, float]) -> None:
-        """Keep a planned answer's timings, phase by phase."""
+    def record_phases(self, timings: Mapping[str, float], *, hit: bool = False) -> None:
+        """Keep a planned answer's (or a hit's) timings, phase by phase."""
+        phases = self.hit_phases if hit else self.phases
         for name, value in timings.items():
-            self.phases.setdefault(name, []).append(float(value))
+            phases.setdefault(name, []).append(float(value))
 
 
 def percentile(values: list[float], q: float = 50) -> float | None:
@@ -133,6 +137,11 @@ def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
         names = sorted({name for t in tallies for name in t.phases})
         out["plan_phases_ms_median"] = {
             name: percentile([v for t in tallies for v in t.phases.get(name, [])]) for name in names
+        }
+        names = sorted({name for t in tallies for name in t.hit_phases})
+        out["hit_phases_ms_median"] = {
+            name: percentile([v for t in tallies for v in t.hit_phases.get(name, [])])
+            for name in names
         }
     replays = sum(t.replays for t in tallies)
     out |= {
