@@ -17,7 +17,7 @@ MAX_FUNCTION_LINES = 60
 MAX_LONG_FUNCTIONS = 5
 # The numeric kernels allowed to be long: (module path in the package, function).
 KERNELS = {
-    ("geometry/collision/compiled/scene_open.py", "scene_open_kernel"),
+    ("geometry/collision/compiled/scene_open.py", "_element_rows"),  # scene_open_kernel's loop
     ("geometry/collision/compiled/self_open.py", "self_open_kernel"),
     ("geometry/collision/compiled/state_rows.py", "state_rows_kernel"),
 }

@@ -300,26 +300,18 @@ class Settings(BaseSettings):
     )
     cache_max_per_model: int = Field(default=0, ge=0, description="Most trajectories kept per "
         "robot model; beyond it the eviction policy deletes the rest (0 = no cap).")  # fmt: skip
-    eviction_policy: Literal["lru", "least_hit"] = Field(
-        default="lru",
-        description="What eviction deletes first: `lru` (least recently used, never-used ones "
-        "by creation time) or `least_hit` (fewest hits, then least recently used).",
-    )
-    eviction_interval_s: float = Field(
-        default=300.0,
-        ge=0,
-        description="Seconds between automatic evictions when cache_max_per_model is set "
-        "(0 = only on demand: `trajcache prune`, POST /v1/admin/prune).",
-    )
+    eviction_policy: Literal["lru", "least_hit"] = Field(default="lru", description="What "
+        "eviction deletes first: `lru` (least recently used, never-used ones by creation time) "
+        "or `least_hit` (fewest hits, then least recently used).")  # fmt: skip
+    eviction_interval_s: float = Field(default=300.0, ge=0, description="Seconds between "
+        "automatic evictions when cache_max_per_model is set (0 = only on demand: `trajcache "
+        "prune`, POST /v1/admin/prune).")  # fmt: skip
     quality_backfill_per_s: float = Field(
         default=50.0, ge=0, description="Background quality and end-pose rows per second (0: off)."
     )
-    quality_process: bool = Field(
-        default=True,
-        description="Compute a planned trajectory's quality (timing, clearance: ~25 ms of Python) "
-        "in a process of its own; off: in the service's record writer, where it holds the "
-        "interpreter's lock that the requests being answered need.",
-    )
+    quality_process: bool = Field(default=True, description="Compute a planned trajectory's "
+        "quality (timing, clearance: ~25 ms of Python) in a process of its own; off: in the "
+        "service's record writer, under the interpreter's lock that requests need.")  # fmt: skip
     commit_log_retention_s: float = Field(default=86400.0, ge=600, description="Seconds the "
         "trajectory commit log keeps its rows for replicas' syncs; a replica that synced less "
         "recently reloads its indexes.")  # fmt: skip

@@ -108,7 +108,9 @@ def store_trajectory(
         scene = t.scene
         if scene is None and t.scene_hash is not None:
             scene = scene_with_hash(session, t.scene_hash, scenes)
-        _fill_quality(row, model, array, settings, scene, validators)
+        values = quality_columns(model, array, settings, scene, validators=validators)
+        for name, value in (values or {}).items():  # empty where a metric cannot be computed
+            setattr(row, name, value)
     new_id = _insert_unless_present(session, row)
     if new_id is None:  # stored before, or concurrently by another request or replica
         return _stored_already(session, row), False
@@ -225,20 +227,6 @@ def _validated(
     return array
 
 
-def _fill_quality(
-    row: tables.Trajectory,
-    model: RobotModel,
-    states: np.ndarray,
-    settings: Settings,
-    scene: Scene | None,
-    validators: ValidatorCache | None,
-) -> None:
-    """Set the quality columns of a new row (left empty where a metric cannot be computed)."""
-    values = quality_columns(model, states, settings, scene, validators=validators)
-    for name, value in (values or {}).items():
-        setattr(row, name, value)
-
-
 def scene_with_hash(session: Session, scene_hash: str, scenes: SceneCache | None) -> Scene | None:
     """The scene with this hash, a robot's version or else a seed job's, parsed once per
     `scenes`; None if none is stored."""
@@ -320,12 +308,8 @@ def _find(session: Session, model_id: str, content_hash: str) -> int | None:
 
 
 def _insert_unless_present(session: Session, row: tables.Trajectory) -> int | None:
-    """INSERT … ON CONFLICT (model_id, content_hash) DO NOTHING; the new id, or None.
-
-    One Core statement per dialect, its columns those of the values given: built once, and
-    compiled once per set of columns (SQLAlchemy's cache), where a statement built from the
-    row's values (`insert(...).values(**values)`) took half a millisecond each time.
-    """
+    """INSERT … ON CONFLICT (model_id, content_hash) DO NOTHING; the new id, or None. One Core
+    statement per dialect, built once (building it from the values took 0.5 ms a time)."""
     values = {key: getattr(row, key) for key in _COLUMNS if key in row.__dict__}
     dialect = session.get_bind().dialect.name
     if dialect in ("postgresql", "sqlite"):

@@ -93,21 +93,7 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     n_seg = max(n_samples - 1, 1)
     width = robot[7].shape[1]
     placed = (poses, origins, dirs, box_lo, box_hi, object_poses(rot_m, pos_m), np.ones(dof))
-    work = (
-        np.zeros(n_samples),  # centre_sum
-        np.zeros(n_samples),  # whole_sum
-        np.empty(n_seg),  # turns
-        np.empty(n_seg),  # dependent
-        np.empty(n_samples),  # low
-        np.empty(n_samples, dtype=np.int64),  # level
-        np.empty((n_samples, width, 3)),  # balls
-        np.empty(n_samples, dtype=np.bool_),  # balls_known
-        np.empty((n_seg, width)),  # ball_motion
-        np.empty((2, width)),  # cover
-        np.empty(n_seg, dtype=np.bool_),  # motion_known
-        np.empty(n_samples),  # ball_low
-        np.empty((2, 3)),  # near
-    )
+    work = _work(n_samples, n_seg, width)
     most = n_obj * n_seg  # rows one element can leave open
     rows = np.empty((GROW, 3), dtype=np.int64)
     lows = np.empty((GROW, 3))
@@ -127,6 +113,26 @@ def scene_open_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
         if first_only and found:
             break
     return rows[:found], lows[:found]
+
+
+@numba.njit(cache=True, nogil=True)
+def _work(n_samples, n_seg, width):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """`_element_rows`' buffers, which each element fills anew."""
+    return (
+        np.zeros(n_samples),  # centre_sum
+        np.zeros(n_samples),  # whole_sum
+        np.empty(n_seg),  # turns
+        np.empty(n_seg),  # dependent
+        np.empty(n_samples),  # low
+        np.empty(n_samples, dtype=np.int64),  # level
+        np.empty((n_samples, width, 3)),  # balls
+        np.empty(n_samples, dtype=np.bool_),  # balls_known
+        np.empty((n_seg, width)),  # ball_motion
+        np.empty((2, width)),  # cover
+        np.empty(n_seg, dtype=np.bool_),  # motion_known
+        np.empty(n_samples),  # ball_low
+        np.empty((2, 3)),  # near
+    )
 
 
 @numba.njit(cache=True, nogil=True, **BORROWED)
