@@ -316,13 +316,13 @@ def test_a_planned_trajectory_gets_its_quality_after_the_answer(
     threads: list[str] = []
     from trajcache.services.plan import fallback
 
-    columns = fallback.quality_elsewhere  # in the quality process (the default)
+    columns = fallback.quality_columns
 
     def spy(*args: Any, **kwargs: Any) -> Any:
         threads.append(threading.current_thread().name)
         return columns(*args, **kwargs)
 
-    monkeypatch.setattr(fallback, "quality_elsewhere", spy)
+    monkeypatch.setattr(fallback, "quality_columns", spy)
     body = _plan(client)
     assert (body["status"], body["source"]) == ("success", "planner")
     assert threads and threading.current_thread().name not in threads  # not the request's
@@ -340,7 +340,7 @@ def test_a_timing_failure_is_recorded_on_the_trajectory(
     def fails(*args: Any, **kwargs: Any) -> Any:
         raise TimingError("toppra found no parameterization: ERR_INFEASIBLE")
 
-    client = client_factory(quality_process=False)  # computed here, where the patch is
+    client = client_factory()
     _setup(client, {"objects": [_box("far", 2.0, 0.0, 0.1)]})
     _recording(client)
     monkeypatch.setattr(quality, "time_states", fails)

@@ -309,9 +309,6 @@ class Settings(BaseSettings):
     quality_backfill_per_s: float = Field(
         default=50.0, ge=0, description="Background quality and end-pose rows per second (0: off)."
     )
-    quality_process: bool = Field(default=True, description="Compute a planned trajectory's "
-        "quality (timing, clearance: ~25 ms of Python) in a process of its own; off: in the "
-        "service's record writer, under the interpreter's lock that requests need.")  # fmt: skip
     commit_log_retention_s: float = Field(default=86400.0, ge=600, description="Seconds the "
         "trajectory commit log keeps its rows for replicas' syncs; a replica that synced less "
         "recently reloads its indexes.")  # fmt: skip

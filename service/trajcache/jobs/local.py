@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import multiprocessing
 import os
+import pickle
 import signal
 import sys
+import tempfile
 import threading
 import time
 from concurrent.futures import CancelledError, Future, ProcessPoolExecutor, wait
@@ -14,17 +17,18 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 
+from trajcache.core.lru import LRU
 from trajcache.jobs.backend import Meanwhile, TaskFn, error_result, run_meanwhile
-from trajcache.jobs.spool import ModelSpool
 from trajcache.jobs.threads import pin_one_thread
-from trajcache.planning.problem import PlannerStatus, PlanningProblem, PlanResult
+from trajcache.planning.problem import ModelSource, PlannerStatus, PlanningProblem, PlanResult
 
 MIN_RETRY_BUDGET_S = 0.1  # a crashed task is not run again with less budget left than this
 PARENT_GONE_EXIT = 70  # a worker's exit status when the process that started it is gone
 MEANWHILE_AFTER_S = 0.001  # a task reaches its worker in a few tenths of a millisecond
+SPOOLED_MODELS = 64  # models whose spooled source is remembered (their files stay spooled)
 
 
-def init_worker() -> None:
+def _init_worker() -> None:
     """Runs first in every worker: Ctrl-C reaches the whole process group, but only the service
     decides when its workers stop (it stops them when it shuts down, or by dying); and one
     numeric thread, as the workers share the machine's cores."""
@@ -102,12 +106,12 @@ class LocalBackend:
         self.crash_retries = crash_retries
         self._lock = threading.Lock()
         self._counts = {"crashes": 0, "recycles": 0}
-        self._spool = ModelSpool()
+        self._spool = _ModelSpool()
         self._generation: _Generation | None = self._new_generation()
 
     def _new_generation(self) -> _Generation:
         executor = ProcessPoolExecutor(
-            max_workers=self.processes, mp_context=self._context, initializer=init_worker
+            max_workers=self.processes, mp_context=self._context, initializer=_init_worker
         )
         # Start the workers (and import the task's module) now, not on the first request.
         warm_ups = [executor.submit(_warm_up, self.task_fn) for _ in range(self.processes)]
@@ -268,6 +272,46 @@ class LocalBackend:
         if old is not None:
             self._retire(old, None, patient=False)
         self._spool.close()
+
+
+class _ModelSpool:
+    """The models' mesh files, each model's pickled once into a private directory that the
+    workers read (`ModelSource.files_at`), so that a task carries only their file name.
+
+    A worker reads them only to build a model it has not built yet (`planning.run`). The
+    directory (mode 0700) is this pool's own, and goes with it.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._dir: tempfile.TemporaryDirectory[str] | None = None
+        self._sources: LRU[str, ModelSource] = LRU(capacity=SPOOLED_MODELS)
+
+    def source(self, model: ModelSource) -> ModelSource:
+        """`model` with its files in the spool (as it is when it has none)."""
+        if not model.files:
+            return model
+        with self._lock:
+            spooled = self._sources.get(model.model_id)
+            if spooled is not None and spooled.files_at and os.path.exists(spooled.files_at):
+                return spooled
+            if self._dir is None:
+                self._dir = tempfile.TemporaryDirectory(prefix="trajcache-models-")
+            name = hashlib.sha256(model.model_id.encode()).hexdigest()[:32]
+            path = os.path.join(self._dir.name, f"{name}.pickle")
+            with open(f"{path}.part", "wb") as out:
+                pickle.dump(model.files, out, protocol=pickle.HIGHEST_PROTOCOL)
+            os.replace(f"{path}.part", path)  # whole, or not there
+            spooled = replace(model, files={}, files_at=path)
+            self._sources.put(model.model_id, spooled)
+            return spooled
+
+    def close(self) -> None:
+        with self._lock:
+            if self._dir is not None:
+                self._dir.cleanup()
+                self._dir = None
+            self._sources.clear()
 
 
 def _retried(result: PlanResult, retries: int) -> PlanResult:

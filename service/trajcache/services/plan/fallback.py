@@ -9,8 +9,7 @@ the scene it was planned in) is computed by the record writer, off the request p
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -25,7 +24,6 @@ from trajcache.planning.problem import (
     SceneSource,
     fresh_seed,
 )
-from trajcache.services.bookkeeping.quality_process import quality_elsewhere
 from trajcache.services.bookkeeping.records import QualityJob
 from trajcache.services.catalog.models import model_source
 from trajcache.services.catalog.trajectories import (
@@ -107,7 +105,11 @@ def store_and_answer(
     certify_planned(attempt, trajectory_id, path)
     job = None
     if created:
-        job = QualityJob(trajectory_id, _quality_fn(attempt, path))
+        validators = attempt.ctx.validators
+        job = QualityJob(
+            trajectory_id,
+            lambda: quality_columns(model, path, settings, scene, validators=validators),
+        )
     planned = PlannedPath(
         trajectory_id,
         path,
@@ -118,17 +120,6 @@ def store_and_answer(
         source=source,
     )
     return answer_planned(attempt, planned, quality=job)
-
-
-def _quality_fn(attempt: PlanAttempt, path: np.ndarray) -> Callable[[], Mapping[str, Any] | None]:
-    """How the record writer computes the new trajectory's quality columns: in the quality
-    process (`services.bookkeeping.quality_process`), or itself (`quality_process` off)."""
-    ctx, model, scene, settings = attempt.ctx, attempt.model, attempt.scene, attempt.ctx.settings
-    if not settings.quality_process:
-        validators = ctx.validators
-        return lambda: quality_columns(model, path, settings, scene, validators=validators)
-    source = model_source(session=attempt.session, model_id=model.model_id, registry=ctx.models)
-    return lambda: quality_elsewhere(source, path, settings, scene)
 
 
 def planner_phases(stats: Mapping[str, float], plan_ms: float) -> dict[str, float]:
