@@ -15,7 +15,7 @@ import numpy as np
 
 from trajcache.cache.memo import MemoScope, remember_path
 from trajcache.geometry.errors import CollisionStateError
-from trajcache.geometry.validation.validator import certificate_for, validator_for
+from trajcache.geometry.validation.validator import certificate_for
 from trajcache.jobs.pool import PlannerPool
 from trajcache.planning.problem import (
     PlannerStatus,
@@ -49,7 +49,8 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
     with attempt.clock.measure("plan"):
         problem = problem_of(attempt)
         attempt.session.rollback()  # nothing is written yet; release the connection
-        outcome = planner.submit(problem, meanwhile=lambda: _validator_meanwhile(attempt))
+        # the scene's validator, for the hits that follow, built while the worker plans
+        outcome = planner.submit(problem, meanwhile=lambda: attempt.validator)
     # A coalesced or remembered answer ran with its leader's seed; an unrun one with none.
     seed = outcome.seed if outcome.seed is not None else problem.seed
     if not outcome.solved or outcome.path is None:
@@ -60,14 +61,6 @@ def plan_fallback(attempt: PlanAttempt, planner: PlannerPool) -> PlanAnswer:
         message = f"planned path failed validation: {failure}"
         return answer_without_path(attempt, PlanStatus.FAILURE, message, seed=seed)
     return store_and_answer(attempt, np.asarray(outcome.path, dtype=float), outcome, seed)
-
-
-def _validator_meanwhile(attempt: PlanAttempt) -> None:
-    """While the worker plans: the scene's validator (its collision geometry with it), so that
-    the quality job and the hits that follow in this scene find it built (else the first hit
-    built it: half a millisecond and more), and the request does not wait for it."""
-    ctx = attempt.ctx
-    validator_for(attempt.checked, attempt.scene, ctx.settings, cache=ctx.validators)
 
 
 def store_and_answer(
