@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Annotated, Any
 
 import yaml
-from fastapi import APIRouter, Depends, Request, Response
+from fastapi import APIRouter, BackgroundTasks, Depends, Request, Response
 from sqlalchemy.orm import Session
 
 from trajcache.api.bounded import (
@@ -44,6 +44,7 @@ from trajcache.services.catalog.robots import (
 from trajcache.services.catalog.scene_limits import SceneLimits
 from trajcache.services.catalog.scene_writes import change_scene, patch_scene, put_scene
 from trajcache.services.context import ServiceContext
+from trajcache.services.plan.prepare import prepare_scene
 
 router = APIRouter(
     prefix="/robots", tags=["robots"], responses=COMMON, route_class=BoundedBodyRoute
@@ -212,11 +213,17 @@ def load_scene_body(body: SceneBody) -> Mapping[str, Any]:
     ),
 )
 def put_scene_route(
-    robot_id: RobotIdPath, body: SceneBodyDep, ctx: CtxDep, session: SessionDep
+    robot_id: RobotIdPath,
+    body: SceneBodyDep,
+    ctx: CtxDep,
+    session: SessionDep,
+    background: BackgroundTasks,
 ) -> SceneVersionOut:
     """A new scene version (or the current one when the content is unchanged); a MoveIt
-    PlanningScene with `is_diff: true` changes the current scene (`moveit_diff.py`)."""
+    PlanningScene with `is_diff: true` changes the current scene (`moveit_diff.py`). Its
+    validator is built once the answer is sent (`services.plan.prepare`)."""
     document = load_scene_body(body)
+    background.add_task(prepare_scene, ctx, robot_id)
     if is_scene_diff(document):
         return _put_scene_diff(robot_id, document, ctx, session)
     robot = get_robot(session=session, robot_id=robot_id)
@@ -279,9 +286,14 @@ def _put_scene_diff(
     ),
 )
 def patch_scene_route(
-    robot_id: RobotIdPath, body: ScenePatchIn, ctx: CtxDep, session: SessionDep
+    robot_id: RobotIdPath,
+    body: ScenePatchIn,
+    ctx: CtxDep,
+    session: SessionDep,
+    background: BackgroundTasks,
 ) -> SceneVersionOut:
-    """A new scene version with the patch applied."""
+    """A new scene version with the patch applied; its validator built once it is answered."""
+    background.add_task(prepare_scene, ctx, robot_id)
     version, scene_hash = patch_scene(
         session=session,
         scenes=ctx.scenes,
