@@ -32,7 +32,7 @@ from trajcache.services.catalog.trajectories import (
     store_trajectory,
 )
 from trajcache.services.context import ServiceContext
-from trajcache.services.ik.cached import ends_within, nearest_starts
+from trajcache.services.ik.cached import ends_within, nearest_starts, pose_ends
 from trajcache.services.maintenance.backfill import index_backlog_batch
 from trajcache.services.maintenance.eviction import prune
 from trajcache.services.plan.attempt import PlanRequest
@@ -160,11 +160,45 @@ def test_a_trajectory_older_than_any_pool_is_found_by_its_tool_pose(
         starts = nearest_starts(session, tooled, tooled, target, base, stored=300)
         widening = nearest_starts(session, tooled, tooled, target, base, stored=10**6)
         np.testing.assert_allclose(widening, starts)  # searched in widening radii
+        for stored in (300, 10**6):  # one read of the index, or each search by its own
+            both = pose_ends(session, tooled, tooled, target, base, stored=stored)
+            np.testing.assert_allclose(both.starts, starts)
+            assert len(both.within.gaps) == 0
     np.testing.assert_allclose(starts[0], [1.2, -0.7])  # the nearest start, the others beyond
     tool = tooled.link_names.index("tool")  # ranked by the tool's own distance from its target
     gaps = [np.linalg.norm(link_transforms(tooled, s)[0, tool, :3, 3] - goal) for s in starts]
     assert gaps == sorted(gaps) and len(starts) == 3
     assert oldest == min(r.trajectory_id for r in rows_of(ctx))
+
+
+def test_a_pose_goal_reads_every_end_within_its_tolerances_in_one_read_or_two(
+    ctx: ServiceContext, tooled: RobotModel
+) -> None:
+    """`pose_ends` reads the IK starts' shortlist once and takes the ends within the tolerances
+    from it, unless all of the shortlist is within them: then it searches for them all. 20 ends
+    put the tool within 1 mm of the target (more than the shortlist holds), 5 elsewhere."""
+    goal = np.array([1.2, -0.7])
+    rng = np.random.default_rng(5)
+    for k in range(20):
+        store(ctx, tooled, [0.0, 0.07 * k], (goal + rng.uniform(-2e-4, 2e-4, 2)).tolist())
+    for k in range(5):
+        store(ctx, tooled, [0.0, 0.0], [0.2 * k - 1.0, 0.5])
+    target = tool_target(tooled, goal.tolist())
+    base = np.zeros(2)
+    with ctx.sessions() as session:
+        within = ends_within(session, tooled, tooled, target, base)
+        assert len(within.gaps) == 20
+        found = pose_ends(session, tooled, tooled, target, base, stored=25)
+        np.testing.assert_allclose(found.within.states, within.states)
+        np.testing.assert_allclose(found.within.partners, within.partners)
+        starts = nearest_starts(session, tooled, tooled, target, base, stored=25)
+        np.testing.assert_allclose(found.starts, starts)
+        target.pose[2, 3] += 0.05  # 5 cm off: none within, the starts as before
+        off = pose_ends(session, tooled, tooled, target, base, stored=25)
+        assert len(off.within.gaps) == 0
+        np.testing.assert_allclose(
+            off.starts, nearest_starts(session, tooled, tooled, target, base, stored=25)
+        )
 
 
 def test_deletes_and_evictions_take_the_rows_with_them(

@@ -16,11 +16,18 @@ seed and restarts instead).
   ends nearest by the anchor within the first of the widening radii that holds enough of them
   (a shortlist), ranked by the link's own position by forward kinematics. A start that misses
   the target helps too: when IK from the nearest end lands in collision, the next one seeds it.
+- `pose_ends`: both, for a pose goal, from one read of the index where the cache is small
+  (`_FEW`): `nearest_starts`' shortlist, as its one unbounded search reads it (the `_SHORTLIST`
+  ends nearest the anchor's target, whatever their orientation). Those of them within the
+  widened radius are every end `ends_within` would read, unless all of them are within it
+  (more may be); then `ends_within`'s own oriented search runs.
 """
 
 from __future__ import annotations
 
 import math
+import weakref
+from dataclasses import dataclass
 
 import numpy as np
 from sqlalchemy.orm import Session
@@ -28,11 +35,20 @@ from sqlalchemy.orm import Session
 from trajcache.geometry.model.end_poses import anchor_of, anchor_offset
 from trajcache.geometry.model.ik import PoseTarget
 from trajcache.geometry.model.kinematics import forward_kinematics
-from trajcache.geometry.model.robot import RobotModel
+from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.services.catalog.end_poses import EndsNear, ends_near, index_links
+from trajcache.services.catalog.index_store import IndexStore
 
-__all__ = ["AS_IS_POOL", "CACHED_STARTS", "ends_within", "nearest_starts"]
+__all__ = [
+    "AS_IS_POOL",
+    "CACHED_STARTS",
+    "PoseEnds",
+    "ends_within",
+    "nearest_starts",
+    "pose_ends",
+    "stored_count",
+]
 
 CACHED_STARTS = 3  # cached end states tried as IK starts after the seed
 AS_IS_POOL = 64  # the most ends within the tolerances read for one pose goal
@@ -42,6 +58,16 @@ _SEARCH_RADII = (0.03, 0.1, 0.3, math.inf)
 _FEW = 2_000  # trajectories whose ends one scan of the index reads faster than several searches
 _SHORTLIST = 4 * CACHED_STARTS  # ends nearest by the anchor, ranked again by the link itself
 _NONE = EndsNear(np.empty((0, 0)), np.empty((0, 0)), np.empty(0))
+_FRAMES: weakref.WeakKeyDictionary[
+    RobotModel, dict[str, tuple[int, FloatArray, float, FloatArray | None]]
+] = weakref.WeakKeyDictionary()
+
+
+def stored_count(indexes: IndexStore, session: Session, model: RobotModel) -> int:
+    """How many trajectories of `model` this replica's index held at its last sync: no sync
+    query for it (an estimate, for choosing how to search: `stored` below)."""
+    known = indexes.sizes().get(model.model_id)
+    return len(indexes.index(session, model)) if known is None else known
 
 
 def ends_within(
@@ -52,17 +78,34 @@ def ends_within(
     found = _anchor_target(session, model, checked, target, base)
     if found is None:
         return _NONE
+    return _within(session, model, checked, target, base, found)
+
+
+def _within(
+    session: Session,
+    model: RobotModel,
+    checked: RobotModel,
+    target: PoseTarget,
+    base: FloatArray,
+    found: tuple[str, FloatArray, float],
+    ends: EndsNear | None = None,
+) -> EndsNear:
+    """`ends_within` from the anchor's target; `ends`: the index rows read already, when they
+    hold every end within the widened radius."""
     anchor, pose, reach = found
     widened = target.position_tolerance + reach * target.orientation_tolerance
-    ends = ends_near(
-        session,
-        model.model_id,
-        anchor,
-        pose,
-        radius=widened,
-        orientation_tolerance=target.orientation_tolerance,
-        limit=AS_IS_POOL,
-    )
+    if ends is None:
+        ends = ends_near(
+            session,
+            model.model_id,
+            anchor,
+            pose,
+            radius=widened,
+            orientation_tolerance=target.orientation_tolerance,
+            limit=AS_IS_POOL,
+        )
+    else:
+        ends = _first(ends, int(np.searchsorted(ends.gaps, widened, side="right")))
     if len(ends.gaps) == 0:
         return ends
     states = _on_base(checked, ends.states, base)
@@ -95,6 +138,47 @@ def nearest_starts(
         ends = ends_near(session, model.model_id, anchor, pose, radius=radius, limit=_SHORTLIST)
         if len(ends.gaps) >= CACHED_STARTS:
             break
+    return _ranked_starts(checked, target, base, ends)
+
+
+@dataclass(frozen=True)
+class PoseEnds:
+    """What a pose goal reads of the cache: the ends within its tolerances (`ends_within`)
+    and the IK starts (`nearest_starts`)."""
+
+    within: EndsNear
+    starts: list[FloatArray]
+
+
+def pose_ends(
+    session: Session,
+    model: RobotModel,
+    checked: RobotModel,
+    target: PoseTarget,
+    base: FloatArray,
+    *,
+    stored: int,
+) -> PoseEnds:
+    """`ends_within` and `nearest_starts` at once: from one read of the index while the cache
+    is small (module docstring), else each by its own search."""
+    found = _anchor_target(session, model, checked, target, base)
+    if found is None:
+        return PoseEnds(_NONE, [])
+    if stored > _FEW:
+        starts = nearest_starts(session, model, checked, target, base, stored=stored)
+        return PoseEnds(_within(session, model, checked, target, base, found), starts)
+    anchor, pose, reach = found
+    ends = ends_near(session, model.model_id, anchor, pose, radius=math.inf, limit=_SHORTLIST)
+    widened = target.position_tolerance + reach * target.orientation_tolerance
+    full = len(ends.gaps) == _SHORTLIST and ends.gaps[-1] <= widened  # more may lie within
+    within = _within(session, model, checked, target, base, found, None if full else ends)
+    return PoseEnds(within, _ranked_starts(checked, target, base, ends))
+
+
+def _ranked_starts(
+    checked: RobotModel, target: PoseTarget, base: FloatArray, ends: EndsNear
+) -> list[FloatArray]:
+    """The CACHED_STARTS of `ends` whose link lies nearest the target's position."""
     states = _on_base(checked, ends.states, base)
     if len(states) == 0:
         return []
@@ -103,19 +187,47 @@ def nearest_starts(
     return list(states[nearest[:CACHED_STARTS]])
 
 
+def _first(ends: EndsNear, n: int) -> EndsNear:
+    """The `n` nearest of `ends`."""
+    return EndsNear(ends.states[:n], ends.partners[:n], ends.gaps[:n])
+
+
 def _anchor_target(
     session: Session, model: RobotModel, checked: RobotModel, target: PoseTarget, base: FloatArray
 ) -> tuple[str, FloatArray, float] | None:
     """The indexed anchor of the target's link, its target relative to the root link, and
     the length of the link's offset from it; None when the anchor is not indexed."""
-    link = checked.link_names.index(target.link)
-    anchor = anchor_of(checked, link)
+    anchor, inverse_offset, reach, fixed_root = _anchor_frames(checked, target.link)
     if checked.link_names[anchor] not in index_links(session, model):
         return None
+    if fixed_root is None:  # a planar base: the root link stands where the base does
+        fixed_root = np.linalg.inv(
+            forward_kinematics(checked, np.asarray(base, dtype=float)[None, :])[0, 0]
+        )
+    return checked.link_names[anchor], fixed_root @ target.pose @ inverse_offset, reach
+
+
+def _anchor_frames(
+    checked: RobotModel, link_name: str
+) -> tuple[int, FloatArray, float, FloatArray | None]:
+    """The link's anchor, the inverse of its offset from it, the offset's length, and the
+    inverse of the root link's pose when no state value moves it (a fixed base), else None:
+    constants of the model, computed once per loaded model and link."""
+    frames = _FRAMES.setdefault(checked, {})
+    known = frames.get(link_name)
+    if known is not None:
+        return known
+    link = checked.link_names.index(link_name)
+    anchor = anchor_of(checked, link)
     offset = anchor_offset(checked, link, anchor)
-    root = forward_kinematics(checked, np.asarray(base, dtype=float)[None, :])[0, 0]
-    pose = np.linalg.inv(root) @ target.pose @ np.linalg.inv(offset)
-    return checked.link_names[anchor], pose, float(np.linalg.norm(offset[:3, 3]))
+    root: FloatArray | None = None
+    if checked.base is not BaseType.PLANAR:
+        zero = np.clip(np.zeros((1, checked.dof)), checked.lower, checked.upper)
+        root = np.asarray(np.linalg.inv(forward_kinematics(checked, zero)[0, 0]), dtype=float)
+    inverse = np.asarray(np.linalg.inv(offset), dtype=float)
+    found = (anchor, inverse, float(np.linalg.norm(offset[:3, 3])), root)
+    frames[link_name] = found
+    return found
 
 
 def _on_base(model: RobotModel, states: FloatArray, base: FloatArray) -> FloatArray:

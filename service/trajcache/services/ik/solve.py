@@ -38,7 +38,7 @@ from trajcache.services.catalog.models import get_model, model_source
 from trajcache.services.catalog.robots import robot_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import InvalidInputError
-from trajcache.services.ik.cached import nearest_starts
+from trajcache.services.ik.cached import nearest_starts, stored_count
 
 IK_BUDGET_S = 0.05  # default time budget of one IK request
 IK_BUDGET_MAX_S = 2.0  # the most a request may ask for
@@ -87,7 +87,7 @@ def answer_ik(*, ctx: ServiceContext, robot_id: str, request: IkRequest) -> IkAn
         checked = model_in_scene(model, robot.scene, robot.joint_values, cache=ctx.variants)
         seed = _seed(checked, request)
         target = _target(link_of(checked, source.srdf, request.link, request.names), request)
-        stored = len(ctx.indexes.index(session, model))
+        stored = stored_count(ctx.indexes, session, model)
         starts = nearest_starts(session, model, checked, target, seed, stored=stored)
     read = time.perf_counter()
     kinematics = ctx.kinematics.get_or_build(

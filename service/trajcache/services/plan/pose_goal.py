@@ -12,6 +12,10 @@ Lookup by pose first, then inverse kinematics (`geometry/model/ik.py`):
    solution it finds lies next to a cached trajectory's end, within the lookup threshold.
 3. Otherwise IK from the request's start, with random restarts (the solution nearest it).
 
+The ends of 1 and the starts of 2 come from one read of the end-pose index while the cache is
+small (`pose_ends`); how many trajectories the model has is the replica's last count, with no
+sync of its own (it only chooses how to search).
+
 A goal state found either way is a state like any other: the plan flow looks up, adapts,
 validates and, on a miss, plans to it. None found is a failure answer, not an error.
 """
@@ -30,7 +34,7 @@ from trajcache.geometry.model.shapes import FloatArray, pose_matrix
 from trajcache.geometry.scene.fields import unit_quaternion
 from trajcache.geometry.validation.validator import validator_for
 from trajcache.services.catalog.models import model_source
-from trajcache.services.ik.cached import ends_within, nearest_starts
+from trajcache.services.ik.cached import PoseEnds, pose_ends, stored_count
 from trajcache.services.ik.solve import free_fn, link_of
 from trajcache.services.plan.attempt import GoalPose, PlanAttempt
 
@@ -67,11 +71,12 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
     )
     checker = validator_for(checked, attempt.scene, ctx.settings, cache=ctx.validators).checker
     free = free_fn(checker)
-    as_is = _cached_as_is(attempt, target, free)
+    stored = stored_count(ctx.indexes, session, attempt.model)
+    ends = pose_ends(session, attempt.model, checked, target, attempt.start, stored=stored)
+    as_is = _cached_as_is(attempt, ends, free)
     if as_is is not None:
         return PoseGoalFound(as_is, "cached")
-    stored = len(ctx.indexes.index(session, attempt.model))
-    starts = nearest_starts(session, attempt.model, checked, target, attempt.start, stored=stored)
+    starts = ends.starts
     seeds = [(starts[0], starts[1:]), (attempt.start, starts)] if starts else [(attempt.start, [])]
     budget = POSE_IK_BUDGET_S / len(seeds)
     for seed, others in seeds:
@@ -91,13 +96,13 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
 
 
 def _cached_as_is(
-    attempt: PlanAttempt, target: PoseTarget, free: Callable[[FloatArray], bool]
+    attempt: PlanAttempt, found: PoseEnds, free: Callable[[FloatArray], bool]
 ) -> FloatArray | None:
     """The cached end state within the tolerances, free, whose trajectory's other end is
     nearest the request's start."""
     if attempt.checked.base is BaseType.PLANAR:
         return None  # a planar base's cached ends stand elsewhere: IK places the arm
-    ends = ends_within(attempt.session, attempt.model, attempt.checked, target, attempt.start)
+    ends = found.within
     if len(ends.gaps) == 0:
         return None
     order = np.argsort(np.linalg.norm(ends.partners - attempt.start, axis=1), kind="stable")
