@@ -55,6 +55,7 @@ COLUMNS = ("problems", "success_rate", "plan_ms_median", "plan_ms_p95", "hit_rat
 HIT_PARTS = ("validate", "lookup", "db")  # of a hit's server time
 PLAN_PARTS = (
     "plan",
+    "setup",
     "search",
     "simplify",
     "certify",
