@@ -15,8 +15,8 @@ from tests.waiting import CountingLock, wait_until
 from trajcache.core.config import Settings
 from trajcache.db.models import Trajectory
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.services.catalog.index_store import StatesCache
 from trajcache.services.catalog.robots import ROBOT_SCENE, put_robot
+from trajcache.services.catalog.states_cache import StatesCache
 from trajcache.services.catalog.trajectories import (
     NewTrajectory,
     delete_trajectory,

@@ -171,6 +171,9 @@ def test_a_rejected_candidate_then_the_planner(
     assert [r["trajectory_id"] for r in answer.rejected] == [stored]
     assert "blocker" in str(answer.rejected[0]["reason"])
     assert answer.candidates_tried == 1 and np.array_equal(answer.states, path)
+    with ctx.sessions() as session, count_statements(ctx.engine) as statements:
+        kept = ctx.indexes.states(session, [answer.trajectory_id])  # as its first hit reads them
+    assert statements == [] and np.array_equal(kept[answer.trajectory_id], path)
     [problem] = planner.problems
     assert problem.start == (0.02, 0.0) and problem.goal == (0.98, 0.0)
     [record] = recorded.records

@@ -70,10 +70,10 @@ import sqlalchemy as sa
 from sqlalchemy.orm import InstrumentedAttribute, Session
 
 from trajcache.cache.index import TrajectoryIndex
-from trajcache.core.lru import LRU
 from trajcache.db.models import Trajectory, TrajectoryCommit, TrajectoryTombstone, unpack_states
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.services.catalog.states_cache import StatesCache
 
 if TYPE_CHECKING:
     from typing import TypeAlias
@@ -173,6 +173,13 @@ class IndexStore:
                 return self._sync(session, rider, params)
         row = session.connection().execute(rider, params).one_or_none()
         return None if row is None else tuple(row)
+
+    def remember_states(self, trajectory_id: int, states: FloatArray) -> None:
+        """Cache the key states of a trajectory this replica just stored (as `states` reads
+        them back: float64, the stored bits), so its first hit reads none."""
+        kept = np.array(states, dtype=np.float64)
+        kept.flags.writeable = False
+        self._states.put(int(trajectory_id), kept)
 
     def states(self, session: Session, ids: Iterable[int]) -> dict[int, FloatArray]:
         """Key states (read-only arrays) of the trajectories `ids` that exist, by id."""
@@ -286,37 +293,6 @@ class IndexStore:
         _add_rows(index, [(r.id, r.start, r.goal) for r in rows])
         self._indexes[model.model_id] = index
         return index
-
-
-class StatesCache:
-    """Thread-safe LRU of trajectory key states by id, bounded by their total size in bytes."""
-
-    def __init__(self, max_bytes: int) -> None:
-        self.max_bytes = max_bytes
-        self._items: LRU[int, FloatArray] = LRU(max_size=max_bytes, size_fn=_nbytes)
-
-    def get_many(self, ids: Iterable[int]) -> tuple[dict[int, FloatArray], list[int]]:
-        """The cached states among `ids`, and the ids that are not cached."""
-        return self._items.get_many(ids)
-
-    def put(self, trajectory_id: int, states: FloatArray) -> FloatArray:
-        """Cache `states` (unless larger than the whole budget) and return them."""
-        return self._items.put(trajectory_id, states)
-
-    def discard(self, trajectory_id: int) -> None:
-        """Forget one trajectory's states."""
-        self._items.discard(trajectory_id)
-
-    def clear(self) -> None:
-        """Forget every trajectory's states."""
-        self._items.clear()
-
-    def __len__(self) -> int:
-        return len(self._items)
-
-
-def _nbytes(states: FloatArray) -> int:
-    return int(states.nbytes)
 
 
 @functools.cache

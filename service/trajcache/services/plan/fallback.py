@@ -95,6 +95,7 @@ def store_and_answer(
         if parent is not None:
             set_parent(attempt.session, trajectory_id, parent)
             attempt.session.commit()
+    attempt.ctx.indexes.remember_states(trajectory_id, path)  # its stored bits: float64
     certify_planned(attempt, trajectory_id, path)
     job = None
     if created:
