@@ -11,6 +11,10 @@ geometry, validators and validation verdicts are never shared with another varia
 
 Pairs the scene allows between a link and a world object are not part of the model: the
 distance bounds leave them out (`Clearance`).
+
+A variant built once is found again by the registered model, the scene's content hash and the
+held values, without its key: the hash covers the attached objects and the allowed pairs, as it
+does for the validators, which are keyed by it too.
 """
 
 from __future__ import annotations
@@ -50,14 +54,27 @@ def model_in_scene(
     or every time without one."""
     if not held and not scene.attached and not scene.allowed:
         return model  # the common case, on every plan: nothing to look at
+    # A scene's content hash names its attached objects and allowed pairs: with the held
+    # values, it finds the variant again without computing its key (a sort, JSON and SHA-256).
+    known = None
+    if cache is not None and scene.hash:
+        known = (model.model_id, f"scene {scene.hash} {sorted((held or {}).items())!r}")
+        if (found := cache.get(known)) is not None:
+            return found
     links = set(model.link_names)
     robot_pairs = sorted((a, b) for a, b in scene.allowed if a in links and b in links and a != b)
     if not held and not scene.attached and not robot_pairs:
-        return model
-    key = (model.model_id, _variant_key(scene, robot_pairs, held or {}))
-    if cache is None:
-        return _build(model, scene, robot_pairs, held or {}, key[1])
-    return cache.get_or_build(key, lambda: _build(model, scene, robot_pairs, held or {}, key[1]))
+        variant = model
+    else:
+        key = (model.model_id, _variant_key(scene, robot_pairs, held or {}))
+        if cache is None:
+            return _build(model, scene, robot_pairs, held or {}, key[1])
+        variant = cache.get_or_build(
+            key, lambda: _build(model, scene, robot_pairs, held or {}, key[1])
+        )
+    if cache is not None and known is not None:
+        cache.put(known, variant)
+    return variant
 
 
 def _variant_key(
