@@ -310,8 +310,8 @@ class Settings(BaseSettings):
         default=50.0, ge=0, description="Background quality and end-pose rows per second (0: off)."
     )
     commit_log_retention_s: float = Field(default=86400.0, ge=600, description="Seconds the "
-        "trajectory commit log keeps its rows for replicas' syncs; a replica that synced less "
-        "recently reloads its indexes.")  # fmt: skip
+        "trajectory commit log and the tombstones of deleted trajectories are kept for "
+        "replicas' syncs; a replica that synced less recently reloads its indexes.")  # fmt: skip
 
     @field_validator("database_url")
     @classmethod

@@ -12,8 +12,8 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from tests.services.hit_setup import context, count_statements, store, two_joint
-from trajcache.db.commit_log import prune_commit_log
-from trajcache.db.models import Trajectory, TrajectoryCommit
+from trajcache.db.commit_log import prune_commit_log, prune_tombstones
+from trajcache.db.models import Trajectory, TrajectoryCommit, TrajectoryTombstone
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.services.catalog.trajectories import delete_trajectory, new_row_values
 from trajcache.services.context import ServiceContext
@@ -111,6 +111,23 @@ def test_a_log_pruned_past_a_lagging_replica_makes_it_reload(database_url: str) 
             assert prune_commit_log(session, before=LATER) == 1
         assert index_ids(a, model) == index_ids(b, model) == {first, *missed, fresh}
         assert (a.indexes.reloads, b.indexes.reloads) == (0, 1)  # a started after the prunes
+
+
+def test_tombstones_pruned_past_a_lagging_replica_make_it_reload(database_url: str) -> None:
+    """Without noticing, b would keep the first two deleted trajectories in its index."""
+    with context(database_url) as a, context(database_url) as b:
+        model = two_joint(a)
+        ids = [store(a, model, [[0.1 * k, 0.0], [1.0, 0.5]]) for k in range(5)]
+        assert index_ids(b, model) == set(ids)
+        with a.sessions() as session:  # b sleeps while three are deleted and two pruned
+            for gone in ids[:3]:
+                delete_trajectory(session=session, trajectory_id=gone)
+            assert prune_tombstones(session, before=LATER) == 2  # the newest stays
+            assert session.scalar(sa.select(sa.func.count()).select_from(TrajectoryTombstone)) == 1
+        assert index_ids(b, model) == set(ids[3:]) and b.indexes.reloads == 1
+        with a.sessions() as session:
+            delete_trajectory(session=session, trajectory_id=ids[3])
+        assert index_ids(b, model) == {ids[4]} and b.indexes.reloads == 1  # in step: no reload
 
 
 def test_pruning_keeps_the_rows_from_the_first_recent_one_on(database_url: str) -> None:

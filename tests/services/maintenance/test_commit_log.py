@@ -1,5 +1,5 @@
 """The commit log of imports and its retention: the importer logs every batch it wrote, and the
-maintenance loop prunes rows older than `commit_log_retention_s`."""
+maintenance loop prunes log rows and tombstones older than `commit_log_retention_s`."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import sqlalchemy as sa
 
 from tests.services.maintenance.test_bulk_import import many, target_ctx  # noqa: F401 (fixture)
 from tests.services.maintenance.test_transfer import run_import
-from trajcache.db.models import Trajectory, TrajectoryCommit, utcnow
+from trajcache.db.models import Trajectory, TrajectoryCommit, TrajectoryTombstone, utcnow
 from trajcache.services.context import ServiceContext
 from trajcache.services.maintenance.commit_log import PRUNE_EVERY_S, CommitLogPruner
 
@@ -36,7 +36,9 @@ def test_the_loop_prunes_rows_older_than_the_retention(
     with target_ctx.sessions() as session:
         for age in ages:
             session.add(TrajectoryCommit(first_id=1, last_id=1, created_at=now - age))
+            session.add(TrajectoryTombstone(trajectory_id=1, model_id="m", deleted_at=now - age))
         session.commit()
     assert CommitLogPruner(target_ctx).step() == PRUNE_EVERY_S
     with target_ctx.sessions() as session:
         assert sorted(session.scalars(sa.select(TrajectoryCommit.id))) == [3, 4]
+        assert sorted(session.scalars(sa.select(TrajectoryTombstone.id))) == [3, 4]

@@ -41,6 +41,9 @@ the deletion adds nothing (the outer join still yields the log row, so it advanc
 does not stay a gap); a deletion that commits after a row was added comes as a tombstone, and
 tombstones are applied after rows in the same sync. A load and a sync read different snapshots,
 but each only adds what is committed and each deletion has a tombstone read after it commits.
+Tombstones are pruned as the log is (`db.commit_log.prune_tombstones`, the same retention), and a
+tombstone pruned before this replica read it is noticed the same way: the oldest tombstone id
+left lies above the tombstones' mark + 1, and the replica reloads.
 
 One sync is one query: new and missing log rows with their trajectories, tombstones and the
 oldest log id are read together (UNION ALL), so they come from the same snapshot. With
@@ -82,7 +85,7 @@ if TYPE_CHECKING:
 
 _STARTUP_WINDOW = 10_000  # ids below the first high-water mark that may still be in flight
 _MAX_GAPS = 100_000
-_ROW, _TOMBSTONE, _RIDER, _OLDEST = 0, 1, 2, 3
+_ROW, _TOMBSTONE, _RIDER, _OLDEST, _OLDEST_TOMB = 0, 1, 2, 3, 4
 _SYNC_COLUMNS = 6  # kind, id, model_id, start, goal, ref: a rider's columns follow them
 
 # The key states of given trajectories (a hit's candidates): built once, so that SQLAlchemy
@@ -251,8 +254,11 @@ class IndexStore:
         changes = session.connection().execute(statement, params).all()
         ridden = next((tuple(c)[_SYNC_COLUMNS:] for c in changes if c.kind == _RIDER), None)
         oldest = next((c.id for c in changes if c.kind == _OLDEST), None)
-        if oldest is not None and oldest > self._commits.hwm + 1:
-            self._reload(session, now)  # log rows above the mark were pruned unread
+        oldest_tomb = next((c.id for c in changes if c.kind == _OLDEST_TOMB), None)
+        if (oldest is not None and oldest > self._commits.hwm + 1) or (
+            oldest_tomb is not None and oldest_tomb > self._tombs.hwm + 1
+        ):
+            self._reload(session, now)  # rows above a mark were pruned unread
             return ridden
         logged = [c for c in changes if c.kind == _ROW]
         tombstones = [c for c in changes if c.kind == _TOMBSTONE]
@@ -301,7 +307,8 @@ def _changes_statement(
 ) -> sa.CompoundSelect[Any]:
     """Commit-log rows above their high-water mark (`:commit_hwm`) or, when asked, among the
     gaps (`:commit_gaps`), each with the trajectories in its id range (one row with none when
-    they are gone); tombstones likewise (`:tomb_hwm`, `:tomb_gaps`); the oldest log id; and
+    they are gone); tombstones likewise (`:tomb_hwm`, `:tomb_gaps`); the oldest log id and the
+    oldest tombstone id; and
     the row of `rider` if given (its columns after the sync's, null in the other branches).
     Built once per shape and rider."""
     extra = list(rider.selected_columns) if rider is not None else []
@@ -336,8 +343,14 @@ def _changes_statement(
         *_nulls(Trajectory.model_id, Trajectory.start, Trajectory.goal, Trajectory.id),
         *blanks,
     )
+    oldest_tomb = sa.select(
+        _kind(_OLDEST_TOMB),
+        sa.func.min(TrajectoryTombstone.id),
+        *_nulls(Trajectory.model_id, Trajectory.start, Trajectory.goal, Trajectory.id),
+        *blanks,
+    )
     if rider is None:
-        return sa.union_all(logged, tombs, oldest)
+        return sa.union_all(logged, tombs, oldest, oldest_tomb)
     ridden = rider.with_only_columns(
         _kind(_RIDER),
         *_nulls(Trajectory.id, Trajectory.model_id, Trajectory.start, Trajectory.goal),
@@ -345,7 +358,7 @@ def _changes_statement(
         *extra,
         maintain_column_froms=True,
     )
-    return sa.union_all(logged, tombs, oldest, ridden)
+    return sa.union_all(logged, tombs, oldest, oldest_tomb, ridden)
 
 
 def _kind(kind: int) -> sa.ColumnElement[int]:

@@ -1,8 +1,10 @@
-"""Retention of the trajectory commit log: rows older than `commit_log_retention_s` go.
+"""Retention of the trajectory commit log and of the tombstones of deleted trajectories: rows
+older than `commit_log_retention_s` go.
 
-Replicas sync by reading the log (`services.catalog.index_store`), so a row is needed only until
+Replicas sync by reading both (`services.catalog.index_store`), so a row is needed only until
 every replica has read it; a replica that sleeps longer than the retention finds the oldest row
-left above its high-water mark and reloads its indexes. Each replica prunes every
+left of either above its high-water mark and reloads its indexes. Without it, tombstones (one per
+deleted or evicted trajectory) would grow without bound. Each replica prunes every
 `PRUNE_EVERY_S` (the first time that long after its start); concurrent prunes are harmless (a
 DELETE of rows already gone deletes nothing).
 """
@@ -12,7 +14,7 @@ from __future__ import annotations
 import logging
 from datetime import timedelta
 
-from trajcache.db.commit_log import prune_commit_log
+from trajcache.db.commit_log import prune_commit_log, prune_tombstones
 from trajcache.db.models import utcnow
 from trajcache.services.maintenance.loop import BackgroundLoop
 
@@ -23,7 +25,7 @@ PRUNE_EVERY_S = 600.0
 
 
 class CommitLogPruner(BackgroundLoop):
-    """Deletes commit-log rows older than the retention, every `PRUNE_EVERY_S`."""
+    """Deletes commit-log rows and tombstones older than the retention, every `PRUNE_EVERY_S`."""
 
     thread_name = "commit-log-prune"
     step_name = "commit log prune"
@@ -33,10 +35,12 @@ class CommitLogPruner(BackgroundLoop):
 
     def step(self) -> float:
         retention = timedelta(seconds=self.ctx.settings.commit_log_retention_s)
+        before = utcnow() - retention
         with self.ctx.sessions() as session:
-            pruned = prune_commit_log(session, before=utcnow() - retention)
-        if pruned:
-            _log.info("pruned %d commit log rows", pruned)
+            pruned = prune_commit_log(session, before=before)
+            tombstones = prune_tombstones(session, before=before)
+        if pruned or tombstones:
+            _log.info("pruned %d commit log rows and %d tombstones", pruned, tombstones)
         return PRUNE_EVERY_S
 
     def failure_pause_s(self) -> float:
