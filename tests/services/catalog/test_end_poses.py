@@ -154,6 +154,9 @@ def test_a_trajectory_older_than_any_pool_is_found_by_its_tool_pose(
         found = ends_within(session, tooled, tooled, target, base)
         np.testing.assert_allclose(found.states, [[1.2, -0.7]])
         np.testing.assert_allclose(found.partners, [[0.0, 0.0]])
+        for stored in (300, 10**6):  # the shortlist of one scan, or of a search by radii
+            both = pose_ends(session, tooled, tooled, target, base, stored=stored)
+            np.testing.assert_allclose(both.within.states, [[1.2, -0.7]])
         target.pose[0, 3] += 0.005
         goal = target.pose[:3, 3]
         assert len(ends_within(session, tooled, tooled, target, base).gaps) == 0
@@ -188,9 +191,10 @@ def test_a_pose_goal_reads_every_end_within_its_tolerances_in_one_read_or_two(
     with ctx.sessions() as session:
         within = ends_within(session, tooled, tooled, target, base)
         assert len(within.gaps) == 20
-        found = pose_ends(session, tooled, tooled, target, base, stored=25)
-        np.testing.assert_allclose(found.within.states, within.states)
-        np.testing.assert_allclose(found.within.partners, within.partners)
+        for stored in (25, 10**6):  # one scan, or a search by radii: the shortlist is full
+            found = pose_ends(session, tooled, tooled, target, base, stored=stored)
+            np.testing.assert_allclose(found.within.states, within.states)
+            np.testing.assert_allclose(found.within.partners, within.partners)
         starts = nearest_starts(session, tooled, tooled, target, base, stored=25)
         np.testing.assert_allclose(found.starts, starts)
         target.pose[2, 3] += 0.05  # 5 cm off: none within, the starts as before
