@@ -35,7 +35,7 @@ Damped least squares is faster at the median, has the much shorter tail (pin-pin
 solves a QP at every step) and solves every pose, with nothing beyond Pinocchio: it is the
 service's solver. Earlier runs ranked them the same (first solution 0.45-0.53 ms on the Panda,
 pin-pink 0.74-1.08 ms). Through the live service (`--service`, the route's defaults: 3
-solutions, collision-checked) the server answers in 2.7 ms (Panda) and 2.3 ms (reference) at
+solutions, collision-checked) the server answers in 2.65 ms (Panda) and 2.27 ms (reference) at
 the median; the poses it leaves unsolved are reached only in self-collision.
 """
 
