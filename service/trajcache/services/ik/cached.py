@@ -55,9 +55,10 @@ AS_IS_POOL = 64  # the most ends within the tolerances read for one pose goal
 # m: IK starts are looked for ever wider (the search reads every indexed end in a slab of twice
 # the radius, so the first radius is small; the last reads them all, where the cache is sparse)
 _SEARCH_RADII = (0.03, 0.1, 0.3, math.inf)
-# trajectories below which one scan of the index reads faster than a search by radii (MBM pose
-# goals, 700 problems, about 1,400 trajectories: finding the goal state 2.28 ms with one scan
-# of every end, 1.63 ms by radii)
+# trajectories up to which the shortlist is one scan of every end rather than a search by radii
+# (up to four queries where the cache is sparse). Measured above it: MBM pose goals, 700
+# problems, about 1,400 trajectories, finding the goal state 2.28 ms by one scan, 1.63 ms by
+# radii. The 200 itself is not measured.
 _FEW = 200
 _SHORTLIST = 4 * CACHED_STARTS  # ends nearest by the anchor, ranked again by the link itself
 _NONE = EndsNear(np.empty((0, 0)), np.empty((0, 0)), np.empty(0))
@@ -134,13 +135,7 @@ def nearest_starts(
     found = _anchor_target(session, model, checked, target, base)
     if found is None:
         return []
-    anchor, pose, _ = found
-    ends = _NONE
-    radii = _SEARCH_RADII if stored > _FEW else _SEARCH_RADII[-1:]
-    for radius in radii:  # the anchor's nearest: the link's if oriented as asked
-        ends = ends_near(session, model.model_id, anchor, pose, radius=radius, limit=_SHORTLIST)
-        if len(ends.gaps) >= CACHED_STARTS:
-            break
+    ends, _ = _shortlist(session, model, found, stored)
     return _ranked_starts(checked, target, base, ends)
 
 
@@ -167,17 +162,28 @@ def pose_ends(
     found = _anchor_target(session, model, checked, target, base)
     if found is None:
         return PoseEnds(_NONE, [])
-    anchor, pose, reach = found
-    ends, radius = _NONE, 0.0
-    for radius in _SEARCH_RADII if stored > _FEW else _SEARCH_RADII[-1:]:
-        ends = ends_near(session, model.model_id, anchor, pose, radius=radius, limit=_SHORTLIST)
-        if len(ends.gaps) >= CACHED_STARTS:
-            break
+    ends, radius = _shortlist(session, model, found, stored)
+    reach = found[2]  # the link's offset from its anchor
     widened = target.position_tolerance + reach * target.orientation_tolerance
     full = len(ends.gaps) == _SHORTLIST and ends.gaps[-1] <= widened  # more may lie within
     complete = radius >= widened and not full  # every end within the widened radius is read
     within = _within(session, model, checked, target, base, found, ends if complete else None)
     return PoseEnds(within, _ranked_starts(checked, target, base, ends))
+
+
+def _shortlist(
+    session: Session, model: RobotModel, found: tuple[str, FloatArray, float], stored: int
+) -> tuple[EndsNear, float]:
+    """The `_SHORTLIST` ends nearest the anchor's target (`_anchor_target`), whatever their
+    orientation, within the first search radius that holds CACHED_STARTS of them (one unbounded
+    scan while `stored` is at most `_FEW`), and that radius."""
+    anchor, pose, _ = found
+    ends, radius = _NONE, 0.0
+    for radius in _SEARCH_RADII if stored > _FEW else _SEARCH_RADII[-1:]:
+        ends = ends_near(session, model.model_id, anchor, pose, radius=radius, limit=_SHORTLIST)
+        if len(ends.gaps) >= CACHED_STARTS:
+            break
+    return ends, radius
 
 
 def _ranked_starts(
