@@ -29,6 +29,13 @@ def log_commits(session: Session, ranges: Iterable[tuple[int, int]]) -> None:
         session.execute(sa.insert(TrajectoryCommit), rows)
 
 
+def log_commit(session: Session, first_id: int, last_id: int) -> int:
+    """Add one log row for the range in the session's transaction; its id."""
+    row = {"first_id": first_id, "last_id": last_id, "created_at": utcnow()}
+    logged = session.execute(sa.insert(TrajectoryCommit).returning(TrajectoryCommit.id), row)
+    return int(logged.scalar_one())
+
+
 def prune_commit_log(session: Session, *, before: datetime) -> int:
     """Delete the log rows below the first one created at or after `before` (all but the
     newest when none is); commit; how many went.

@@ -217,3 +217,77 @@ def test_the_states_cache_is_bounded_by_bytes() -> None:
     assert cache.put(9, big) is big and cache.get_many([9]) == ({}, [9])  # larger than it all
     cache.discard(2)
     assert len(cache) == 2
+
+
+def stored_with_log_id(
+    ctx: ServiceContext, model: RobotModel, states: list[list[float]]
+) -> tuple[int, int]:
+    """A trajectory stored and committed, and the id of its commit-log row."""
+    logged: list[int] = []
+    with ctx.sessions() as session:
+        trajectory_id, created = store_trajectory(
+            session=session,
+            settings=Settings(),
+            compute_quality=False,
+            commit_ids=logged,
+            trajectory=NewTrajectory(
+                model=model, states=np.asarray(states, dtype=float), source="sim"
+            ),
+        )
+    assert created and len(logged) == 1
+    return trajectory_id, logged[0]
+
+
+def test_a_stored_trajectory_is_indexed_at_once_and_no_sync_reads_it_again(
+    database_url: str,
+) -> None:
+    with context(database_url) as ctx:
+        model = two_joint(ctx)
+        with ctx.sessions() as session:
+            index = ctx.indexes.index(session, model)
+        states = [[0.0, 0.0], [0.5, 0.2], [1.0, 0.5]]
+        trajectory_id, commit_id = stored_with_log_id(ctx, model, states)
+        ctx.indexes.add_stored(model.model_id, trajectory_id, commit_id, np.array(states))
+        assert trajectory_id in index  # before any sync
+        assert ctx.indexes._commits.hwm == commit_id
+        with ctx.sessions() as session, count_statements(ctx.engine) as statements:
+            cached = ctx.indexes.states(session, [trajectory_id])
+        assert statements == [] and np.array_equal(cached[trajectory_id], states)
+        with ctx.sessions() as session:  # its deletion still reaches the index, as a tombstone
+            delete_trajectory(session=session, trajectory_id=trajectory_id)
+            assert trajectory_id not in ctx.indexes.index(session, model)
+
+
+def test_a_stored_trajectory_that_a_sync_read_and_dropped_is_not_indexed_again(
+    database_url: str,
+) -> None:
+    with context(database_url) as a, context(database_url) as b:
+        model = two_joint(a)
+        with a.sessions() as session:
+            index = a.indexes.index(session, model)
+        states = [[0.0, 0.0], [1.0, 0.5]]
+        trajectory_id, commit_id = stored_with_log_id(a, model, states)
+        with b.sessions() as session:  # another replica deletes it at once
+            delete_trajectory(session=session, trajectory_id=trajectory_id)
+        with a.sessions() as session:  # a's sync reads its log row and its tombstone
+            a.indexes.index(session, model)
+        a.indexes.add_stored(model.model_id, trajectory_id, commit_id, np.array(states))
+        assert trajectory_id not in index
+        with a.sessions() as session:
+            assert trajectory_id not in a.indexes.index(session, model)
+
+
+def test_a_stored_trajectory_whose_log_row_is_a_gap_is_indexed_and_the_gap_closed(
+    database_url: str,
+) -> None:
+    with context(database_url) as ctx:
+        model = two_joint(ctx)
+        with ctx.sessions() as session:
+            index = ctx.indexes.index(session, model)
+        states = [[0.0, 0.0], [1.0, 0.5]]
+        trajectory_id, commit_id = stored_with_log_id(ctx, model, states)
+        stream = ctx.indexes._commits
+        stream.advance([commit_id + 1], time.monotonic())  # a sync passed it while in flight
+        assert commit_id in stream.gaps
+        ctx.indexes.add_stored(model.model_id, trajectory_id, commit_id, np.array(states))
+        assert trajectory_id in index and commit_id not in stream.gaps

@@ -174,6 +174,7 @@ def test_a_rejected_candidate_then_the_planner(
     with ctx.sessions() as session, count_statements(ctx.engine) as statements:
         kept = ctx.indexes.states(session, [answer.trajectory_id])  # as its first hit reads them
     assert statements == [] and np.array_equal(kept[answer.trajectory_id], path)
+    assert set(ctx.indexes.sizes().values()) == {2}  # indexed when stored, before any sync
     [problem] = planner.problems
     assert problem.start == (0.02, 0.0) and problem.goal == (0.98, 0.0)
     [record] = recorded.records

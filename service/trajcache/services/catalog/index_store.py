@@ -55,6 +55,12 @@ A plan's own first read (its robot and scene) can ride along as one more branch 
 (`read_with_sync`): a cache hit then needs one round trip before lookup, not two. Both calls are
 given the time the request arrived, so the `index` call that follows does not sync again.
 
+A trajectory this replica stores is indexed after its commit (`add_stored`), its log id marked
+read (`advance`: ids skipped become gaps), so its first hit needs no sync to read it back. Under
+the sync's lock, and only if no sync read its log row yet: one that did has added it and perhaps
+applied its tombstone, which adding it again would undo. If none did, none read a tombstone of
+it either: a deletion commits after the insert, and a query that saw the tombstone saw the row.
+
 Key states of candidates are kept in a byte-bounded LRU (`states`): a trajectory's states never
 change after it is stored, and a deleted one leaves the cache with its tombstone.
 """
@@ -65,7 +71,6 @@ import functools
 import threading
 import time
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -76,6 +81,7 @@ from trajcache.cache.index import TrajectoryIndex
 from trajcache.db.models import Trajectory, TrajectoryCommit, TrajectoryTombstone, unpack_states
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.services.catalog.id_stream import IdStream
 from trajcache.services.catalog.states_cache import StatesCache
 
 if TYPE_CHECKING:
@@ -84,7 +90,6 @@ if TYPE_CHECKING:
     AnySelect: TypeAlias = sa.Select[*tuple[Any, ...]]  # a select of any columns
 
 _STARTUP_WINDOW = 10_000  # ids below the first high-water mark that may still be in flight
-_MAX_GAPS = 100_000
 _ROW, _TOMBSTONE, _RIDER, _OLDEST, _OLDEST_TOMB = 0, 1, 2, 3, 4
 _SYNC_COLUMNS = 6  # kind, id, model_id, start, goal, ref: a rider's columns follow them
 
@@ -93,33 +98,6 @@ _SYNC_COLUMNS = 6  # kind, id, model_id, start, goal, ref: a rider's columns fol
 _STATES = sa.select(Trajectory.id, Trajectory.states, Trajectory.n_states, Trajectory.dof).where(
     Trajectory.id.in_(sa.bindparam("ids", expanding=True))
 )
-
-
-@dataclass
-class IdStream:
-    """How far one id sequence has been read, and which ids below that are still missing."""
-
-    hwm: int = 0
-    gaps: dict[int, float] = field(default_factory=dict)  # id -> when it was first missed
-
-    def wanted_gaps(self, now: float, ttl_s: float) -> list[int]:
-        """Gaps still worth asking for."""
-        expired = [i for i, t in self.gaps.items() if now - t > ttl_s]
-        for i in expired:
-            del self.gaps[i]
-        return list(self.gaps)
-
-    def advance(self, seen: list[int], now: float) -> None:
-        """Record ids just read; ids skipped over become gaps."""
-        for i in seen:
-            self.gaps.pop(i, None)
-        top = max(seen, default=self.hwm)
-        if top > self.hwm:
-            present = set(seen)
-            missing = [i for i in range(self.hwm + 1, top) if i not in present]
-            for i in missing[-_MAX_GAPS:]:
-                self.gaps[i] = now
-            self.hwm = top
 
 
 class IndexStore:
@@ -177,12 +155,24 @@ class IndexStore:
         row = session.connection().execute(rider, params).one_or_none()
         return None if row is None else tuple(row)
 
-    def remember_states(self, trajectory_id: int, states: FloatArray) -> None:
-        """Cache the key states of a trajectory this replica just stored (as `states` reads
-        them back: float64, the stored bits), so its first hit reads none."""
+    def add_stored(
+        self, model_id: str, trajectory_id: int, commit_id: int | None, states: FloatArray
+    ) -> None:
+        """Index a trajectory this replica just stored and committed, under its commit-log id
+        (module docstring), and cache its key states (as `states` reads them back: float64,
+        the stored bits), so its first hit reads neither."""
         kept = np.array(states, dtype=np.float64)
         kept.flags.writeable = False
         self._states.put(int(trajectory_id), kept)
+        if commit_id is None:
+            return
+        with self._lock:
+            stream, index = self._commits, self._indexes.get(model_id)
+            read = commit_id <= stream.hwm and commit_id not in stream.gaps
+            if not self._started or index is None or read:
+                return  # a sync reads it, or read it; an index loaded later holds it
+            _add_rows(index, [(int(trajectory_id), kept[0], kept[-1])])
+            stream.advance([commit_id], time.monotonic())
 
     def states(self, session: Session, ids: Iterable[int]) -> dict[int, FloatArray]:
         """Key states (read-only arrays) of the trajectories `ids` that exist, by id."""

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session, defer
 
 from trajcache.core.config import Settings
 from trajcache.db import models as tables
-from trajcache.db.commit_log import log_commits
+from trajcache.db.commit_log import log_commit
 from trajcache.db.states import state_columns
 from trajcache.geometry.errors import GeometryError, StateError
 from trajcache.geometry.model.kinematics import check_limits, check_states
@@ -73,6 +73,7 @@ def store_trajectory(
     compute_quality: bool = True,
     scenes: SceneCache | None = None,
     validators: ValidatorCache | None = None,
+    commit_ids: list[int] | None = None,
 ) -> tuple[int, bool]:
     """Store `trajectory`; an identical one already stored is returned, not copied.
 
@@ -84,7 +85,8 @@ def store_trajectory(
     and, in the trajectory's scene or else the stored scene version with its `scene_hash`, the
     minimum clearance. A metric that cannot be computed is left empty; the store proceeds.
     `scenes` and `validators` (the service's caches) spare parsing the scene and building its
-    validator again. A new row's end poses (`end_poses`) and commit-log row go in its transaction.
+    validator again. A new row's end poses (`end_poses`) and commit-log row go in its transaction;
+    the log row's id is appended to `commit_ids` (the plan flow indexes its own row by it).
     """
     t, model = trajectory, trajectory.model
     array = _validated(
@@ -115,7 +117,9 @@ def store_trajectory(
     if new_id is None:  # stored before, or concurrently by another request or replica
         return _stored_already(session, row), False
     write_end_poses(session, model, [new_id], array[:1], array[-1:])
-    log_commits(session, [(new_id, new_id)])  # replicas' syncs read the new row through it
+    logged = log_commit(session, new_id, new_id)  # replicas' syncs read the new row through it
+    if commit_ids is not None:
+        commit_ids.append(logged)
     if commit:
         session.commit()
     return new_id, True

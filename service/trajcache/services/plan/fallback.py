@@ -75,12 +75,14 @@ def store_and_answer(
     """Store a path certified in the attempt's scene (a repaired one names its `parent`), give
     it its certificate, and answer with it; its quality is computed with the plan record."""
     model, scene, settings = attempt.model, attempt.scene, attempt.ctx.settings
+    commit_ids: list[int] = []
     with attempt.clock.measure("db"):
         trajectory_id, created = store_trajectory(
             session=attempt.session,
             settings=settings,
             compute_quality=False,  # computed after the answer, with the plan record
             commit=parent is None,
+            commit_ids=commit_ids,
             trajectory=NewTrajectory(
                 model=model,
                 states=path,
@@ -95,7 +97,9 @@ def store_and_answer(
         if parent is not None:
             set_parent(attempt.session, trajectory_id, parent)
             attempt.session.commit()
-    attempt.ctx.indexes.remember_states(trajectory_id, path)  # its stored bits: float64
+    attempt.ctx.indexes.add_stored(  # committed: indexed now, not at the next sync
+        model.model_id, trajectory_id, commit_ids[0] if commit_ids else None, path
+    )
     certify_planned(attempt, trajectory_id, path)
     job = None
     if created:
