@@ -11,6 +11,7 @@ from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
+from trajcache.cache.end_clearances import EndClearances
 from trajcache.cache.memo import ValidationMemo
 from trajcache.cache.ranking import RankingRules
 from trajcache.core.config import Settings
@@ -59,6 +60,7 @@ class ServiceContext:
         default_factory=lambda: LRU(capacity=KINEMATICS_CACHE_SIZE)
     )
     certificates: CertificateStore = field(default_factory=CertificateStore)  # what was proved
+    end_clearances: EndClearances = field(default_factory=EndClearances)  # along stored ends
     planner: PlannerPool | None = None  # started by planner_pool(), closed by close()
     _planner_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
@@ -91,6 +93,7 @@ class ServiceContext:
         self.validators.clear()
         self.kinematics.clear()
         self.certificates.clear()
+        self.end_clearances.clear()
 
     def ping(self) -> None:
         """Run `SELECT 1`; raise UnavailableError when the database cannot be reached."""

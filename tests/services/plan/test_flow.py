@@ -486,3 +486,32 @@ def test_a_planned_path_identical_to_a_stored_one_is_not_stored_again(
     assert (first.source, first.stored) == (PlanSource.PLANNER, True)
     assert (again.source, again.stored) == (PlanSource.PLANNER, False)
     assert again.trajectory_id == first.trajectory_id
+
+
+def test_a_hit_proves_its_ends_from_the_clearance_measured_after_the_plan(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    setup_robot(ctx, [blocker()], DETOUR)
+    path = np.array([[0.02, 0.0], [0.3, 0.1], [0.7, 0.1], [0.98, 0.0]])  # clear of the blocker
+    use_planner(ctx, monkeypatch, FakePlanner(PlanResult(PlannerStatus.SOLVED, path, seed=3)))
+    planned = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, max_candidates=0)
+    assert planned.source is PlanSource.PLANNER and planned.trajectory_id is not None
+    written(ctx, planned.trajectory_id)  # the writer measured its ends, after its quality
+    assert len(ctx.end_clearances) == 2
+    checked: list[np.ndarray] = []
+    validate_segments = TrajectoryValidator.validate_segments
+
+    def spy(self: TrajectoryValidator, key: np.ndarray, segments: list[int]) -> Any:
+        checked.append(np.array([key[i : i + 2] for i in segments]))
+        return validate_segments(self, key, segments)
+
+    monkeypatch.setattr(TrajectoryValidator, "validate_segments", spy)
+    hit = ask(ctx, [0.025, 0.004], [0.975, -0.004], max_candidates=1)
+    assert (hit.source, hit.trajectory_id) == (PlanSource.CACHE, planned.trajectory_id)
+    assert hit.memo in (MemoUse.ENDS, MemoUse.CERTIFICATE)  # its interior known either way
+    assert checked == []  # both new end segments proved by the stored ends' clearance
+    ctx.end_clearances.clear()
+    again = ask(ctx, [0.026, 0.004], [0.974, -0.004], max_candidates=1)
+    assert again.source is PlanSource.CACHE and again.memo in (MemoUse.ENDS, MemoUse.CERTIFICATE)
+    ends = np.concatenate(checked)  # without: both new end segments, in full
+    assert np.array_equal(ends, [[[0.026, 0.004], [0.3, 0.1]], [[0.7, 0.1], [0.974, -0.004]]])

@@ -142,14 +142,16 @@ def validate_with_certificate(
     scene: Scene,
     certified: frozenset[str],
     audit: bool = False,
+    ends_fn: Callable[[FloatArray, list[int]], ValidationResult] | None = None,
 ) -> tuple[ValidationResult, CertificateUse]:
     """Validate an adapted path (n ≥ 4) whose interior holds a certificate for `certified`
-    object digests: its first and last segments with `full`, its interior against the objects
-    the certificate lacks with `scene_only(objects)` (module docstring)."""
+    object digests: its first and last segments with `ends_fn` (default `full`'s
+    `validate_segments`), its interior against the objects the certificate lacks with
+    `scene_only(objects)` (module docstring)."""
     digests = object_digests(scene)
     new = [obj for obj in scene.objects if digests[obj.id] not in certified]
     use = CertificateUse(len(scene.objects), len(new))
-    result = full.validate_segments(states, [0, len(states) - 2])
+    result = (ends_fn or full.validate_segments)(states, [0, len(states) - 2])
     if result.valid and new:
         inner = scene_only(new).validate(states[1:-1])
         inner.samples += result.samples

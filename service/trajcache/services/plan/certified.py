@@ -14,8 +14,12 @@ and the plan record writes them after the answer (`services.plan.answers`).
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
+
 from trajcache.cache.index import Match
 from trajcache.cache.memo import MemoUse, remember_path, validate_with_memo
+from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.scene import SceneObject, make_scene
 from trajcache.geometry.validation.certificates import (
@@ -26,6 +30,7 @@ from trajcache.geometry.validation.certificates import (
     stamp_of,
     validate_with_certificate,
 )
+from trajcache.geometry.validation.end_clearance import measure_clearance, validate_ends
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
     ValidationResult,
@@ -35,7 +40,7 @@ from trajcache.geometry.validation.validator import (
 from trajcache.services.catalog.certificates import CertificateWrite
 from trajcache.services.plan.attempt import PlanAttempt
 
-__all__ = ["certify_planned", "validate_candidate"]
+__all__ = ["certify_planned", "measure_ends", "validate_candidate"]
 
 
 def validate_candidate(
@@ -53,6 +58,7 @@ def validate_candidate(
             result, use = validate_with_certificate(
                 adapted,
                 full=validator,
+                ends_fn=_ends_fn(attempt, match),
                 scene_only=lambda objects: _scene_only(attempt, objects),
                 scene=attempt.scene,
                 certified=certified,
@@ -66,7 +72,7 @@ def validate_candidate(
     result, memo_use = validate_with_memo(
         adapted,
         validate_fn=validator.validate,
-        segments_fn=validator.validate_segments,
+        segments_fn=_ends_fn(attempt, match),
         memo=ctx.memo,
         scope=scope,
     )
@@ -80,6 +86,38 @@ def certify_planned(attempt: PlanAttempt, trajectory_id: int, states: FloatArray
     key = _key(attempt, states)
     if key is not None:
         _keep(attempt, trajectory_id, key, frozenset())
+
+
+def measure_ends(attempt: PlanAttempt, states: FloatArray) -> None:
+    """Measure the clearance along the first and last segments of a path certified in the
+    attempt's scene, for its later hits (`geometry/validation/end_clearance.py`): off the
+    request path, after its quality."""
+    scope = attempt.memo_scope
+    if scope is None or len(states) < 4 or attempt.model.base is not BaseType.FIXED:
+        return
+    validator = attempt.validator
+    for segment in (states[:2], states[-2:]):
+        clearance = measure_clearance(validator, segment)
+        attempt.ctx.end_clearances.put(scope, segment, clearance)
+
+
+def _ends_fn(
+    attempt: PlanAttempt, match: Match
+) -> Callable[[FloatArray, list[int]], ValidationResult]:
+    """The end segments' validation of a path adapted from `match`: only where the clearance
+    measured along the stored segments leaves them unproved, if it was."""
+    ctx, scope, validator = attempt.ctx, attempt.memo_scope, attempt.validator
+    stored = attempt.candidates.get(match.trajectory_id)
+    if scope is None or stored is None or attempt.model.base is not BaseType.FIXED:
+        return validator.validate_segments
+    oriented = stored[::-1] if match.reversed else stored
+    return functools.partial(
+        validate_ends,
+        validator,
+        stored=oriented,
+        known=functools.partial(ctx.end_clearances.get, scope),
+        audit=ctx.settings.certificate_audit,
+    )
 
 
 def _key(attempt: PlanAttempt, states: FloatArray) -> CertificateKey | None:

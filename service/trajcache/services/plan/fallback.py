@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -35,7 +36,7 @@ from trajcache.services.catalog.trajectories import (
 from trajcache.services.errors import UnavailableError
 from trajcache.services.plan.answers import PlannedPath, answer_planned, answer_without_path
 from trajcache.services.plan.attempt import PlanAnswer, PlanAttempt, PlanSource, PlanStatus
-from trajcache.services.plan.certified import certify_planned
+from trajcache.services.plan.certified import certify_planned, measure_ends
 
 logger = logging.getLogger(__name__)
 
@@ -101,13 +102,7 @@ def store_and_answer(
         model.model_id, trajectory_id, commit_ids[0] if commit_ids else None, path
     )
     certify_planned(attempt, trajectory_id, path)
-    job = None
-    if created:
-        validators = attempt.ctx.validators
-        job = QualityJob(
-            trajectory_id,
-            lambda: quality_columns(model, path, settings, scene, validators=validators),
-        )
+    job = _quality_job(attempt, trajectory_id, path) if created else None
     planned = PlannedPath(
         trajectory_id,
         path,
@@ -118,6 +113,23 @@ def store_and_answer(
         source=source,
     )
     return answer_planned(attempt, planned, quality=job)
+
+
+def _quality_job(attempt: PlanAttempt, trajectory_id: int, path: np.ndarray) -> QualityJob:
+    """The stored path's quality columns, computed by the record writer; then the clearance
+    along its end segments, for its hits (as costly; nothing is decided there)."""
+    model, scene, settings = attempt.model, attempt.scene, attempt.ctx.settings
+    validators = attempt.ctx.validators
+
+    def quality() -> Mapping[str, Any] | None:
+        values = quality_columns(model, path, settings, scene, validators=validators)
+        try:
+            measure_ends(attempt, path)
+        except Exception:
+            logger.exception("measuring the end clearances of %d failed", trajectory_id)
+        return values
+
+    return QualityJob(trajectory_id, quality)
 
 
 def planner_phases(stats: Mapping[str, float], plan_ms: float) -> dict[str, float]:
