@@ -154,6 +154,8 @@ class ServiceRun:
             tally.hits += 1
             tally.hit_server_ms.append(float(answer.timings_ms["total"]))
             tally.hit_validate_ms.append(float(answer.timings_ms["validate"]))
+            proved = answer.validation.ends_proved if answer.validation is not None else None
+            tally.hit_ends_proved.append(proved or 0.0)
             tally.record_phases(answer.timings_ms, hit=True)
         elif answer.source == "repaired":
             tally.repaired_server_ms.append(float(answer.timings_ms["total"]))

@@ -9,6 +9,8 @@ Timings, in milliseconds, over the solved problems (a failure's time is its budg
   (`run_ms − setup_ms` of `run_planning`: certification and repair too), and `setup_ms` apart.
 - `plan_ms`: the server's `timings_ms.total` of a planned answer (adds validation and storage).
 - `hit_server_ms`: the server's `timings_ms.total` of a replay answered from the cache.
+- `hit_ends_proved_mean`: over those hits, the mean share of their new end segments proved from
+  the clearance measured along the stored ones (`validation.ends_proved`; 0 where none was).
 - `plan_phases_ms_median`, `hit_phases_ms_median`: the median of each phase of `timings_ms`
   (`validate`, `lookup`, `db`, …) over the planned answers, and over the hits.
 
@@ -60,6 +62,7 @@ class Tally:
     hits: int = 0
     hit_server_ms: list[float] = field(default_factory=list)
     hit_validate_ms: list[float] = field(default_factory=list)  # the hits' timings_ms.validate
+    hit_ends_proved: list[float] = field(default_factory=list)  # validation.ends_proved, or 0
     repaired_server_ms: list[float] = field(default_factory=list)  # replays answered "repaired"
     cross_repaired: int = 0  # --cross-scene: next-scene asks answered "repaired"
     moved_asked: int = 0  # --cross-scene: one object moved by up to 1 cm
@@ -99,6 +102,15 @@ def percentile(values: list[float], q: float = 50) -> float | None:
     return round(float(np.percentile(values, q)), 2) if values else None
 
 
+def _phase_medians(phases: list[dict[str, list[float]]]) -> dict[str, float | None]:
+    names = sorted({name for p in phases for name in p})
+    return {name: percentile([v for p in phases for v in p.get(name, [])]) for name in names}
+
+
+def _mean(values: list[float]) -> float | None:
+    return round(sum(values) / len(values), 4) if values else None
+
+
 def _share(part: float, whole: float) -> float | None:
     return round(part / whole, 4) if whole else None
 
@@ -134,15 +146,8 @@ def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
         out["setup_ms_p95"] = percentile(_all(tallies, "setup_ms"), 95)
     else:
         out["plan_ms_median"] = percentile(_all(tallies, "plan_ms"))
-        names = sorted({name for t in tallies for name in t.phases})
-        out["plan_phases_ms_median"] = {
-            name: percentile([v for t in tallies for v in t.phases.get(name, [])]) for name in names
-        }
-        names = sorted({name for t in tallies for name in t.hit_phases})
-        out["hit_phases_ms_median"] = {
-            name: percentile([v for t in tallies for v in t.hit_phases.get(name, [])])
-            for name in names
-        }
+        out["plan_phases_ms_median"] = _phase_medians([t.phases for t in tallies])
+        out["hit_phases_ms_median"] = _phase_medians([t.hit_phases for t in tallies])
     replays = sum(t.replays for t in tallies)
     out |= {
         "compiled_share": _share(planners[COMPILED], sum(planners.values())),
@@ -166,6 +171,7 @@ def summary(tallies: list[Tally], in_process: bool) -> dict[str, Any]:
         "repaired_server_ms_median": percentile(_all(tallies, "repaired_server_ms")),
         "hit_server_ms_median": percentile(_all(tallies, "hit_server_ms")),
         "hit_validate_ms_median": percentile(_all(tallies, "hit_validate_ms")),
+        "hit_ends_proved_mean": _mean(_all(tallies, "hit_ends_proved")),
         "replays_skipped": counts["replays_skipped"],  # no free noisy start or goal
         "replays_planned": counts["replays_planned"],  # a success, but not from the cache
         "planners": dict(planners),

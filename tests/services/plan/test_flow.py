@@ -509,9 +509,10 @@ def test_a_hit_proves_its_ends_from_the_clearance_measured_after_the_plan(
     hit = ask(ctx, [0.025, 0.004], [0.975, -0.004], max_candidates=1)
     assert (hit.source, hit.trajectory_id) == (PlanSource.CACHE, planned.trajectory_id)
     assert hit.memo in (MemoUse.ENDS, MemoUse.CERTIFICATE)  # its interior known either way
-    assert checked == []  # both new end segments proved by the stored ends' clearance
+    assert checked == [] and hit.ends_proved == 1.0  # both proved by the stored ends' clearance
     ctx.end_clearances.clear()
     again = ask(ctx, [0.026, 0.004], [0.974, -0.004], max_candidates=1)
     assert again.source is PlanSource.CACHE and again.memo in (MemoUse.ENDS, MemoUse.CERTIFICATE)
+    assert again.ends_proved == 0.0
     ends = np.concatenate(checked)  # without: both new end segments, in full
     assert np.array_equal(ends, [[[0.026, 0.004], [0.3, 0.1]], [[0.7, 0.1], [0.974, -0.004]]])

@@ -176,11 +176,13 @@ class ValidationReuse(BaseModel):
     proved), "ends" (only its new first and last segments: the rest was proved in this scene),
     "whole" (the exact path was proved in this scene) or "certificate" (the ends, and the rest
     only against the scene's objects its stored certificate lacks: `objects_reproved` of
-    `objects`)."""
+    `objects`). `ends_proved`: with "ends" or "certificate", the share (0 to 1) of the new end
+    segments proved from the clearance measured along the stored ones, without validation."""
 
     reused: Literal["none", "ends", "whole", "certificate"]
     objects: int | None = None
     objects_reproved: int | None = None
+    ends_proved: float | None = None
 
 
 class PlanResponse(BaseModel):

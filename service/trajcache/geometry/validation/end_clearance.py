@@ -143,6 +143,13 @@ def validate_end(
     """Validate segment `new` (2, D): only the span that `known` (a certified segment and its
     clearance) leaves, or all of it without one."""
     span = (0.0, 1.0) if known is None else known[1].unproved(validator.checker, known[0], new)
+    return _validate_span(validator, new, span)
+
+
+def _validate_span(
+    validator: TrajectoryValidator, new: FloatArray, span: tuple[float, float] | None
+) -> ValidationResult:
+    """Validate the stretch `span` (fractions; None: nothing) of segment `new` (2, D)."""
     if span is None:
         return ValidationResult(ValidationStatus.VALID, 0, 0)
     lo, hi = span
@@ -182,17 +189,22 @@ def validate_ends(
     stored: FloatArray,
     known: Callable[[FloatArray], SegmentClearance | None],
     audit: bool = False,
+    proved: list[float] | None = None,
 ) -> ValidationResult:
     """`validator.validate_segments(states, segments)` for a path adapted from `stored` (as
     oriented, same length): each segment i only where the clearance `known(stored[i:i + 2])`
     leaves it unproved. With `audit`, a segment a clearance shortened is validated again in
-    full, and a disagreement raises `CertificateDisagreement`."""
+    full, and a disagreement raises `CertificateDisagreement`. The share of each segment its
+    clearance proved (0 without one) is appended to `proved`."""
     total = ValidationResult(ValidationStatus.VALID, 0, 0)
     for i in segments:
         old = stored[i : i + 2]
         clearance = known(old)
         new = states[i : i + 2]
-        result = validate_end(validator, new, None if clearance is None else (old, clearance))
+        span = (0.0, 1.0) if clearance is None else clearance.unproved(validator.checker, old, new)
+        result = _validate_span(validator, new, span)
+        if proved is not None:
+            proved.append(1.0 if span is None else 1.0 - (span[1] - span[0]))
         if audit and clearance is not None and result.valid:
             truth = validator.validate_segments(new, [0])
             if not truth.valid:

@@ -54,6 +54,7 @@ def answer_hit(
         record=record,
         memo=memo,
         certificate=attempt.certificate_use if memo is MemoUse.CERTIFICATE else None,
+        ends_proved=_mean(attempt.ends_proved),
     )
 
 
@@ -194,3 +195,7 @@ def describe_answer(
     answer.details = details
     answer.timings_ms.update({k: round(v, 3) for k, v in details.timings_ms.items()})
     return answer
+
+
+def _mean(shares: list[float]) -> float | None:
+    return round(sum(shares) / len(shares), 4) if shares else None

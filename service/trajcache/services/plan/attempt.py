@@ -129,6 +129,7 @@ class PlanAnswer:
     details: AnswerDetails | None = None  # quality and timing, when the caller asked for extras
     planner: str | None = None  # the planner that found a planned answer's path
     certificate: CertificateUse | None = None  # how the served candidate's certificate served
+    ends_proved: float | None = None  # the share of its new end segments their clearance proved
     warnings: list[str] = field(default_factory=list)  # what the caller should know (no scene)
     stored: bool | None = None  # a planned path: newly stored (False: identical to a stored one)
     goal_state: np.ndarray | None = None  # a pose goal's state
@@ -186,6 +187,8 @@ class PlanAttempt:
     tried: int = 0  # candidates counted in the answer and its plan event
     certificates: list[CertificateWrite] = field(default_factory=list)  # to write with the record
     certificate_use: CertificateUse | None = None  # the last certificate a validation used
+    ends_proved: list[float] = field(default_factory=list)  # end segments' shares proved by
+    # their stored clearance (`end_clearance.py`), for each end validated, in order
     goal_found_by: str | None = None  # a pose goal's state came from: "cached" or "ik"
     pose_goal_ms: float = 0.0  # finding a pose goal's state (part of the lookup phase)
 

@@ -48,6 +48,7 @@ def validate_candidate(
 ) -> tuple[ValidationResult, MemoUse]:
     """The verdict on an adapted candidate, and what spared work (module docstring)."""
     ctx, scope, validator = attempt.ctx, attempt.memo_scope, attempt.validator
+    attempt.ends_proved.clear()  # this candidate's, if its ends are validated alone
     # A hit the memo knows (the same scene) needs no certificate: its key is not even computed.
     known = scope is None or _memo_knows(attempt, adapted)
     key = None if known else _key(attempt, adapted)
@@ -91,7 +92,7 @@ def certify_planned(attempt: PlanAttempt, trajectory_id: int, states: FloatArray
 def measure_ends(attempt: PlanAttempt, states: FloatArray) -> None:
     """Measure the clearance along the first and last segments of a path certified in the
     attempt's scene, for its later hits (`geometry/validation/end_clearance.py`): off the
-    request path, after its quality."""
+    request path, by the record writer."""
     scope = attempt.memo_scope
     if scope is None or len(states) < 4 or attempt.model.base is not BaseType.FIXED:
         return
@@ -117,6 +118,7 @@ def _ends_fn(
         stored=oriented,
         known=functools.partial(ctx.end_clearances.get, scope),
         audit=ctx.settings.certificate_audit,
+        proved=attempt.ends_proved,
     )
 
 

@@ -116,18 +116,18 @@ def store_and_answer(
 
 
 def _quality_job(attempt: PlanAttempt, trajectory_id: int, path: np.ndarray) -> QualityJob:
-    """The stored path's quality columns, computed by the record writer; then the clearance
-    along its end segments, for its hits (as costly; nothing is decided there)."""
+    """The clearance along the stored path's end segments, for its hits (first: a hit may
+    follow at once; nothing is decided there); then its quality columns, computed by the
+    record writer."""
     model, scene, settings = attempt.model, attempt.scene, attempt.ctx.settings
     validators = attempt.ctx.validators
 
     def quality() -> Mapping[str, Any] | None:
-        values = quality_columns(model, path, settings, scene, validators=validators)
         try:
             measure_ends(attempt, path)
         except Exception:
             logger.exception("measuring the end clearances of %d failed", trajectory_id)
-        return values
+        return quality_columns(model, path, settings, scene, validators=validators)
 
     return QualityJob(trajectory_id, quality)
 
