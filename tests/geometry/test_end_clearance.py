@@ -17,12 +17,12 @@ from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import SceneObject, make_scene
-from trajcache.geometry.validation.certificates import CertificateDisagreement
+from trajcache.geometry.validation.certificates import CertificateDisagreement, moved_by
 from trajcache.geometry.validation.end_clearance import (
     CAP,
     SegmentClearance,
-    _motion_tables,
     measure_clearance,
+    motion_tables,
     validate_end,
     validate_ends,
 )
@@ -132,11 +132,11 @@ def _points(panda: RobotModel, state: FloatArray) -> list[FloatArray]:
     return out
 
 
-def test_no_point_moves_further_than_the_motion_tables_allow(panda: RobotModel) -> None:
+def test_no_point_moves_further_than_themotion_tables_allow(panda: RobotModel) -> None:
     """W bounds how far any point of an element moves, V how much any two points of a checked
     pair move relative to each other, for a change of state by δ, anywhere in the limits."""
     checker = CollisionChecker(panda, make_scene([]))
-    element, pair = _motion_tables(checker.robot)
+    element, pair = motion_tables(checker.robot)
     robot = checker.robot
     rng = np.random.default_rng(6)
     tightest = 0.0
@@ -214,3 +214,31 @@ def test_the_store_keys_by_scope_and_finds_a_segment_run_backwards(panda: RobotM
     for k in range(10):
         small.put(scope, segment + k, clearance)
     assert 0 < len(small) < 10  # bounded in bytes
+
+
+def test_no_point_of_a_moved_body_moves_further_than_moved_by() -> None:
+    rng = np.random.default_rng(9)
+    tightest = 0.0
+    for _ in range(200):
+        poses = []
+        for _ in range(2):
+            pose = np.eye(4)
+            axis = rng.normal(size=3)
+            pose[:3, :3] = _rotation(axis / np.linalg.norm(axis), rng.uniform(-0.5, 0.5))
+            pose[:3, 3] = rng.normal(0.0, 0.05, 3)
+            poses.append(pose)
+        radius = float(rng.uniform(0.01, 1.0))
+        points = rng.normal(size=(64, 3))
+        points *= radius / np.linalg.norm(points, axis=1, keepdims=True)
+        before = points @ poses[0][:3, :3].T + poses[0][:3, 3]
+        after = points @ poses[1][:3, :3].T + poses[1][:3, 3]
+        bound = moved_by(poses[0], poses[1], radius)
+        moved = float(np.linalg.norm(after - before, axis=1).max())
+        assert moved <= bound + 1e-12
+        tightest = max(tightest, moved / bound)
+    assert tightest > 0.9
+
+
+def _rotation(axis: FloatArray, angle: float) -> FloatArray:
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.asarray(np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k)

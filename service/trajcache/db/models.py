@@ -212,6 +212,8 @@ class TrajectoryCertificate(Base):
     stamp: Mapped[str] = mapped_column(String(64))  # of the certifier and validator settings
     path: Mapped[str] = mapped_column(String(64))  # digest of the interior states
     objects: Mapped[list[str]] = mapped_column(JSON)  # digests of the objects it was proved for
+    # by object id: [digest of its shape and allowed names, its pose (12 floats), clearance]
+    clearances: Mapped[dict[str, list[Any]] | None] = mapped_column(JSON, nullable=True)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
 

@@ -169,7 +169,48 @@ def test_another_replica_builds_on_the_stored_certificate(ctx: ServiceContext, u
         scene(other, moved)
         answer = ask(other, 0.04, 0.96)
         assert answer.memo is MemoUse.CERTIFICATE and answer.certificate is not None
-        assert answer.certificate.reproved == 1
+        # moved 2 cm, far less than the clearance its certificate keeps: nothing proved again
+        assert (answer.certificate.reproved, answer.certificate.moved) == (0, 1)
+        scene(other, [*AWAY[:2], box("high", 0.5, reach=2.0)])  # 0.5 m: more than it keeps
+        answer = ask(other, 0.05, 0.95)
+        assert answer.memo is MemoUse.CERTIFICATE and answer.certificate is not None
+        assert (answer.certificate.reproved, answer.certificate.moved) == (1, 0)
+
+
+def test_a_certificate_keeps_each_object_s_clearance(ctx: ServiceContext) -> None:
+    robot(ctx, AWAY)
+    ask(ctx)
+    (row,) = certificates(ctx)
+    assert row.clearances is not None and set(row.clearances) == {"left", "right", "high"}
+    for shape, pose, clearance in row.clearances.values():
+        assert len(shape) == 32 and len(pose) == 12 and 0.0 < clearance <= 0.1
+    objects = {o.id: o for o in parse_scene({"objects": AWAY}).objects}
+    _, pose, _ = row.clearances["high"]
+    assert np.array_equal(np.reshape(pose, (3, 4)), objects["high"].pose[:3])
+
+
+def test_objects_moved_near_the_path_are_never_passed_unproved(url: str) -> None:
+    """A box beside the interior's sweep, moved again and again by up to 4 cm: each move is
+    either within the clearance kept (not proved again) or proved again; the audit proves every
+    shortened verdict in full and fails on a disagreement."""
+    rng = np.random.default_rng(3)
+    seen = {"moved": 0, "reproved": 0, "rejected": 0}
+    with context(url, certificate_audit=True) as ctx:
+        near = {**box("near", 0.5, reach=0.25), "size": [0.03, 0.03, 0.03]}
+        near["pose"] = {"position": [0.12, 0.07, 0.32]}
+        robot(ctx, [near])
+        ask(ctx)
+        for k in range(40):
+            moved = [near["pose"]["position"][i] + rng.uniform(-0.04, 0.04) for i in range(3)]
+            scene(ctx, [{**near, "pose": {"position": moved}}])
+            answer = ask(ctx, 0.02 + 0.001 * k, 0.98)
+            certificates(ctx)  # the writer has written (and measured) what this one proved
+            if answer.certificate is None:
+                seen["rejected"] += 1
+                continue
+            seen["moved"] += answer.certificate.moved
+            seen["reproved"] += answer.certificate.reproved
+    assert seen["moved"] > 3 and seen["reproved"] > 3, seen
 
 
 def test_other_settings_do_not_use_a_certificate(ctx: ServiceContext, url: str) -> None:

@@ -27,14 +27,23 @@ validated in full, and the interior only against the objects its certificate lac
 (`validate_with_certificate`). With `audit`, every verdict a certificate shortened is proved
 again in full, and a disagreement raises `CertificateDisagreement`: the property tests run so.
 
-Not used: slack (an object moved by less than its proved clearance needs no new proof) and
-swept envelopes. A moved object is another digest, and is proved again, against the interior
-only.
+An object that moved. A certificate also keeps, per object id, a lower bound C on the distance
+the robot kept from the object along the interior (`object_clearance.py` measures it, off the
+request path), with the object's shape digest (its kind, sizes, mesh and allowed names: its
+digest without the pose) and exact pose. An object of the current scene whose digest the
+certificate lacks, but whose id, shape digest are the same, and which moved by δ < C, needs no
+new proof: a rigid move from pose T to T' moves no point of the object further than
+δ = |t' − t| + 2·sin(θ/2)·r, where θ is the angle of R'Rᵀ and r the radius of the smallest
+sphere about the object's origin that holds it (`moved_by`); every point of the robot along the
+interior stayed at least C from every point of the object at T, so it stays at least C − δ > 0
+from it at T' (distance is 1-Lipschitz in each point). Its allowed names are in the shape
+digest, so the pairs the statement excludes are the same. Not used: swept envelopes.
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
@@ -52,9 +61,13 @@ __all__ = [
     "CertificateDisagreement",
     "CertificateKey",
     "CertificateUse",
+    "ObjectClearance",
+    "moved_by",
     "object_digest",
     "object_digests",
     "path_digest",
+    "shape_digest",
+    "shape_digests",
     "stamp_of",
     "validate_with_certificate",
 ]
@@ -78,10 +91,12 @@ class CertificateKey:
 
 @dataclass(frozen=True)
 class CertificateUse:
-    """How a validation used a certificate: the scene's objects, and those proved again."""
+    """How a validation used a certificate: the scene's objects, those proved again, and those
+    whose move its clearances covered."""
 
     objects: int
     reproved: int
+    moved: int = 0
 
 
 def stamp_of(settings_key: tuple[object, ...]) -> str:
@@ -102,6 +117,41 @@ def path_digest(states: FloatArray) -> str:
 def object_digest(obj: SceneObject, touches: Iterable[str] = ()) -> str:
     """SHA-256 of what an object's statement depends on: its shape (kind, exact sizes, mesh
     vertices and faces), its exact pose, and the names it may touch; not its id."""
+    return _digest(obj, touches, pose=True)
+
+
+def shape_digest(obj: SceneObject, touches: Iterable[str] = ()) -> str:
+    """`object_digest` without the pose: what an object's clearance is about besides where it
+    is."""
+    return _digest(obj, touches, pose=False)
+
+
+def moved_by(before: FloatArray, after: FloatArray, radius: float) -> float:
+    """The most a point within `radius` of a body's origin moves when its pose changes from
+    `before` to `after` (4 × 4): |Δt| + 2·sin(θ/2)·radius, θ the angle between the rotations."""
+    turn = after[:3, :3] @ before[:3, :3].T
+    cos = min(max((float(np.trace(turn)) - 1.0) / 2.0, -1.0), 1.0)
+    chord = 2.0 * math.sin(math.acos(cos) / 2.0)
+    return float(np.linalg.norm(after[:3, 3] - before[:3, 3])) + chord * radius
+
+
+@dataclass(frozen=True)
+class ObjectClearance:
+    """What a certificate proved about the object of an id: the path's interior stayed at least
+    `clearance` from it, as it was: `shape` (`shape_digest`) at `pose` (4 × 4)."""
+
+    shape: str
+    pose: FloatArray
+    clearance: float
+
+    def holds_for(self, obj: SceneObject, shape: str) -> bool:
+        """Whether it proves the interior clear of `obj` (module docstring)."""
+        if shape != self.shape:
+            return False
+        return moved_by(self.pose, obj.pose, obj.shape.bounding_radius()) < self.clearance
+
+
+def _digest(obj: SceneObject, touches: Iterable[str], *, pose: bool) -> str:
     shape = obj.shape
     digest = hashlib.sha256(shape.kind.value.encode())
     digest.update(np.asarray(shape.size, dtype=np.float64).tobytes())
@@ -109,21 +159,36 @@ def object_digest(obj: SceneObject, touches: Iterable[str] = ()) -> str:
         assert shape.vertices is not None and shape.faces is not None
         digest.update(np.ascontiguousarray(shape.vertices, dtype=np.float64).tobytes())
         digest.update(np.ascontiguousarray(shape.faces, dtype=np.int64).tobytes())
-    digest.update(np.ascontiguousarray(obj.pose, dtype=np.float64).tobytes())
+    if pose:
+        digest.update(np.ascontiguousarray(obj.pose, dtype=np.float64).tobytes())
     digest.update(repr(sorted(touches)).encode())
     return digest.hexdigest()[:32]
 
 
 def object_digests(scene: Scene) -> dict[str, str]:
     """Each world object's digest, by id (an object id in an allowed pair covers its parts)."""
-    touches: dict[str, list[str]] = {}
-    for a, b in scene.allowed:
-        touches.setdefault(a, []).append(b)
-        touches.setdefault(b, []).append(a)
+    touches = _touches(scene)
     return {
         obj.id: object_digest(obj, touches.get(obj.id.partition("#")[0], ()))
         for obj in scene.objects
     }
+
+
+def shape_digests(scene: Scene) -> dict[str, str]:
+    """Each world object's `shape_digest`, by id."""
+    touches = _touches(scene)
+    return {
+        obj.id: shape_digest(obj, touches.get(obj.id.partition("#")[0], ()))
+        for obj in scene.objects
+    }
+
+
+def _touches(scene: Scene) -> dict[str, list[str]]:
+    touches: dict[str, list[str]] = {}
+    for a, b in scene.allowed:
+        touches.setdefault(a, []).append(b)
+        touches.setdefault(b, []).append(a)
+    return touches
 
 
 def merged(known: frozenset[str], scene: Mapping[str, str]) -> frozenset[str]:
@@ -143,14 +208,24 @@ def validate_with_certificate(
     certified: frozenset[str],
     audit: bool = False,
     ends_fn: Callable[[FloatArray, list[int]], ValidationResult] | None = None,
+    clearances: Mapping[str, ObjectClearance] | None = None,
 ) -> tuple[ValidationResult, CertificateUse]:
     """Validate an adapted path (n ≥ 4) whose interior holds a certificate for `certified`
     object digests: its first and last segments with `ends_fn` (default `full`'s
     `validate_segments`), its interior against the objects the certificate lacks with
-    `scene_only(objects)` (module docstring)."""
+    `scene_only(objects)`, except those that moved within their `clearances` (module
+    docstring)."""
     digests = object_digests(scene)
     new = [obj for obj in scene.objects if digests[obj.id] not in certified]
-    use = CertificateUse(len(scene.objects), len(new))
+    moved = 0
+    if clearances and new:
+        shapes = shape_digests(scene)
+        within = {
+            o.id for o in new if o.id in clearances and clearances[o.id].holds_for(o, shapes[o.id])
+        }
+        moved = len(within)
+        new = [o for o in new if o.id not in within]
+    use = CertificateUse(len(scene.objects), len(new), moved)
     result = (ends_fn or full.validate_segments)(states, [0, len(states) - 2])
     if result.valid and new:
         inner = scene_only(new).validate(states[1:-1])

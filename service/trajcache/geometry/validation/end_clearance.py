@@ -64,7 +64,14 @@ from trajcache.geometry.validation.validator import (
     ValidationStatus,
 )
 
-__all__ = ["CAP", "SegmentClearance", "measure_clearance", "validate_end", "validate_ends"]
+__all__ = [
+    "CAP",
+    "SegmentClearance",
+    "measure_clearance",
+    "motion_tables",
+    "validate_end",
+    "validate_ends",
+]
 
 CAP = 0.10  # m: clearance measured up to this; an adapted end moves no point further
 
@@ -97,7 +104,7 @@ class SegmentClearance:
         d1 = d0 + segment_deltas(new, base=base)[0] - segment_deltas(old, base=base)[0]
         apart = np.abs(d0 + self.fractions[:, None] * (d1 - d0))  # (K, D)
         sigma = np.maximum(apart[:-1], apart[1:])
-        element, pair = _motion_tables(checker.robot)
+        element, pair = motion_tables(checker.robot)
         ok = (self.scene > sigma @ element.T).all(axis=1)
         if self.pairs.shape[1]:
             ok &= (self.pairs > sigma @ pair.T).all(axis=1)
@@ -115,7 +122,7 @@ def measure_clearance(validator: TrajectoryValidator, segment: FloatArray) -> Se
     robot = checker.robot
     posed = Posed.build(robot, samples)
     steps = robot.motion.steps(segment_deltas(samples, base=model.base))  # (K − 1, D)
-    element_motion, pair_motion = _motion_tables(robot)
+    element_motion, pair_motion = motion_tables(robot)
     n, e = len(samples), len(robot.radius)
     at = np.full((n, e), CAP)
     rows = checker.clearance.scene_ball_rows(posed, np.full((n, e), CAP))
@@ -169,7 +176,7 @@ def _between(at: FloatArray, motion: FloatArray) -> FloatArray:
     return np.asarray(np.minimum((at[:-1] + at[1:] - motion) / 2.0, CAP))
 
 
-def _motion_tables(robot: RobotGeometry) -> tuple[FloatArray, FloatArray]:
+def motion_tables(robot: RobotGeometry) -> tuple[FloatArray, FloatArray]:
     """W (E, D) and V (P, D): the most a point of an element, and a pair's distance, move per
     unit step of each dof, whatever the configuration (the certifier's whole-element bounds;
     the pairs as `kernel_pairs` holds them, those still checked)."""

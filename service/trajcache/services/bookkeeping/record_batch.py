@@ -138,6 +138,9 @@ def write_records(engine: Engine, records: Iterable[PlanRecord]) -> None:
     events: list[dict[str, Any]] = []
     qualities: list[dict[str, Any]] = []
     for record in records:
+        for write in record.certificates:  # measured before the transaction, as quality is
+            if write.clearances is not None:
+                write.clearances.run()
         values = record.quality.values() if record.quality is not None else None
         if values is not None and record.quality is not None:
             qualities.append({"q_id": record.quality.trajectory_id, **values})

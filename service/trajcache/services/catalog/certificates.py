@@ -7,53 +7,117 @@ that is older than the table is still true: the LRU needs no invalidation. The p
 one when the validation memo does not already know a candidate's interior, and writes them
 through the plan records (`services.bookkeeping.record_batch`), after the answer has gone out.
 
-Bounds: at most `MAX_OBJECTS` digests per certificate, `PER_TRAJECTORY` certificates per
-trajectory (the most recently written), and only the current stamp's.
+A certificate written after a scene change also keeps its objects' clearances (`clearances`:
+how far the interior stayed from each, by id), measured by the record writer before its
+transaction (`ClearanceJob`); a process that wrote it knows them once they are measured.
+
+Bounds: at most `MAX_OBJECTS` digests and `MAX_KEPT` clearances per certificate,
+`PER_TRAJECTORY` certificates per trajectory (the most recently written), and only the current
+stamp's.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from dataclasses import dataclass
+import logging
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
+import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.engine import Connection
 from sqlalchemy.orm import Session
 
 from trajcache.core.lru import LRU
 from trajcache.db.models import Trajectory, TrajectoryCertificate
-from trajcache.geometry.validation.certificates import CertificateKey
+from trajcache.geometry.validation.certificates import CertificateKey, ObjectClearance
+from trajcache.geometry.validation.object_clearance import MAX_KEPT
 
-__all__ = ["CertificateStore", "CertificateWrite", "write_certificates"]
+__all__ = [
+    "CertificateStore",
+    "CertificateWrite",
+    "Certified",
+    "ClearanceJob",
+    "write_certificates",
+]
 
 PER_TRAJECTORY = 8
 _C = TrajectoryCertificate
+_log = logging.getLogger(__name__)
+Clearances = Mapping[str, ObjectClearance]
+
+
+class ClearanceJob:
+    """A certificate's object clearances, measured once, by the record writer."""
+
+    def __init__(self, compute: Callable[[], Clearances], kept: Clearances | None = None):
+        self._compute: Callable[[], Clearances] | None = compute
+        self._kept = dict(kept or {})  # earlier ones, for objects not measured now
+        self._values: Clearances | None = None
+
+    def run(self) -> Clearances:
+        """Measure (the first call); a failure is logged and leaves the earlier ones."""
+        if self._compute is not None:
+            compute, self._compute = self._compute, None
+            try:
+                measured = compute()
+            except Exception:
+                _log.exception("object clearances could not be measured")
+                measured = {}
+            merged = {**self._kept, **measured}
+            self._values = dict(list(merged.items())[-MAX_KEPT:])
+        return self._values or {}
+
+    @property
+    def ready(self) -> Clearances:
+        """What was measured so far (nothing before `run`)."""
+        return self._values or {}
 
 
 @dataclass(frozen=True)
 class CertificateWrite:
-    """A certificate to keep: the trajectory, what it is about, and every digest it holds."""
+    """A certificate to keep: the trajectory, what it is about, every digest it holds, and its
+    objects' clearances (measured by the writer, or carried over)."""
 
     trajectory_id: int
     key: CertificateKey
     objects: frozenset[str]
+    clearances: ClearanceJob | None = None
+
+    def known(self) -> Certified:
+        return Certified(self.objects, self.clearances)
+
+
+@dataclass(frozen=True)
+class Certified:
+    """What a certificate holds: object digests, and object clearances by id."""
+
+    objects: frozenset[str] = frozenset()
+    job: ClearanceJob | None = field(default=None, repr=False)
+    read: Clearances | None = None
+
+    @property
+    def clearances(self) -> Clearances:
+        """The clearances known now (none while the writer has not measured them)."""
+        if self.read is not None:
+            return self.read
+        return self.job.ready if self.job is not None else {}
 
 
 class CertificateStore:
     """The certificates this process has read or written, by trajectory and key."""
 
     def __init__(self, capacity: int = 16384) -> None:
-        self._known: LRU[tuple[int, CertificateKey], frozenset[str]] = LRU(capacity=capacity)
+        self._known: LRU[tuple[int, CertificateKey], Certified] = LRU(capacity=capacity)
 
-    def get(self, session: Session, trajectory_id: int, key: CertificateKey) -> frozenset[str]:
-        """The object digests certified for `key` on the trajectory (empty: none)."""
+    def get(self, session: Session, trajectory_id: int, key: CertificateKey) -> Certified:
+        """What is certified for `key` on the trajectory (no digests: nothing)."""
         known = self._known.get((trajectory_id, key))
         if known is not None:
             return known
         row = session.execute(
-            sa.select(_C.objects).where(
+            sa.select(_C.objects, _C.clearances).where(
                 _C.trajectory_id == trajectory_id,
                 _C.variant == key.variant,
                 _C.stamp == key.stamp,
@@ -61,14 +125,14 @@ class CertificateStore:
             )
         ).first()
         if row is None:
-            return frozenset()
-        objects = frozenset(str(d) for d in row[0])
-        self._known.put((trajectory_id, key), objects)
-        return objects
+            return Certified()
+        found = Certified(frozenset(str(d) for d in row[0]), read=decode(row[1]))
+        self._known.put((trajectory_id, key), found)
+        return found
 
     def put(self, write: CertificateWrite) -> None:
         """Know a certificate this process is about to write."""
-        self._known.put((write.trajectory_id, write.key), write.objects)
+        self._known.put((write.trajectory_id, write.key), write.known())
 
     def clear(self) -> None:
         """Forget every certificate read (the table keeps them)."""
@@ -89,6 +153,7 @@ def write_certificates(conn: Connection, writes: Iterable[CertificateWrite], at:
             "stamp": key.stamp,
             "path": key.path,
             "objects": sorted(write.objects),
+            "clearances": encode(write.clearances.run()) if write.clearances else None,
             "updated_at": at,
         }
         source = sa.select(
@@ -105,3 +170,23 @@ def write_certificates(conn: Connection, writes: Iterable[CertificateWrite], at:
         conn.execute(
             sa.delete(_C).where(_C.trajectory_id == tid, _C.id.not_in(newest.scalar_subquery()))
         )
+
+
+def encode(clearances: Clearances) -> dict[str, list[Any]] | None:
+    """JSON of object clearances: id → [shape digest, pose (its top 3 rows), clearance]."""
+    if not clearances:
+        return None
+    return {
+        oid: [c.shape, [float(v) for v in c.pose[:3].ravel()], float(c.clearance)]
+        for oid, c in clearances.items()
+    }
+
+
+def decode(stored: Mapping[str, list[Any]] | None) -> Clearances:
+    """Object clearances from their JSON (`encode`)."""
+    out: dict[str, ObjectClearance] = {}
+    for oid, (shape, pose, clearance) in (stored or {}).items():
+        matrix = np.eye(4)
+        matrix[:3] = np.asarray(pose, dtype=float).reshape(3, 4)
+        out[str(oid)] = ObjectClearance(str(shape), matrix, float(clearance))
+    return out

@@ -31,13 +31,14 @@ from trajcache.geometry.validation.certificates import (
     validate_with_certificate,
 )
 from trajcache.geometry.validation.end_clearance import measure_clearance, validate_ends
+from trajcache.geometry.validation.object_clearance import object_clearances
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
     ValidationResult,
     settings_key_of,
     validator_for,
 )
-from trajcache.services.catalog.certificates import CertificateWrite
+from trajcache.services.catalog.certificates import CertificateWrite, Certified, ClearanceJob
 from trajcache.services.plan.attempt import PlanAttempt
 
 __all__ = ["certify_planned", "measure_ends", "validate_candidate"]
@@ -55,20 +56,21 @@ def validate_candidate(
     if key is not None and scope is not None:
         with ctx.sessions() as session:
             certified = ctx.certificates.get(session, match.trajectory_id, key)
-        if certified:
+        if certified.objects:
             result, use = validate_with_certificate(
                 adapted,
                 full=validator,
                 ends_fn=_ends_fn(attempt, match),
                 scene_only=lambda objects: _scene_only(attempt, objects),
                 scene=attempt.scene,
-                certified=certified,
+                certified=certified.objects,
                 audit=ctx.settings.certificate_audit,
+                clearances=certified.clearances,
             )
             attempt.certificate_use = use
             if result.valid:
                 remember_path(ctx.memo, scope, adapted)
-                _keep(attempt, match.trajectory_id, key, certified)
+                _keep(attempt, match.trajectory_id, key, certified, adapted)
             return result, MemoUse.CERTIFICATE
     result, memo_use = validate_with_memo(
         adapted,
@@ -78,7 +80,7 @@ def validate_candidate(
         scope=scope,
     )
     if result.valid and memo_use is MemoUse.NONE and key is not None:
-        _keep(attempt, match.trajectory_id, key, frozenset())
+        _keep(attempt, match.trajectory_id, key, Certified(), adapted)
     return result, memo_use
 
 
@@ -86,7 +88,7 @@ def certify_planned(attempt: PlanAttempt, trajectory_id: int, states: FloatArray
     """Give a planned path that was certified in this scene, and stored, its certificate."""
     key = _key(attempt, states)
     if key is not None:
-        _keep(attempt, trajectory_id, key, frozenset())
+        _keep(attempt, trajectory_id, key, Certified(), states)
 
 
 def measure_ends(attempt: PlanAttempt, states: FloatArray) -> None:
@@ -138,10 +140,25 @@ def _memo_knows(attempt: PlanAttempt, states: FloatArray) -> bool:
 
 
 def _keep(
-    attempt: PlanAttempt, trajectory_id: int, key: CertificateKey, known: frozenset[str]
+    attempt: PlanAttempt,
+    trajectory_id: int,
+    key: CertificateKey,
+    known: Certified,
+    states: FloatArray,
 ) -> None:
-    """Note the certificate of a valid verdict in this scene, for the plan record to write."""
-    write = CertificateWrite(trajectory_id, key, merged(known, object_digests(attempt.scene)))
+    """Note the certificate of a valid verdict in this scene, for the plan record to write;
+    where it proves objects the certificate lacked, their clearances are measured too (by the
+    writer), along the interior of `states`."""
+    objects = merged(known.objects, object_digests(attempt.scene))
+    clearances = None
+    if objects != known.objects or not known.clearances:
+        validator, scene, interior = attempt.validator, attempt.scene, states[1:-1].copy()
+        clearances = ClearanceJob(
+            lambda: object_clearances(validator, interior, scene), kept=known.clearances
+        )
+    elif known.clearances:
+        clearances = ClearanceJob(lambda: {}, kept=known.clearances)
+    write = CertificateWrite(trajectory_id, key, objects, clearances)
     attempt.ctx.certificates.put(write)
     attempt.certificates.append(write)
 
