@@ -205,6 +205,7 @@ class ValidationReuse(_Answer):
     reused: Literal["none", "ends", "whole", "certificate"]
     objects: int | None = None
     objects_reproved: int | None = None
+    objects_moved: int | None = None
     ends_proved: float | None = None
 
 

@@ -4,12 +4,16 @@
   this very scene: nothing, or only the new first and last segments, is checked.
 - Otherwise the candidate's certificate (`geometry/validation/certificates.py`), from this or
   another replica (`services.catalog.certificates`): the first and last segments are checked in
-  full, the interior only against the scene's objects the certificate lacks.
+  full, the interior only against the scene's objects the certificate lacks, less those that
+  moved by less than the clearance it keeps for them.
+- Either way, the first and last segments only where the clearance measured along the stored
+  path's ends (`geometry/validation/end_clearance.py`, after it was planned) leaves them.
 - Otherwise the whole path is validated.
 
 Every valid verdict on a path of four states or more gives its interior a certificate, holding
 the scene's object digests (and those it held before): `attempt.certificates` collects them,
-and the plan record writes them after the answer (`services.plan.answers`).
+and the plan record writes them after the answer (`services.plan.answers`); where the verdict
+proved objects the certificate lacked, the writer first measures their clearances.
 """
 
 from __future__ import annotations
