@@ -193,27 +193,81 @@ def test_the_audit_raises_when_a_clearance_is_wrong(panda: RobotModel) -> None:
     assert not validate_ends(blocked, path, [0, 2], stored=path, known=lambda s: None).valid
 
 
-def test_the_store_keys_by_scope_and_finds_a_segment_run_backwards(panda: RobotModel) -> None:
+def _box(name: str, x: float, size: float = 0.1) -> SceneObject:
+    pose = np.eye(4)
+    pose[0, 3] = x
+    return SceneObject(name, Shape(ShapeKind.BOX, (size, size, size)), pose)
+
+
+def test_the_store_keys_by_variant_and_segment_and_follows_the_scene(panda: RobotModel) -> None:
     store = EndClearances()
-    scope = MemoScope(panda.model_id, "scene-a", ("settings",))
-    other = MemoScope(panda.model_id, "scene-b", ("settings",))
+    scene = make_scene([_box("a", 1.0), _box("b", -1.0)])
+    scope = MemoScope(panda.model_id, scene.hash, ("settings",))
     segment = np.array([np.zeros(panda.dof), np.full(panda.dof, 0.3)])
     clearance = SegmentClearance(
-        np.array([0.0, 0.5, 1.0]), np.array([[0.01], [0.02]]), np.array([[0.03], [0.04]])
+        np.array([0.0, 0.5, 1.0]), np.array([[0.05], [0.06]]), np.array([[0.03], [0.04]])
     )
-    store.put(scope, segment, clearance)
-    assert store.get(scope, segment) is clearance
-    assert store.get(other, segment) is None  # another scene: nothing proved there
-    assert store.get(scope, segment + 1e-12) is None  # the exact bits only
-    back = store.get(scope, segment[::-1])
+    store.put(scope, segment, clearance, scene)
+    assert store.get(scope, segment, scene) is clearance
+    other_variant = MemoScope("another variant", scene.hash, ("settings",))
+    assert store.get(other_variant, segment, scene) is None
+    assert store.get(scope, segment + 1e-12, scene) is None  # the exact bits only
+    back = store.get(scope, segment[::-1], scene)
     assert back is not None
     assert np.array_equal(back.fractions, [0.0, 0.5, 1.0])
-    assert np.array_equal(back.scene, [[0.02], [0.01]])
+    assert np.array_equal(back.scene, [[0.06], [0.05]])
     assert np.array_equal(back.pairs, [[0.04], [0.03]])
-    small = EndClearances(max_bytes=1024)
+    # objects moved by 1 and 2 cm: the scene's part loses the larger move, the pairs' none
+    moved = make_scene([_box("a", 1.01), _box("b", -1.02)])
+    less = store.get(MemoScope(panda.model_id, moved.hash, ("settings",)), segment, moved)
+    assert less is not None
+    assert np.allclose(less.scene, [[0.03], [0.04]]) and np.array_equal(less.pairs, clearance.pairs)
+    for changed in (
+        make_scene([_box("a", 1.0), _box("b", -1.0), _box("c", 3.0)]),  # a new object
+        make_scene([_box("a", 1.0), _box("b", -1.0, size=0.2)]),  # a resized one
+        make_scene([_box("a", 1.0), _box("b", -1.0)], allowed=[("b", "panda_hand")]),
+    ):
+        there = MemoScope(panda.model_id, changed.hash, ("settings",))
+        assert store.get(there, segment, changed) is None
+    fewer = make_scene([_box("a", 1.0)])  # an object gone: what was proved still holds
+    assert store.get(MemoScope(panda.model_id, fewer.hash, ("settings",)), segment, fewer)
+    small = EndClearances(max_bytes=2048)
     for k in range(10):
-        small.put(scope, segment + k, clearance)
+        small.put(scope, segment + k, clearance, scene)
     assert 0 < len(small) < 10  # bounded in bytes
+
+
+def test_a_clearance_carried_to_moved_objects_proves_only_free_segments(
+    panda: RobotModel,
+) -> None:
+    rng = np.random.default_rng(12)
+    outcomes = {"proved": 0, "colliding": 0}
+    for _ in range(24):
+        validator, stored = _stored_segment(panda, rng)
+        scene = validator.checker.scene.scene
+        store = EndClearances()
+        scope = MemoScope(panda.model_id, scene.hash, ("settings",))
+        store.put(scope, stored, measure_clearance(validator, stored), scene)
+        for _ in range(4):
+            objects = []
+            for obj in scene.objects:
+                pose = obj.pose.copy()
+                pose[:3, 3] += rng.uniform(-0.003, 0.003, 3)
+                objects.append(SceneObject(obj.id, obj.shape, pose))
+            moved = make_scene(objects)
+            there = TrajectoryValidator(panda, moved)
+            carried = store.get(MemoScope(panda.model_id, moved.hash, ("settings",)), stored, moved)
+            assert carried is not None
+            new = stored.copy()
+            new[1] = np.clip(
+                stored[1] + rng.uniform(-0.02, 0.02, panda.dof), panda.lower, panda.upper
+            )
+            free = _dense_free(there, new)
+            outcomes["colliding"] += not free
+            if carried.unproved(there.checker, stored, new) is None:
+                outcomes["proved"] += 1
+                assert free, "a carried clearance proved a segment the dense check finds colliding"
+    assert outcomes["proved"] > 2 and outcomes["colliding"] > 0, outcomes
 
 
 def test_no_point_of_a_moved_body_moves_further_than_moved_by() -> None:

@@ -1,59 +1,113 @@
-"""The clearances of stored paths' end segments this process measured, per validation scope.
+"""The clearances of stored paths' end segments this process measured.
 
 A hit replaces a stored path's first and last states; `geometry/validation/end_clearance.py`
-proves most of each new end segment from the clearance measured along the stored one, in the
-same scope (model variant, scene, validator settings: `cache.memo.MemoScope`). They are
-measured after a planned path is stored, off the request path (with its quality), and kept
-here, bounded, by the scope and the exact bits of the segment's two states. A segment looked
-up the other way round finds its clearance reversed.
+proves most of each new end segment from the clearance measured along the stored one. They are
+measured after a planned path is stored, off the request path, and kept here, bounded, by the
+model variant, the validator settings and the exact bits of the segment's two states, with the
+scene they were measured in: its hash, and each object's shape digest and pose. A segment
+looked up the other way round finds its clearance reversed.
+
+In the scene they were measured in, they hold as measured. In another scene whose every object
+has an id and a shape digest (shape, sizes, allowed names) of that scene's, each moved by at
+most δ (`certificates.moved_by`), the clearance to the scene is at least the measured one less
+the largest δ (distance is 1-Lipschitz in every point of every object); the robot pairs' part
+does not depend on the scene. Any other scene (an object added, reshaped or allowed to touch
+something else) gets none.
 """
 
 from __future__ import annotations
 
 import hashlib
+from dataclasses import dataclass
 
 import numpy as np
 
 from trajcache.cache.memo import MemoScope
 from trajcache.core.lru import LRU
 from trajcache.geometry.model.shapes import FloatArray
+from trajcache.geometry.scene.scene import Scene
+from trajcache.geometry.validation.certificates import moved_by, shape_digests
 from trajcache.geometry.validation.end_clearance import SegmentClearance
 
 __all__ = ["EndClearances"]
 
+_Key = tuple[str, tuple[object, ...], bytes]  # model variant, validator settings, segment
+
+
+@dataclass(frozen=True)
+class _Measured:
+    clearance: SegmentClearance
+    scene_hash: str
+    objects: dict[str, tuple[str, FloatArray]]  # id → (shape digest, pose)
+
 
 class EndClearances:
-    """Thread-safe LRU of segment clearances by scope and segment, bounded in bytes."""
+    """Thread-safe LRU of segment clearances by variant, settings and segment, bounded in
+    bytes."""
 
     def __init__(self, max_bytes: int = 32 * 1024 * 1024) -> None:
-        self._entries: LRU[tuple[MemoScope, bytes], SegmentClearance] = LRU(
-            max_size=max_bytes, size_fn=_size
-        )
+        self._entries: LRU[_Key, _Measured] = LRU(max_size=max_bytes, size_fn=_size)
+        self._shapes: LRU[str, dict[str, str]] = LRU(capacity=64)  # by scene hash
 
-    def put(self, scope: MemoScope, segment: FloatArray, clearance: SegmentClearance) -> None:
-        """Keep the clearance measured along `segment` (2, D) in `scope`."""
-        self._entries.put((scope, _digest(segment)), clearance)
+    def put(
+        self, scope: MemoScope, segment: FloatArray, clearance: SegmentClearance, scene: Scene
+    ) -> None:
+        """Keep the clearance measured along `segment` (2, D) in `scope`, whose scene is
+        `scene`."""
+        shapes = self._shapes_of(scene)
+        objects = {o.id: (shapes[o.id], np.array(o.pose, dtype=float)) for o in scene.objects}
+        self._entries.put(_key(scope, segment), _Measured(clearance, scope.scene_hash, objects))
 
-    def get(self, scope: MemoScope, segment: FloatArray) -> SegmentClearance | None:
-        """The clearance of `segment` (2, D) in `scope`, run either way; None if unmeasured."""
-        found = self._entries.get((scope, _digest(segment)))
-        if found is not None:
-            return found
-        backwards = self._entries.get((scope, _digest(segment[::-1])))
-        return None if backwards is None else backwards.reversed()
+    def get(self, scope: MemoScope, segment: FloatArray, scene: Scene) -> SegmentClearance | None:
+        """The clearance of `segment` (2, D), run either way, that holds in `scope`'s scene
+        `scene` (module docstring); None if there is none."""
+        found = self._entries.get(_key(scope, segment))
+        backwards = found is None
+        if backwards:
+            found = self._entries.get(_key(scope, segment[::-1]))
+        if found is None:
+            return None
+        clearance = found.clearance.reversed() if backwards else found.clearance
+        if found.scene_hash == scope.scene_hash:
+            return clearance
+        slack = self._slack(found, scene)
+        return None if slack is None else clearance.less(slack)
 
     def clear(self) -> None:
         """Forget everything."""
         self._entries.clear()
+        self._shapes.clear()
 
     def __len__(self) -> int:
         return len(self._entries)
 
+    def _slack(self, measured: _Measured, scene: Scene) -> float | None:
+        """The most an object of `scene` moved from where it was measured; None when one is
+        new or other."""
+        shapes = self._shapes_of(scene)
+        slack = 0.0
+        for obj in scene.objects:
+            then = measured.objects.get(obj.id)
+            if then is None or then[0] != shapes[obj.id]:
+                return None
+            slack = max(slack, moved_by(then[1], obj.pose, obj.shape.bounding_radius()))
+        return slack
 
-def _size(clearance: SegmentClearance) -> int:
-    return clearance.fractions.nbytes + clearance.scene.nbytes + clearance.pairs.nbytes + 256
+    def _shapes_of(self, scene: Scene) -> dict[str, str]:
+        if not scene.hash:
+            return shape_digests(scene)
+        shapes = self._shapes.get(scene.hash)
+        if shapes is None:
+            shapes = shape_digests(scene)
+            self._shapes.put(scene.hash, shapes)
+        return shapes
 
 
-def _digest(segment: FloatArray) -> bytes:
+def _key(scope: MemoScope, segment: FloatArray) -> _Key:
     array = np.ascontiguousarray(segment, dtype=np.float64)
-    return hashlib.sha256(array.tobytes()).digest()
+    return scope.model_id, scope.settings, hashlib.sha256(array.tobytes()).digest()
+
+
+def _size(measured: _Measured) -> int:
+    c = measured.clearance
+    return c.fractions.nbytes + c.scene.nbytes + c.pairs.nbytes + 256 * (1 + len(measured.objects))

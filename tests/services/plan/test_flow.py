@@ -510,6 +510,13 @@ def test_a_hit_proves_its_ends_from_the_clearance_measured_after_the_plan(
     assert (hit.source, hit.trajectory_id) == (PlanSource.CACHE, planned.trajectory_id)
     assert hit.memo in (MemoUse.ENDS, MemoUse.CERTIFICATE)  # its interior known either way
     assert checked == [] and hit.ends_proved == 1.0  # both proved by the stored ends' clearance
+    moved = {**blocker(), "pose": {"position": [0.25 * math.sin(-0.5) + 0.01, 0.0, 0.32]}}
+    with ctx.sessions() as session:  # the blocker moved by about a centimetre
+        put_scene(session=session, scenes=ctx.scenes, robot_id="r1", scene=parse_scene(
+            {"objects": [moved]}))  # fmt: skip
+    carried = ask(ctx, [0.024, 0.003], [0.976, -0.003], max_candidates=1)
+    assert carried.source is PlanSource.CACHE and carried.trajectory_id == planned.trajectory_id
+    assert checked == [] and carried.ends_proved == 1.0  # carried over, less the move
     ctx.end_clearances.clear()
     again = ask(ctx, [0.026, 0.004], [0.974, -0.004], max_candidates=1)
     assert again.source is PlanSource.CACHE and again.memo in (MemoUse.ENDS, MemoUse.CERTIFICATE)

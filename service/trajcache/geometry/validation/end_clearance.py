@@ -92,6 +92,11 @@ class SegmentClearance:
         """The same bounds for the segment run backwards."""
         return SegmentClearance(1.0 - self.fractions[::-1], self.scene[::-1], self.pairs[::-1])
 
+    def less(self, slack: float) -> SegmentClearance:
+        """The bounds in a scene whose objects moved by at most `slack` (the robot pairs' do
+        not change)."""
+        return SegmentClearance(self.fractions, self.scene - slack, self.pairs)
+
     def unproved(
         self, checker: CollisionChecker, old: FloatArray, new: FloatArray
     ) -> tuple[float, float] | None:

@@ -105,7 +105,7 @@ def measure_ends(attempt: PlanAttempt, states: FloatArray) -> None:
     validator = attempt.validator
     for segment in (states[:2], states[-2:]):
         clearance = measure_clearance(validator, segment)
-        attempt.ctx.end_clearances.put(scope, segment, clearance)
+        attempt.ctx.end_clearances.put(scope, segment, clearance, attempt.scene)
 
 
 def _ends_fn(
@@ -122,7 +122,7 @@ def _ends_fn(
         validate_ends,
         validator,
         stored=oriented,
-        known=functools.partial(ctx.end_clearances.get, scope),
+        known=lambda segment: ctx.end_clearances.get(scope, segment, attempt.scene),
         audit=ctx.settings.certificate_audit,
         proved=attempt.ends_proved,
     )
