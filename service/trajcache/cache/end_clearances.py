@@ -2,7 +2,8 @@
 
 A hit replaces a stored path's first and last states; `geometry/validation/end_clearance.py`
 proves most of each new end segment from the clearance measured along the stored one. They are
-measured after a planned path is stored, off the request path, and kept here, bounded, by the
+measured by the record writer, off the request path (`services.plan.certified`: after a path is
+planned and stored, and after a hit on one whose ends had none here), and kept here, bounded, by the
 model variant, the validator settings and the exact bits of the segment's two states, with the
 scene they were measured in: its hash, and each object's shape digest and pose. A segment
 looked up the other way round finds its clearance reversed.
@@ -27,7 +28,7 @@ from trajcache.core.lru import LRU
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certificates import moved_by, shape_digests
-from trajcache.geometry.validation.end_clearance import SegmentClearance
+from trajcache.geometry.validation.end_clearance import CAP, SegmentClearance
 
 __all__ = ["EndClearances"]
 
@@ -47,14 +48,14 @@ class EndClearances:
 
     def __init__(self, max_bytes: int = 32 * 1024 * 1024) -> None:
         self._entries: LRU[_Key, _Measured] = LRU(max_size=max_bytes, size_fn=_size)
-        self._shapes: LRU[str, dict[str, str]] = LRU(capacity=64)  # by scene hash
+        self._slacks: LRU[tuple[str, str], float] = LRU(capacity=1024)  # by the scenes' hashes
 
     def put(
         self, scope: MemoScope, segment: FloatArray, clearance: SegmentClearance, scene: Scene
     ) -> None:
         """Keep the clearance measured along `segment` (2, D) in `scope`, whose scene is
         `scene`."""
-        shapes = self._shapes_of(scene)
+        shapes = shape_digests(scene)
         objects = {o.id: (shapes[o.id], np.array(o.pose, dtype=float)) for o in scene.objects}
         self._entries.put(_key(scope, segment), _Measured(clearance, scope.scene_hash, objects))
 
@@ -76,31 +77,35 @@ class EndClearances:
     def clear(self) -> None:
         """Forget everything."""
         self._entries.clear()
-        self._shapes.clear()
+        self._slacks.clear()
 
     def __len__(self) -> int:
         return len(self._entries)
 
     def _slack(self, measured: _Measured, scene: Scene) -> float | None:
         """The most an object of `scene` moved from where it was measured; None when one is
-        new or other."""
-        shapes = self._shapes_of(scene)
-        slack = 0.0
-        for obj in scene.objects:
-            then = measured.objects.get(obj.id)
-            if then is None or then[0] != shapes[obj.id]:
-                return None
-            slack = max(slack, moved_by(then[1], obj.pose, obj.shape.bounding_radius()))
+        new or other, or moved by `CAP` or more (nothing is left to prove with)."""
+        key = (measured.scene_hash, scene.hash)
+        known = self._slacks.get(key) if scene.hash else None
+        if known is not None:
+            return None if known < 0 else known
+        slack = _largest_move(measured, scene)
+        if scene.hash:
+            self._slacks.put(key, -1.0 if slack is None else slack)
         return slack
 
-    def _shapes_of(self, scene: Scene) -> dict[str, str]:
-        if not scene.hash:
-            return shape_digests(scene)
-        shapes = self._shapes.get(scene.hash)
-        if shapes is None:
-            shapes = shape_digests(scene)
-            self._shapes.put(scene.hash, shapes)
-        return shapes
+
+def _largest_move(measured: _Measured, scene: Scene) -> float | None:
+    shapes = shape_digests(scene)
+    slack = 0.0
+    for obj in scene.objects:
+        then = measured.objects.get(obj.id)
+        if then is None or then[0] != shapes[obj.id]:
+            return None
+        slack = max(slack, moved_by(then[1], obj.pose, obj.shape.bounding_radius()))
+        if slack >= CAP:
+            return None
+    return slack
 
 
 def _key(scope: MemoScope, segment: FloatArray) -> _Key:

@@ -523,3 +523,18 @@ def test_a_hit_proves_its_ends_from_the_clearance_measured_after_the_plan(
     assert again.ends_proved == 0.0
     ends = np.concatenate(checked)  # without: both new end segments, in full
     assert np.array_equal(ends, [[[0.026, 0.004], [0.3, 0.1]], [[0.7, 0.1], [0.974, -0.004]]])
+
+
+def test_a_stored_path_s_ends_are_measured_after_its_first_hit(ctx: ServiceContext) -> None:
+    """A trajectory this process did not plan (imported, seeded, another replica's) gets its
+    end clearances measured by the writer after a hit, for the hits that follow."""
+    stored = setup_robot(ctx, [blocker()], ARM_PATH)
+    first = ask(ctx, [0.02, 0.0], [0.98, 0.0], max_candidates=1)
+    assert (first.source, first.trajectory_id) == (PlanSource.CACHE, stored)
+    assert first.ends_proved is None  # validated whole: its ends were not looked up
+    assert len(ctx.end_clearances) == 0
+    written(ctx, stored)
+    assert len(ctx.end_clearances) == 2
+    second = ask(ctx, [0.025, 0.004], [0.975, -0.004], max_candidates=1)
+    assert (second.source, second.memo) == (PlanSource.CACHE, MemoUse.ENDS)
+    assert second.ends_proved == 1.0

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from trajcache.core.lru import LRU
 from trajcache.geometry.model.shapes import FloatArray, ShapeKind
 from trajcache.geometry.scene.scene import Scene, SceneObject
 from trajcache.geometry.validation.stamp import certifier_digest
@@ -73,6 +74,7 @@ __all__ = [
 ]
 
 MAX_OBJECTS = 4096  # object digests kept per certificate (the current scene's first)
+_SCENE_DIGESTS: LRU[tuple[str, bool], dict[str, str]] = LRU(capacity=256)  # by content hash
 
 
 class CertificateDisagreement(AssertionError):
@@ -148,6 +150,9 @@ class ObjectClearance:
         """Whether it proves the interior clear of `obj` (module docstring)."""
         if shape != self.shape:
             return False
+        shift = float(np.linalg.norm(obj.pose[:3, 3] - self.pose[:3, 3]))
+        if shift >= self.clearance:  # the move's bound is at least this: no need for the turn
+            return False
         return moved_by(self.pose, obj.pose, obj.shape.bounding_radius()) < self.clearance
 
 
@@ -166,21 +171,28 @@ def _digest(obj: SceneObject, touches: Iterable[str], *, pose: bool) -> str:
 
 
 def object_digests(scene: Scene) -> dict[str, str]:
-    """Each world object's digest, by id (an object id in an allowed pair covers its parts)."""
-    touches = _touches(scene)
-    return {
-        obj.id: object_digest(obj, touches.get(obj.id.partition("#")[0], ()))
-        for obj in scene.objects
-    }
+    """Each world object's digest, by id (an object id in an allowed pair covers its parts);
+    kept per scene content hash."""
+    return _digests(scene, pose=True)
 
 
 def shape_digests(scene: Scene) -> dict[str, str]:
-    """Each world object's `shape_digest`, by id."""
+    """Each world object's `shape_digest`, by id; kept per scene content hash."""
+    return _digests(scene, pose=False)
+
+
+def _digests(scene: Scene, *, pose: bool) -> dict[str, str]:
+    known = _SCENE_DIGESTS.get((scene.hash, pose)) if scene.hash else None
+    if known is not None:
+        return known
     touches = _touches(scene)
-    return {
-        obj.id: shape_digest(obj, touches.get(obj.id.partition("#")[0], ()))
+    digests = {
+        obj.id: _digest(obj, touches.get(obj.id.partition("#")[0], ()), pose=pose)
         for obj in scene.objects
     }
+    if scene.hash:
+        _SCENE_DIGESTS.put((scene.hash, pose), digests)
+    return digests
 
 
 def _touches(scene: Scene) -> dict[str, list[str]]:

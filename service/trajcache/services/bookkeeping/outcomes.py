@@ -25,7 +25,12 @@ from typing import Any
 
 from trajcache.services.bookkeeping.metrics import record_plan
 from trajcache.services.bookkeeping.ranking_facts import RankingFactsCache
-from trajcache.services.bookkeeping.record_batch import EventDetails, PlanRecord, QualityJob
+from trajcache.services.bookkeeping.record_batch import (
+    EventDetails,
+    PlanRecord,
+    QualityJob,
+    WriterJob,
+)
 from trajcache.services.bookkeeping.records import PlanRecorder
 from trajcache.services.catalog.certificates import CertificateWrite
 
@@ -51,6 +56,7 @@ class PlanOutcome:
     details: EventDetails | None = None  # event columns the writer works out (why they failed)
     quality: QualityJob | None = None  # a newly planned trajectory's quality, written with it
     certificates: tuple[CertificateWrite, ...] = ()  # what the request's validations proved
+    jobs: tuple[WriterJob, ...] = ()  # work for later requests, done by the writer first
 
 
 def record_outcome(outcome: PlanOutcome, *, records: PlanRecorder, facts: RankingFactsCache) -> int:
@@ -69,6 +75,7 @@ def record_outcome(outcome: PlanOutcome, *, records: PlanRecorder, facts: Rankin
             quality=outcome.quality,
             details=outcome.details,
             certificates=outcome.certificates,
+            jobs=outcome.jobs,
         )
     )
     if served is not None:

@@ -20,7 +20,7 @@ from sqlalchemy import Engine
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.services.catalog.certificates import CertificateWrite, write_certificates
 
-__all__ = ["EventDetails", "PlanRecord", "QualityJob", "committed", "write_records"]
+__all__ = ["EventDetails", "PlanRecord", "QualityJob", "WriterJob", "committed", "write_records"]
 
 _log = logging.getLogger(__name__)
 
@@ -44,6 +44,25 @@ class QualityJob:
                 _log.warning("quality of trajectory %d could not be computed", self.trajectory_id,
                              exc_info=True)  # fmt: skip
         return self._values
+
+
+class WriterJob:
+    """Work that a request leaves to the writer (off the request path, before the record's
+    transaction; once, whatever the retries), whose result the record does not hold: measuring
+    clearances for later hits. A failure is logged; the record is written."""
+
+    def __init__(self, what: str, run: Callable[[], None]):
+        self.what = what
+        self._run: Callable[[], None] | None = run
+
+    def run(self) -> None:
+        """Do it, the first time only."""
+        if self._run is not None:
+            run, self._run = self._run, None
+            try:
+                run()
+            except Exception:  # it must never cost the record
+                _log.warning("%s could not be done", self.what, exc_info=True)
 
 
 class EventDetails:
@@ -78,6 +97,7 @@ class PlanRecord:
     quality: QualityJob | None = None  # a newly planned trajectory's quality, written with it
     details: EventDetails | None = None  # event columns the writer computes
     certificates: tuple[CertificateWrite, ...] = ()  # what its validations proved
+    jobs: tuple[WriterJob, ...] = ()  # done first, for later requests
 
 
 _T = Trajectory
@@ -138,6 +158,8 @@ def write_records(engine: Engine, records: Iterable[PlanRecord]) -> None:
     events: list[dict[str, Any]] = []
     qualities: list[dict[str, Any]] = []
     for record in records:
+        for job in record.jobs:
+            job.run()
         for write in record.certificates:  # measured before the transaction, as quality is
             if write.clearances is not None:
                 write.clearances.run()

@@ -160,6 +160,7 @@ def _record(
             details=details,
             quality=quality,
             certificates=tuple(attempt.certificates),
+            jobs=tuple(attempt.writer_jobs),
         ),
         records=ctx.records,
         facts=ctx.facts,

@@ -28,6 +28,7 @@ from trajcache.geometry.validation.certificates import CertificateUse
 from trajcache.geometry.validation.validator import TrajectoryValidator, validator_for
 from trajcache.services.bookkeeping.answer_quality import AnswerDetails
 from trajcache.services.bookkeeping.outcomes import Requester
+from trajcache.services.bookkeeping.record_batch import WriterJob
 from trajcache.services.bookkeeping.rejections import Rejections
 from trajcache.services.catalog.certificates import CertificateWrite
 from trajcache.services.context import ServiceContext
@@ -187,6 +188,9 @@ class PlanAttempt:
     tried: int = 0  # candidates counted in the answer and its plan event
     certificates: list[CertificateWrite] = field(default_factory=list)  # to write with the record
     certificate_use: CertificateUse | None = None  # the last certificate a validation used
+    writer_jobs: list[WriterJob] = field(default_factory=list)  # for the record writer
+    ends_missing: list[np.ndarray] = field(default_factory=list)  # stored end segments without
+    # a clearance here, of the candidate being validated
     ends_proved: list[float] = field(default_factory=list)  # end segments' shares proved by
     # their stored clearance (`end_clearance.py`), for each end validated, in order
     goal_found_by: str | None = None  # a pose goal's state came from: "cached" or "ik"

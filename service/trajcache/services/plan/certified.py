@@ -34,7 +34,11 @@ from trajcache.geometry.validation.certificates import (
     stamp_of,
     validate_with_certificate,
 )
-from trajcache.geometry.validation.end_clearance import measure_clearance, validate_ends
+from trajcache.geometry.validation.end_clearance import (
+    SegmentClearance,
+    measure_clearance,
+    validate_ends,
+)
 from trajcache.geometry.validation.object_clearance import object_clearances
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
@@ -42,6 +46,7 @@ from trajcache.geometry.validation.validator import (
     settings_key_of,
     validator_for,
 )
+from trajcache.services.bookkeeping.record_batch import WriterJob
 from trajcache.services.catalog.certificates import CertificateWrite, Certified, ClearanceJob
 from trajcache.services.plan.attempt import PlanAttempt
 
@@ -54,6 +59,7 @@ def validate_candidate(
     """The verdict on an adapted candidate, and what spared work (module docstring)."""
     ctx, scope, validator = attempt.ctx, attempt.memo_scope, attempt.validator
     attempt.ends_proved.clear()  # this candidate's, if its ends are validated alone
+    attempt.ends_missing.clear()
     # A hit the memo knows (the same scene) needs no certificate: its key is not even computed.
     known = scope is None or _memo_knows(attempt, adapted)
     key = None if known else _key(attempt, adapted)
@@ -75,16 +81,18 @@ def validate_candidate(
             if result.valid:
                 remember_path(ctx.memo, scope, adapted)
                 _keep(attempt, match.trajectory_id, key, certified, adapted)
+                _measure(attempt, list(attempt.ends_missing))
             return result, MemoUse.CERTIFICATE
+    ends_fn = _ends_fn(attempt, match)
     result, memo_use = validate_with_memo(
-        adapted,
-        validate_fn=validator.validate,
-        segments_fn=_ends_fn(attempt, match),
-        memo=ctx.memo,
-        scope=scope,
+        adapted, validate_fn=validator.validate, segments_fn=ends_fn, memo=ctx.memo, scope=scope
     )
     if result.valid and memo_use is MemoUse.NONE and key is not None:
         _keep(attempt, match.trajectory_id, key, Certified(), adapted)
+    if result.valid and memo_use is MemoUse.NONE:  # its stored ends were not looked up
+        _look_up_ends(attempt, match)
+    if result.valid:
+        _measure(attempt, list(attempt.ends_missing))
     return result, memo_use
 
 
@@ -96,16 +104,38 @@ def certify_planned(attempt: PlanAttempt, trajectory_id: int, states: FloatArray
 
 
 def measure_ends(attempt: PlanAttempt, states: FloatArray) -> None:
-    """Measure the clearance along the first and last segments of a path certified in the
-    attempt's scene, for its later hits (`geometry/validation/end_clearance.py`): off the
-    request path, by the record writer."""
-    scope = attempt.memo_scope
-    if scope is None or len(states) < 4 or attempt.model.base is not BaseType.FIXED:
+    """Have the record writer measure the clearance along the first and last segments of a
+    path certified in the attempt's scene, for its later hits
+    (`geometry/validation/end_clearance.py`)."""
+    if len(states) >= 4:
+        _measure(attempt, [states[:2].copy(), states[-2:].copy()])
+
+
+def _measure(attempt: PlanAttempt, segments: list[FloatArray]) -> None:
+    """Have the record writer measure `segments` (each (2, D), certified in the attempt's
+    scene) and keep their clearances."""
+    scope, ctx, scene = attempt.memo_scope, attempt.ctx, attempt.scene
+    if scope is None or attempt.model.base is not BaseType.FIXED or not segments:
         return
     validator = attempt.validator
-    for segment in (states[:2], states[-2:]):
-        clearance = measure_clearance(validator, segment)
-        attempt.ctx.end_clearances.put(scope, segment, clearance, attempt.scene)
+
+    def run() -> None:
+        for segment in segments:
+            clearance = measure_clearance(validator, segment)
+            ctx.end_clearances.put(scope, segment, clearance, scene)
+
+    attempt.writer_jobs.append(WriterJob("measuring end clearances", run))
+
+
+def _look_up_ends(attempt: PlanAttempt, match: Match) -> None:
+    """Note the candidate's stored end segments that have no clearance in this scene."""
+    stored, scope = attempt.candidates.get(match.trajectory_id), attempt.memo_scope
+    if stored is None or scope is None or len(stored) < 4:
+        return
+    oriented = stored[::-1] if match.reversed else stored
+    for segment in (oriented[:2], oriented[-2:]):
+        if attempt.ctx.end_clearances.get(scope, segment, attempt.scene) is None:
+            attempt.ends_missing.append(segment.copy())
 
 
 def _ends_fn(
@@ -118,11 +148,18 @@ def _ends_fn(
     if scope is None or stored is None or attempt.model.base is not BaseType.FIXED:
         return validator.validate_segments
     oriented = stored[::-1] if match.reversed else stored
+
+    def known(segment: FloatArray) -> SegmentClearance | None:
+        found = ctx.end_clearances.get(scope, segment, attempt.scene)
+        if found is None:
+            attempt.ends_missing.append(segment.copy())
+        return found
+
     return functools.partial(
         validate_ends,
         validator,
         stored=oriented,
-        known=lambda segment: ctx.end_clearances.get(scope, segment, attempt.scene),
+        known=known,
         audit=ctx.settings.certificate_audit,
         proved=attempt.ends_proved,
     )

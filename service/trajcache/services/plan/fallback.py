@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from typing import Any
 
 import numpy as np
 
@@ -103,6 +102,7 @@ def store_and_answer(
     )
     certify_planned(attempt, trajectory_id, path)
     job = _quality_job(attempt, trajectory_id, path) if created else None
+    measure_ends(attempt, path)  # by the writer, before its quality: a hit may follow at once
     planned = PlannedPath(
         trajectory_id,
         path,
@@ -116,20 +116,12 @@ def store_and_answer(
 
 
 def _quality_job(attempt: PlanAttempt, trajectory_id: int, path: np.ndarray) -> QualityJob:
-    """The clearance along the stored path's end segments, for its hits (first: a hit may
-    follow at once; nothing is decided there); then its quality columns, computed by the
-    record writer."""
+    """The stored path's quality columns, computed by the record writer."""
     model, scene, settings = attempt.model, attempt.scene, attempt.ctx.settings
     validators = attempt.ctx.validators
-
-    def quality() -> Mapping[str, Any] | None:
-        try:
-            measure_ends(attempt, path)
-        except Exception:
-            logger.exception("measuring the end clearances of %d failed", trajectory_id)
-        return quality_columns(model, path, settings, scene, validators=validators)
-
-    return QualityJob(trajectory_id, quality)
+    return QualityJob(
+        trajectory_id, lambda: quality_columns(model, path, settings, scene, validators=validators)
+    )
 
 
 def planner_phases(stats: Mapping[str, float], plan_ms: float) -> dict[str, float]:
