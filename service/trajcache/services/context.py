@@ -14,6 +14,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from trajcache.cache.end_clearances import EndClearances
 from trajcache.cache.memo import ValidationMemo
 from trajcache.cache.ranking import RankingRules
+from trajcache.core.budget import WorkBudget
 from trajcache.core.config import Settings
 from trajcache.core.lru import LRU
 from trajcache.db.session import make_engine, make_sessionmaker
@@ -61,6 +62,7 @@ class ServiceContext:
     )
     certificates: CertificateStore = field(default_factory=CertificateStore)  # what was proved
     end_clearances: EndClearances = field(default_factory=EndClearances)  # along stored ends
+    measuring: WorkBudget = field(default_factory=WorkBudget)  # the writer's share for them
     planner: PlannerPool | None = None  # started by planner_pool(), closed by close()
     _planner_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 

@@ -28,6 +28,7 @@ from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.scene import SceneObject, make_scene
 from trajcache.geometry.validation.certificates import (
     CertificateKey,
+    ObjectClearance,
     merged,
     object_digests,
     path_digest,
@@ -124,7 +125,11 @@ def _measure(attempt: PlanAttempt, segments: list[FloatArray]) -> None:
             clearance = measure_clearance(validator, segment)
             ctx.end_clearances.put(scope, segment, clearance, scene)
 
-    attempt.writer_jobs.append(WriterJob("measuring end clearances", run))
+    def within_budget() -> None:  # the writer's share of a core, or not at all
+        ctx.measuring.spend(run)
+
+    job = WriterJob("measuring end clearances", within_budget)
+    attempt.writer_jobs.append(job)
 
 
 def _look_up_ends(attempt: PlanAttempt, match: Match) -> None:
@@ -194,9 +199,14 @@ def _keep(
     clearances = None
     if objects != known.objects or not known.clearances:
         validator, scene, interior = attempt.validator, attempt.scene, states[1:-1].copy()
-        clearances = ClearanceJob(
-            lambda: object_clearances(validator, interior, scene), kept=known.clearances
-        )
+        budget = attempt.ctx.measuring
+        found: dict[str, ObjectClearance] = {}
+
+        def measure() -> dict[str, ObjectClearance]:  # within the writer's share, or none
+            budget.spend(lambda: found.update(object_clearances(validator, interior, scene)))
+            return found
+
+        clearances = ClearanceJob(measure, kept=known.clearances)
     elif known.clearances:
         clearances = ClearanceJob(lambda: {}, kept=known.clearances)
     write = CertificateWrite(trajectory_id, key, objects, clearances)
