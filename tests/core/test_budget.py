@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from trajcache.core.budget import WorkBudget
 
 
@@ -39,8 +41,6 @@ def test_work_that_raises_still_counts() -> None:
         clock.now += 0.2
         raise RuntimeError("no")
 
-    try:
+    with pytest.raises(RuntimeError):
         budget.spend(failing)
-    except RuntimeError:
-        pass
     assert not budget.spend(lambda: None)
