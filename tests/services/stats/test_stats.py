@@ -271,6 +271,27 @@ def test_a_long_window_on_a_young_service_is_charted_over_its_data(
     assert empty.bucket_s == 3600 and 24 <= len(empty.series) <= 25  # no data: the whole window
 
 
+def test_the_series_starts_in_the_bucket_of_the_first_event(
+    sessions: sessionmaker[Session],
+) -> None:
+    """The first event 0.36 s into a minute, `now` 1.65 s into one: the span, in whole seconds,
+    reaches back past the minute's start, but the series starts at the event's minute."""
+    now = datetime(2030, 5, 6, 16, 54, 1, 647482, tzinfo=UTC)
+    first = datetime(2030, 5, 6, 13, 55, 0, 357209, tzinfo=UTC)
+    events = [
+        Event(first + timedelta(minutes=k), "r1", "m-a", "success", "cache", 0.2, 1.0, 0.0)
+        for k in range(0, 170, 7)
+    ]
+    with sessions() as session:
+        store(session, events)
+        stats = plan_stats(session=session, window_s=3 * 3600, now=now)
+    assert stats.bucket_s == 60
+    start = stats.series[0][0]
+    assert start <= first < start + timedelta(seconds=60)
+    assert stats.series[0][1].requests == 1
+    assert sum(m.requests for _, m in stats.series) == len(events)
+
+
 def test_group_by_model_and_source(sessions: sessionmaker[Session]) -> None:
     now = datetime.now(UTC)
     events = make_events(now, 400, hours=20, seed=2)

@@ -183,7 +183,7 @@ def plan_stats(
     _check_query(group_by, filters.requester)
     until = now or datetime.now(UTC)
     since = until - timedelta(seconds=window_s)
-    span_s = _data_span_s(session, since, until, filters)
+    span_s, start = _data_span(session, since, until, filters)
     bucket_s = bucket_seconds(span_s)
     rows = _window_rows(session, since, until, bucket_s, filters)
 
@@ -191,7 +191,7 @@ def plan_stats(
     models, model = codes(rows.model)
     medians, planned = _median_plan_ms(rows, category, model, len(models))
     keys, requesters, group = _group_codes(rows, group_by)
-    first = int(until.timestamp() - span_s) // bucket_s * bucket_s
+    first = int(start // bucket_s) * bucket_s  # the bucket of the first event (not before it)
     slots = (math.ceil(until.timestamp()) - 1 - first) // bucket_s + 1
     slot = np.clip((rows.t - first) // bucket_s, 0, slots - 1)
 
@@ -226,14 +226,19 @@ def plan_stats(
     )
 
 
-def _data_span_s(session: Session, since: datetime, until: datetime, filters: EventFilter) -> int:
-    """Seconds the time series covers: from the window's first event to `until`, at least
-    `MIN_SPAN_S`, at most the window (the whole window when it holds no event)."""
+def _data_span(
+    session: Session, since: datetime, until: datetime, filters: EventFilter
+) -> tuple[int, float]:
+    """Whole seconds the time series covers, and when it starts (a POSIX time): from the
+    window's first event to `until`, at least `MIN_SPAN_S`, at most the window (the whole window
+    when it holds no event)."""
     window_s = round((until - since).total_seconds())
+    end = until.timestamp()
     first = first_event_at(session, since, until, filters)
     if first is None:
-        return window_s
-    return min(window_s, max(MIN_SPAN_S, math.ceil((until - first).total_seconds())))
+        return window_s, end - window_s
+    start = max(end - window_s, min(first.timestamp(), end - MIN_SPAN_S))
+    return math.ceil(end - start), start
 
 
 def categories(status: npt.NDArray[np.object_], source: npt.NDArray[np.object_]) -> np.ndarray:
