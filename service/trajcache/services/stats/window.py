@@ -226,18 +226,13 @@ def plan_stats(
     )
 
 
-def _data_span(
-    session: Session, since: datetime, until: datetime, filters: EventFilter
-) -> tuple[int, float]:
-    """Whole seconds the time series covers, and when it starts (a POSIX time): from the
-    window's first event to `until`, at least `MIN_SPAN_S`, at most the window (the whole window
-    when it holds no event)."""
-    window_s = round((until - since).total_seconds())
-    end = until.timestamp()
-    first = first_event_at(session, since, until, filters)
-    if first is None:
-        return window_s, end - window_s
-    start = max(end - window_s, min(first.timestamp(), end - MIN_SPAN_S))
+def _data_span(s: Session, since: datetime, until: datetime, f: EventFilter) -> tuple[int, float]:
+    """Whole seconds the time series covers, and its start (POSIX): from the window's first
+    event to `until`, at least `MIN_SPAN_S`, at most the window (all of it without events)."""
+    window_s, end = round((until - since).total_seconds()), until.timestamp()
+    first = first_event_at(s, since, until, f)
+    start = end - window_s if first is None else min(first.timestamp(), end - MIN_SPAN_S)
+    start = max(end - window_s, start)
     return math.ceil(end - start), start
 
 
