@@ -4,6 +4,7 @@ Panda as shipped (meshes, SRDF), against a 20× denser check; the audit; the sto
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -23,7 +24,6 @@ from trajcache.geometry.validation.end_clearance import (
     SegmentClearance,
     measure_clearance,
     motion_tables,
-    validate_end,
     validate_ends,
 )
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
@@ -70,6 +70,15 @@ def _stored_segment(
             return validator, segment
 
 
+@dataclass(frozen=True)
+class _Known:
+    stored: FloatArray
+    clearance: SegmentClearance
+
+    def get(self, segment: FloatArray) -> SegmentClearance | None:
+        return self.clearance if np.array_equal(segment, self.stored) else None
+
+
 def test_what_a_clearance_proves_a_denser_check_finds_free(panda: RobotModel) -> None:
     rng = np.random.default_rng(5)
     outcomes = {"proved": 0, "shortened": 0, "colliding": 0, "free": 0}
@@ -78,6 +87,7 @@ def test_what_a_clearance_proves_a_denser_check_finds_free(panda: RobotModel) ->
         clearance = measure_clearance(validator, stored)
         assert clearance.scene.shape[0] == clearance.pairs.shape[0] == len(clearance.fractions) - 1
         assert (clearance.scene <= CAP).all() and (clearance.pairs <= CAP).all()
+        known = _Known(stored, clearance)
         for size in (0.005, 0.02, 0.08, 0.25):
             for end in (0, 1, 2):  # a new first state, a new last state, both
                 new = stored.copy()
@@ -85,7 +95,7 @@ def test_what_a_clearance_proves_a_denser_check_finds_free(panda: RobotModel) ->
                     moved = stored[k] + rng.uniform(-size, size, panda.dof)
                     new[k] = np.clip(moved, panda.lower, panda.upper)
                 span = clearance.unproved(validator.checker, stored, new)
-                verdict = validate_end(validator, new, (stored, clearance))
+                verdict = validate_ends(validator, new, [0], stored=stored, known=known.get)
                 free = _dense_free(validator, new)
                 if span is None:
                     outcomes["proved"] += 1
@@ -235,6 +245,18 @@ def test_the_store_keys_by_variant_and_segment_and_follows_the_scene(panda: Robo
     for k in range(10):
         small.put(scope, segment + k, clearance, scene)
     assert 0 < len(small) < 10  # bounded in bytes
+
+
+def test_a_segment_is_claimed_for_measuring_once_per_scene(panda: RobotModel) -> None:
+    store = EndClearances()
+    scope = MemoScope(panda.model_id, "scene-1", ("settings",))
+    segment = np.array([np.zeros(panda.dof), np.full(panda.dof, 0.3)])
+    assert store.claim(scope, segment)
+    assert not store.claim(scope, segment) and not store.claim(scope, segment[::-1])
+    assert store.claim(MemoScope(panda.model_id, "scene-2", ("settings",)), segment)
+    assert store.claim(scope, segment + 0.1)  # another segment
+    store.release(scope, segment)
+    assert store.claim(scope, segment)  # measured, or given up: it may be queued again
 
 
 def test_a_clearance_carried_to_moved_objects_proves_only_free_segments(

@@ -19,6 +19,7 @@ something else) gets none.
 from __future__ import annotations
 
 import hashlib
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,9 @@ class EndClearances:
     def __init__(self, max_bytes: int = 32 * 1024 * 1024) -> None:
         self._entries: LRU[_Key, _Measured] = LRU(max_size=max_bytes, size_fn=_size)
         self._slacks: LRU[tuple[str, str], float] = LRU(capacity=1024)  # by the scenes' hashes
+        # Segments queued for measuring, by scene hash; a claim whose job never ran expires.
+        self._queued: LRU[tuple[_Key, str], bool] = LRU(capacity=4096, ttl_s=60.0)
+        self._lock = threading.Lock()  # a claim's look and put are one step
 
     def put(
         self, scope: MemoScope, segment: FloatArray, clearance: SegmentClearance, scene: Scene
@@ -74,10 +78,28 @@ class EndClearances:
         slack = self._slack(found, scene)
         return None if slack is None else clearance.less(slack)
 
+    def claim(self, scope: MemoScope, segment: FloatArray) -> bool:
+        """Whether the caller is the first to queue a measurement of `segment` (2, D), either
+        way round, in `scope`'s scene; True once more after `release`."""
+        forward, backward = _key(scope, segment), _key(scope, segment[::-1])
+        with self._lock:
+            if (forward, scope.scene_hash) in self._queued or (
+                backward,
+                scope.scene_hash,
+            ) in self._queued:
+                return False
+            self._queued.put((forward, scope.scene_hash), True)
+            return True
+
+    def release(self, scope: MemoScope, segment: FloatArray) -> None:
+        """`segment`'s measurement in `scope`'s scene ended, kept or not."""
+        self._queued.discard((_key(scope, segment), scope.scene_hash))
+
     def clear(self) -> None:
         """Forget everything."""
         self._entries.clear()
         self._slacks.clear()
+        self._queued.clear()
 
     def __len__(self) -> int:
         return len(self._entries)

@@ -34,7 +34,7 @@ from trajcache.services.catalog.robots import put_robot
 from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
 from trajcache.services.errors import UnavailableError
-from trajcache.services.plan import flow
+from trajcache.services.plan import certified, flow
 from trajcache.services.plan.flow import PlanAnswer, PlanRequest, PlanSource, PlanStatus, plan
 
 ARM_PATH = [[0.0, 0.0], [0.3, 0.2], [0.7, 0.2], [1.0, 0.0]]
@@ -538,3 +538,31 @@ def test_a_stored_path_s_ends_are_measured_after_its_first_hit(ctx: ServiceConte
     second = ask(ctx, [0.025, 0.004], [0.975, -0.004], max_candidates=1)
     assert (second.source, second.memo) == (PlanSource.CACHE, MemoUse.ENDS)
     assert second.ends_proved == 1.0
+
+
+def test_a_hit_before_the_writer_measured_a_plan_s_ends_does_not_measure_them_again(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    setup_robot(ctx, [blocker()], DETOUR)
+    path = np.array([[0.02, 0.0], [0.3, 0.1], [0.7, 0.1], [0.98, 0.0]])
+    use_planner(ctx, monkeypatch, FakePlanner(PlanResult(PlannerStatus.SOLVED, path, seed=3)))
+    measured: list[np.ndarray] = []
+    go_on = threading.Event()
+    measure = certified.measure_clearance
+
+    def held(validator: TrajectoryValidator, segment: np.ndarray) -> Any:
+        measured.append(segment.copy())
+        go_on.wait(NEVER_BINDS_S)  # the writer measures the plan's ends only after the hit
+        return measure(validator, segment)
+
+    monkeypatch.setattr(certified, "measure_clearance", held)
+    planned = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True, max_candidates=0)
+    hit = ask(ctx, [0.025, 0.004], [0.975, -0.004], max_candidates=1)
+    assert (hit.source, hit.trajectory_id) == (PlanSource.CACHE, planned.trajectory_id)
+    assert hit.ends_proved == 0.0  # none measured yet
+    go_on.set()
+    assert planned.trajectory_id is not None
+    written(ctx, planned.trajectory_id)
+    assert len(measured) == 2 and len(ctx.end_clearances) == 2  # each end once, by the plan's job
+    again = ask(ctx, [0.024, 0.003], [0.976, -0.003], max_candidates=1)
+    assert again.ends_proved == 1.0

@@ -26,7 +26,7 @@ The test is made interval by interval of the stored segment's samples: on [t_k, 
 difference is at most its larger end value (|affine| is convex), and C_k holds there. The
 intervals it leaves form one span [t_lo, t_hi] (from the first to the last unproved one), and
 only the adapted segment's stretch y(t_lo) → y(t_hi), a straight motion itself, is validated
-in full (`validate_end`). A first segment ends where the stored one does (y(1) = x(1)), so
+in full (`_validate_span`). A first segment ends where the stored one does (y(1) = x(1)), so
 its far part is proved; a last segment starts where it does, so its near part is. With the
 certificate audit on, every segment a clearance shortened is validated again in full, and a
 disagreement raises (`validate_ends`).
@@ -69,7 +69,6 @@ __all__ = [
     "SegmentClearance",
     "measure_clearance",
     "motion_tables",
-    "validate_end",
     "validate_ends",
 ]
 
@@ -147,17 +146,6 @@ def measure_clearance(validator: TrajectoryValidator, segment: FloatArray) -> Se
     return SegmentClearance(np.arange(n) / (n - 1), scene, pairs)
 
 
-def validate_end(
-    validator: TrajectoryValidator,
-    new: FloatArray,
-    known: tuple[FloatArray, SegmentClearance] | None,
-) -> ValidationResult:
-    """Validate segment `new` (2, D): only the span that `known` (a certified segment and its
-    clearance) leaves, or all of it without one."""
-    span = (0.0, 1.0) if known is None else known[1].unproved(validator.checker, known[0], new)
-    return _validate_span(validator, new, span)
-
-
 def _validate_span(
     validator: TrajectoryValidator, new: FloatArray, span: tuple[float, float] | None
 ) -> ValidationResult:
@@ -224,11 +212,7 @@ def validate_ends(
                     f"an end clearance passed segment {i}, which full validation finds "
                     f"{truth.status.value}: {truth.message}"
                 )
-        total.samples += result.samples
-        total.narrow_checks += result.narrow_checks
-        total.subdivisions += result.subdivisions
-        if not result.valid:
-            result.samples, result.narrow_checks = total.samples, total.narrow_checks
-            result.subdivisions = total.subdivisions
-            return result
+        total = total.then(result)
+        if not total.valid:
+            break
     return total

@@ -86,6 +86,15 @@ class ValidationResult:
         """True when the whole trajectory is safe."""
         return self.status is ValidationStatus.VALID
 
+    def then(self, result: ValidationResult) -> ValidationResult:
+        """The verdict of this check followed by `result`'s: the counters summed, in `result`
+        if it failed (it is the verdict), else in this one."""
+        kept = self if result.valid else result
+        kept.samples = self.samples + result.samples
+        kept.narrow_checks = self.narrow_checks + result.narrow_checks
+        kept.subdivisions = self.subdivisions + result.subdivisions
+        return kept
+
 
 def settings_key(
     resolution: Resolution, certified: bool, min_pad: float = MIN_PAD, max_depth: int = MAX_DEPTH
@@ -121,11 +130,7 @@ class TrajectoryValidator:
         )
         if not self_collision:  # a verdict on the scene alone
             self.settings_key = (*self.settings_key, "scene only")
-        self.certifier = SegmentCertifier(
-            self.checker,
-            base=model.base,
-            options=certifier,
-        )
+        self.certifier = SegmentCertifier(self.checker, base=model.base, options=certifier)
 
     def validate(self, key_states: FloatArray) -> ValidationResult:
         """Check limits and collisions along the whole trajectory; stops at the first collision."""
@@ -151,13 +156,8 @@ class TrajectoryValidator:
             result = self._validate_samples(
                 interpolate(key[i : i + 2], self.model, self.resolution, self.subdivision)
             )
-            total.samples += result.samples
-            total.narrow_checks += result.narrow_checks
-            total.subdivisions += result.subdivisions
-            if not result.valid:
-                result.samples, result.narrow_checks = total.samples, total.narrow_checks
-                result.subdivisions = total.subdivisions
-                total = result
+            total = total.then(result)
+            if not total.valid:
                 break
         total.elapsed_ms = (time.perf_counter() - began) * 1e3
         return total
@@ -344,12 +344,8 @@ def validator_for(
     """A shared validator for this model, scene version and resolution (built once); without
     `self_collision`, of the scene alone."""
     scene_key = scene.hash or f"id:{id(scene)}"
-    key: tuple[object, ...] = (
-        model.model_id,
-        scene_key,
-        _resolution(settings),
-        settings.certified_validation,
-    )
+    key: tuple[object, ...] = (model.model_id, scene_key, _resolution(settings))
+    key = (*key, settings.certified_validation)
     if not self_collision:
         key = (*key, "scene only")
     return cache.validators.get_or_build(

@@ -116,17 +116,23 @@ def _measure(attempt: PlanAttempt, segments: list[FloatArray]) -> None:
     """Have the record writer measure `segments` (each (2, D), certified in the attempt's
     scene) and keep their clearances."""
     scope, ctx, scene = attempt.memo_scope, attempt.ctx, attempt.scene
-    if scope is None or attempt.model.base is not BaseType.FIXED or not segments:
+    if scope is None or attempt.model.base is not BaseType.FIXED:
         return
-    validator = attempt.validator
+    clearances, validator = ctx.end_clearances, attempt.validator
+    segments = [s for s in segments if clearances.claim(scope, s)]  # none measured twice
+    if not segments:
+        return
 
     def run() -> None:
         for segment in segments:
-            clearance = measure_clearance(validator, segment)
-            ctx.end_clearances.put(scope, segment, clearance, scene)
+            clearances.put(scope, segment, measure_clearance(validator, segment), scene)
 
     def within_budget() -> None:  # the writer's share of a core, or not at all
-        ctx.measuring.spend(run)
+        try:
+            ctx.measuring.spend(run)
+        finally:
+            for segment in segments:
+                clearances.release(scope, segment)
 
     job = WriterJob("measuring end clearances", within_budget)
     attempt.writer_jobs.append(job)
