@@ -13,7 +13,7 @@ from tests.robots import BRANCHED_URDF
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.kinematics import link_transforms
 from trajcache.geometry.model.robot import BaseType, RobotModel
-from trajcache.geometry.model.space import path_length
+from trajcache.geometry.model.space import path_length, segment_deltas
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.path_quality import (
     MAX_DISTANCE_QUERIES,
@@ -50,6 +50,36 @@ def test_end_effector_is_the_tip_of_the_longest_chain_or_the_configured_link(
     assert camera.link_names[end_effector_link(camera)] == "camera"
     with pytest.raises(ValueError, match="nowhere"):
         end_effector_link(dataclasses.replace(branched, end_effector_link="nowhere"))
+
+
+def _chord_sum(model: RobotModel, states: np.ndarray, step: float, most: int) -> float:
+    """`ee_path_length` by its docstring, in numpy: the compiled one is checked against it."""
+    deltas = segment_deltas(states, base=model.base)
+    steps = np.abs(deltas).max(axis=1) / step
+    scale = min(1.0, most / steps.sum()) if steps.sum() > 0 else 1.0
+    dense = [
+        states[k] + j / count * deltas[k]
+        for k, count in enumerate(np.maximum(np.ceil(steps * scale), 1).astype(int))
+        for j in range(count)
+    ]
+    tips = link_transforms(model, np.array([*dense, states[-1]]))[:, end_effector_link(model)]
+    return float(np.linalg.norm(np.diff(tips[:, :3, 3], axis=0), axis=1).sum())
+
+
+@pytest.mark.parametrize("base", ["planar", "fixed"])
+def test_end_effector_length_is_the_chord_sum_its_docstring_defines(base: str) -> None:
+    model = load_robot_model(BRANCHED_URDF, base=base)
+    rng = np.random.default_rng(4)
+    for n, step, most in itertools.product((2, 3, 9), (0.05, 0.01), (16, 1000)):
+        states = rng.uniform(
+            np.maximum(model.lower, -4), np.minimum(model.upper, 4), (n, model.dof)
+        )
+        states[1, -1] = states[0, -1]  # a segment that moves one value only
+        expected = _chord_sum(model, states, step, most)
+        assert ee_path_length(model, states, step=step, max_samples=most) == pytest.approx(
+            expected, rel=1e-12, abs=1e-12
+        )
+    assert ee_path_length(model, states[:1]) == 0.0
 
 
 def test_end_effector_length_of_a_rotation_is_the_arc(branched: RobotModel) -> None:

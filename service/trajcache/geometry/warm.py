@@ -20,6 +20,7 @@ from trajcache.geometry.model.kernels import hull_support_climb
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
+from trajcache.geometry.path_quality import ee_path_length
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
 
@@ -79,6 +80,7 @@ def _warm_validation(model: RobotModel, scene: Scene) -> None:
     validator = TrajectoryValidator(model, scene)
     validator.validate(_KEY)
     validator.certifier.settled_by_bounds(_KEY)
+    ee_path_length(model, _KEY)  # every answer's quality
 
 
 def _warm_checks(checker: CollisionChecker) -> None:
