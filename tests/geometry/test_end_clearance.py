@@ -24,6 +24,7 @@ from trajcache.geometry.validation.end_clearance import (
     SegmentClearance,
     measure_clearance,
     motion_tables,
+    open_intervals,
     validate_ends,
 )
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
@@ -107,6 +108,28 @@ def test_what_a_clearance_proves_a_denser_check_finds_free(panda: RobotModel) ->
                 outcomes["free" if free else "colliding"] += 1
     assert outcomes["proved"] > 2 and outcomes["shortened"] > 10, outcomes
     assert outcomes["colliding"] > 3, outcomes  # the moves reach the objects sometimes
+
+
+def test_the_compiled_span_is_the_motion_test_of_the_module_docstring() -> None:
+    rng = np.random.default_rng(11)
+    spans = set()
+    for n_pairs in (0, 5):
+        for _ in range(300):
+            k, e, d = int(rng.integers(2, 9)), 4, 3
+            fractions = np.linspace(0.0, 1.0, k)
+            scene = rng.uniform(0.0, 0.2, (k - 1, e))
+            pairs = rng.uniform(0.0, 0.2, (k - 1, n_pairs))
+            d0, d1 = rng.normal(0, 0.05, d) * (rng.random() < 0.7), rng.normal(0, 0.05, d)
+            element, pair = rng.uniform(0, 1, (e, d)), rng.uniform(0, 1, (n_pairs, d))
+            apart = np.abs(d0 + fractions[:, None] * (d1 - d0))  # in numpy, as the docstring
+            sigma = np.maximum(apart[:-1], apart[1:])
+            ok = (scene > sigma @ element.T).all(axis=1) & (pairs > sigma @ pair.T).all(axis=1)
+            bad = np.flatnonzero(~ok)
+            expected = (int(bad[0]), int(bad[-1])) if len(bad) else (-1, -1)
+            got = open_intervals(fractions, scene, pairs, d0, d1, element, pair)
+            assert got == expected
+            spans.add("none" if got[0] < 0 else "all" if got == (0, k - 2) else "part")
+    assert spans == {"none", "all", "part"}
 
 
 def test_a_clearance_is_a_lower_bound_of_the_dense_distance(panda: RobotModel) -> None:

@@ -22,6 +22,7 @@ from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.path_quality import ee_path_length
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
+from trajcache.geometry.validation.end_clearance import open_intervals
 from trajcache.geometry.validation.validator import TrajectoryValidator
 
 _WARM_URDF = """<robot name="warm">
@@ -81,6 +82,8 @@ def _warm_validation(model: RobotModel, scene: Scene) -> None:
     validator.validate(_KEY)
     validator.certifier.settled_by_bounds(_KEY)
     ee_path_length(model, _KEY)  # every answer's quality
+    one, two = np.zeros((1, 1)), np.zeros((1, 2))  # one interval, element and pair; two dofs
+    open_intervals(np.array([0.0, 1.0]), one, one, _KEY[0].copy(), _KEY[1].copy(), two, two)
 
 
 def _warm_checks(checker: CollisionChecker) -> None:

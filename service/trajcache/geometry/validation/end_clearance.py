@@ -49,6 +49,7 @@ import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from trajcache.geometry.collision.bodies import Posed, RobotGeometry
@@ -69,12 +70,15 @@ __all__ = [
     "SegmentClearance",
     "measure_clearance",
     "motion_tables",
+    "open_intervals",
     "validate_ends",
 ]
 
 CAP = 0.10  # m: clearance measured up to this; an adapted end moves no point further
 
-_ELEMENTS: weakref.WeakKeyDictionary[RobotGeometry, FloatArray] = weakref.WeakKeyDictionary()
+_TABLES: weakref.WeakKeyDictionary[RobotGeometry, tuple[FloatArray, FloatArray]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 @dataclass(frozen=True)
@@ -101,21 +105,57 @@ class SegmentClearance:
     ) -> tuple[float, float] | None:
         """The span of fractions of segment `new` (2, D) that these bounds of segment `old`
         leave to prove (module docstring); None when they prove all of it."""
-        base = checker.robot.model.base
-        if base is not BaseType.FIXED:
+        if checker.robot.model.base is not BaseType.FIXED:
             return 0.0, 1.0
-        d0 = new[0] - old[0]
-        d1 = d0 + segment_deltas(new, base=base)[0] - segment_deltas(old, base=base)[0]
-        apart = np.abs(d0 + self.fractions[:, None] * (d1 - d0))  # (K, D)
-        sigma = np.maximum(apart[:-1], apart[1:])
         element, pair = motion_tables(checker.robot)
-        ok = (self.scene > sigma @ element.T).all(axis=1)
-        if self.pairs.shape[1]:
-            ok &= (self.pairs > sigma @ pair.T).all(axis=1)
-        open_ = np.flatnonzero(~ok)
-        if not len(open_):
+        first, last = open_intervals(
+            self.fractions,
+            np.ascontiguousarray(self.scene),
+            np.ascontiguousarray(self.pairs),
+            np.ascontiguousarray(new[0] - old[0], dtype=float),
+            np.ascontiguousarray(new[1] - old[1], dtype=float),
+            element,
+            pair,
+        )
+        if first < 0:
             return None
-        return float(self.fractions[open_[0]]), float(self.fractions[open_[-1] + 1])
+        return float(self.fractions[first]), float(self.fractions[last + 1])
+
+
+@numba.njit(cache=True, nogil=True)
+def open_intervals(fractions, scene, pairs, d0, d1, element, pair):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The first and last interval k (of fractions[k] to fractions[k + 1]) where the bounds
+    `scene` (K − 1, E) and `pairs` (K − 1, P; P may be 0) do not exceed the motion W·σ_k,
+    V·σ_k (`element` (E, D), `pair` (P, D)) of a fixed-base segment whose ends differ from the
+    measured one's by d0 and d1: σ_k, per dof, the larger of |d0 + t (d1 − d0)| at the
+    interval's two fractions (module docstring); (−1, −1) when there is none."""
+    n_dof = d0.shape[0]
+    first = last = -1
+    sigma = np.empty(n_dof)
+    for k in range(fractions.shape[0] - 1):
+        for d in range(n_dof):
+            at_a = abs(d0[d] + fractions[k] * (d1[d] - d0[d]))
+            at_b = abs(d0[d] + fractions[k + 1] * (d1[d] - d0[d]))
+            sigma[d] = max(at_a, at_b)
+        proved = True
+        for e in range(scene.shape[1]):
+            motion = 0.0
+            for d in range(n_dof):
+                motion += sigma[d] * element[e, d]
+            if not scene[k, e] > motion:
+                proved = False
+                break
+        for p in range(pairs.shape[1] if proved else 0):
+            motion = 0.0
+            for d in range(n_dof):
+                motion += sigma[d] * pair[p, d]
+            if not pairs[k, p] > motion:
+                proved = False
+                break
+        if not proved:
+            first = k if first < 0 else first
+            last = k
+    return first, last
 
 
 def measure_clearance(validator: TrajectoryValidator, segment: FloatArray) -> SegmentClearance:
@@ -172,13 +212,15 @@ def _between(at: FloatArray, motion: FloatArray) -> FloatArray:
 def motion_tables(robot: RobotGeometry) -> tuple[FloatArray, FloatArray]:
     """W (E, D) and V (P, D): the most a point of an element, and a pair's distance, move per
     unit step of each dof, whatever the configuration (the certifier's whole-element bounds;
-    the pairs as `kernel_pairs` holds them, those still checked)."""
-    element = _ELEMENTS.get(robot)
-    if element is None:
+    the pairs as `kernel_pairs` holds them, those still checked); C-ordered."""
+    tables = _TABLES.get(robot)
+    if tables is None:
         turning = robot.motion.rotation & robot.motion.ancestors
         coef = robot.centre_coef + robot.radius[:, None] * turning[robot.element_link]
-        element = _ELEMENTS[robot] = np.asarray(coef, dtype=float)
-    return element, robot.kernel_pairs[4].T
+        element = np.ascontiguousarray(coef, dtype=float)
+        pair = np.ascontiguousarray(robot.kernel_pairs[4].T, dtype=float)
+        tables = _TABLES[robot] = (element, pair)
+    return tables
 
 
 def validate_ends(
