@@ -44,6 +44,9 @@ class _Tables:
 
 
 _TABLES: weakref.WeakKeyDictionary[RobotModel, _Tables] = weakref.WeakKeyDictionary()
+_BOUNDS: weakref.WeakKeyDictionary[RobotModel, tuple[FloatArray, FloatArray]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 def _tables(model: RobotModel) -> _Tables:
@@ -84,24 +87,27 @@ def _tables(model: RobotModel) -> _Tables:
 def check_states(model: RobotModel, states: ArrayLike, *, name: str = "state") -> FloatArray:
     """Return `states` as an (N, D) float array; raise StateError on a wrong length or NaN/Inf."""
     names = model.state_names
-    expected = f"expected {model.dof} ({', '.join(names)})"
     try:
         arr = np.asarray(states, dtype=float)
     except (TypeError, ValueError):
-        raise StateError(_ragged_message(states, name, model.dof, expected)) from None
+        raise StateError(_ragged_message(states, name, model.dof, _expected(model))) from None
     if arr.ndim == 1:
         if arr.shape[0] != model.dof:
-            raise StateError(f"{name} has {arr.shape[0]} values, {expected}")
+            raise StateError(f"{name} has {arr.shape[0]} values, {_expected(model)}")
         arr = arr[None, :]
     elif arr.ndim != 2 or arr.shape[1] != model.dof:
         got = arr.shape[-1] if arr.ndim >= 1 else 0
-        raise StateError(f"each {name} has {got} values, {expected}")
+        raise StateError(f"each {name} has {got} values, {_expected(model)}")
     if not np.isfinite(arr).all():
         bad = np.argwhere(~np.isfinite(arr))
         row, col = (int(v) for v in bad[0])
         where = name if arr.shape[0] == 1 else f"{name} {row}"
         raise StateError(f"{where} value {col} ({names[col]}) is not finite: {arr[row, col]}")
     return arr
+
+
+def _expected(model: RobotModel) -> str:
+    return f"expected {model.dof} ({', '.join(model.state_names)})"
 
 
 def _ragged_message(states: object, name: str, dof: int, expected: str) -> str:
@@ -166,14 +172,11 @@ def check_limits(model: RobotModel, states: ArrayLike, *, name: str = "state") -
     The base θ is wrapped (never out of limits) and the base x/y are unbounded.
     """
     arr = check_states(model, states, name=name)
-    lower = model.lower.copy()
-    upper = model.upper.copy()
-    if model.base is BaseType.PLANAR:
-        lower[:3], upper[:3] = -np.inf, np.inf
+    lower, upper = _bounds(model)
     out = (arr < lower - _LIMIT_TOL) | (arr > upper + _LIMIT_TOL)
-    rows = np.flatnonzero(out.any(axis=1))
-    if len(rows) == 0:
+    if not out.any():
         return
+    rows = np.flatnonzero(out.any(axis=1))
     row = int(rows[0])
     names = model.state_names
     parts = [
@@ -182,6 +185,19 @@ def check_limits(model: RobotModel, states: ArrayLike, *, name: str = "state") -
     ]
     where = name if arr.shape[0] == 1 else f"{name} {row} (of {len(rows)} out of limits)"
     raise StateError(f"{where} is out of joint limits: {'; '.join(parts)}")
+
+
+def _bounds(model: RobotModel) -> tuple[FloatArray, FloatArray]:
+    """The limits `check_limits` applies (a planar base's pose unbounded), read-only, kept per
+    model: every request checks its start and goal against them."""
+    bounds = _BOUNDS.get(model)
+    if bounds is None:
+        lower, upper = model.lower.copy(), model.upper.copy()
+        if model.base is BaseType.PLANAR:
+            lower[:3], upper[:3] = -np.inf, np.inf
+        lower.flags.writeable = upper.flags.writeable = False
+        bounds = _BOUNDS[model] = (lower, upper)
+    return bounds
 
 
 def link_transforms(model: RobotModel, states: ArrayLike) -> FloatArray:
