@@ -101,14 +101,3 @@ def with_added(snap: Snapshot, ids: IntArray, keys: FloatArray) -> Snapshot:
     if len(snap.delta_ids):
         ids, keys = np.concatenate([snap.delta_ids, ids]), np.concatenate([snap.delta_keys, keys])
     return replace(snap, delta_ids=ids, delta_keys=keys)
-
-
-def box_candidates(keys: FloatArray, q: FloatArray, radius: float, cols: IntArray) -> IntArray:
-    """Superset of the rows within ``radius`` of ``q`` on ``cols``: one column over every row,
-    then all the others at once over the rows that are left (few numpy calls, whatever the data).
-    """
-    cand = np.flatnonzero(np.abs(keys[:, cols[0]] - q[cols[0]]) <= radius)
-    if len(cand) > 8 and len(cols) > 1:  # few enough rows go straight to the exact metric
-        rest = cols[1:]
-        cand = cand[(np.abs(keys[np.ix_(cand, rest)] - q[rest]) <= radius).all(axis=1)]
-    return cand

@@ -17,6 +17,7 @@ from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.collision.compiled.spheres import sphere_state
 from trajcache.geometry.collision.sphere_tables import sphere_tables
 from trajcache.geometry.model.kernels import hull_support_climb
+from trajcache.geometry.model.nearness import relevant_rows
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
@@ -69,6 +70,8 @@ def warm() -> None:
 
 
 def _warm_bounds() -> None:
+    keys = np.zeros((1, 4))  # the cache's relevance test, on one key of a two-dof robot
+    relevant_rows(keys, np.zeros(1, dtype=np.int64), np.zeros((2, 4)), 0.2, False, False)
     vertices = np.zeros((1, 3))
     index = np.zeros(1, dtype=np.int64)
     hull_support_climb(
