@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.robots import ROD_URDF
+from tests.robots import BRANCHED_URDF, ROD_URDF
 from trajcache.geometry.errors import StateError
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import Scene, SceneObject
+from trajcache.geometry.validation.sampling import sample_counts
 from trajcache.geometry.validation.validator import (
     Resolution,
     TrajectoryValidator,
@@ -143,3 +144,16 @@ def test_one_segment_is_sampled_as_the_start_of_a_longer_trajectory() -> None:
     np.testing.assert_array_equal(one, two[: len(one)])
     np.testing.assert_array_equal(one[-1], b)
     assert np.all(np.abs(np.diff(one[:, 0])) <= 0.04 + 1e-12)
+
+
+@pytest.mark.parametrize("subdivision", [1, 3])
+def test_one_segment_of_a_fixed_base_is_sampled_as_within_a_longer_one(subdivision: int) -> None:
+    model = load_robot_model(BRANCHED_URDF, base="fixed")
+    rng = np.random.default_rng(8)
+    for _ in range(20):
+        a, b = rng.uniform(-1.0, 1.0, (2, model.dof))
+        one = interpolate(np.stack([a, b]), model, Resolution(), subdivision)
+        two = interpolate(np.stack([a, b, a]), model, Resolution(), subdivision)
+        np.testing.assert_array_equal(one, two[: len(one)])
+        np.testing.assert_array_equal(one[-1], b)
+        assert len(one) - 1 == sample_counts(np.stack([a, b]), model, Resolution(), subdivision)[0]

@@ -27,9 +27,13 @@ PIECES = 4  # pieces an open segment is cut into (bench/certify_sampling.py meas
 
 def open_runs(groups: list[OpenPairs]) -> list[tuple[int, int]]:
     """The runs (first, last) of consecutive segments that have a pair left open, in order."""
-    segments = np.unique(np.concatenate([g.rows[:, 0] for g in groups]))
-    breaks = np.flatnonzero(np.diff(segments) != 1) + 1
-    return [(int(run[0]), int(run[-1])) for run in np.split(segments, breaks) if len(run)]
+    runs: list[tuple[int, int]] = []
+    for k in sorted({k for g in groups for k in g.rows[:, 0].tolist()}):  # few: Python is quicker
+        if runs and k == runs[-1][1] + 1:
+            runs[-1] = (runs[-1][0], k)
+        else:
+            runs.append((k, k))
+    return runs
 
 
 def pieces(states: FloatArray, delta: FloatArray, run: tuple[int, int], k: int) -> FloatArray:

@@ -3,8 +3,10 @@ between key states, cut into steps no longer than it (`validator.py` checks the 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -62,14 +64,50 @@ def interpolate(
     if len(key) < 2:
         return key.copy()
     delta = segment_deltas(key, base=model.base)
+    if len(delta) == 1:  # one segment, the usual cached motion: compiled, as below
+        r = resolution
+        planar = model.base is BaseType.PLANAR
+        return _one_segment(
+            np.ascontiguousarray(key), delta[0], model.arm_offset, planar, float(r.position_m),
+            float(r.orientation_rad), float(r.joint_rad), int(subdivision),
+        )  # fmt: skip
     counts = sample_counts(key, model, resolution, subdivision)
-    if len(counts) == 1:  # one segment, the usual cached motion
-        frac = np.arange(counts[0] + 1) / counts[0]
-        out = key[0] + frac[:, None] * delta[0]
-        out[-1] = key[-1]
-        return np.asarray(out)
     seg = np.repeat(np.arange(len(delta)), counts)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     frac = (np.arange(counts.sum()) - np.repeat(starts, counts)) / np.repeat(counts, counts)
     dense = key[seg] + frac[:, None] * delta[seg]
     return np.vstack([dense, key[-1:]])
+
+
+@numba.njit(cache=True, nogil=True)
+def _one_segment(key, delta, arm_from, planar, position_m, orientation_rad, joint_rad, subdivision):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """`interpolate` of two key states whose difference is `delta` (the base angle the short
+    way): `sample_counts`' steps, then key[0] + (i / count)·delta, the last sample key[1]."""
+    steps = 0.0
+    if planar:
+        steps = math.hypot(delta[0], delta[1]) / position_m
+        steps = max(steps, abs(delta[2]) / orientation_rad)
+    widest = 0.0
+    for j in range(arm_from, delta.shape[0]):
+        widest = max(widest, abs(delta[j]))
+    if delta.shape[0] > arm_from:
+        steps = max(steps, widest / joint_rad)
+    count = max(math.ceil(steps - 1e-9), 1) * subdivision
+    out = np.empty((count + 1, key.shape[1]))
+    for i in range(count):
+        frac = i / count
+        for d in range(key.shape[1]):
+            out[i, d] = key[0, d] + frac * delta[d]
+    out[count] = key[1]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def first_out_of_limits(samples, lower, upper, arm_from):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The first sample with an arm value more than 1e-9 outside [lower, upper]; −1 if none."""
+    for i in range(samples.shape[0]):
+        for j in range(arm_from, samples.shape[1]):
+            value = samples[i, j]
+            if value < lower[j] - 1e-9 or value > upper[j] + 1e-9:
+                return i
+    return -1

@@ -45,7 +45,12 @@ from trajcache.geometry.validation.certify import (
     CertifierOptions,
     SegmentCertifier,
 )
-from trajcache.geometry.validation.sampling import Resolution, interpolate, sample_counts
+from trajcache.geometry.validation.sampling import (
+    Resolution,
+    first_out_of_limits,
+    interpolate,
+    sample_counts,
+)
 from trajcache.geometry.validation.segments import Finding, SegmentStatus
 from trajcache.geometry.validation.stamp import certificate_digest
 
@@ -262,11 +267,8 @@ class TrajectoryValidator:
 
     def _limit_violation(self, samples: FloatArray) -> int | None:
         m = self.model
-        off = m.arm_offset
-        arm = samples[:, off:]
-        bad = np.any((arm < m.lower[off:] - 1e-9) | (arm > m.upper[off:] + 1e-9), axis=1)
-        hits = np.flatnonzero(bad)
-        return int(hits[0]) if len(hits) else None
+        found = first_out_of_limits(np.ascontiguousarray(samples), m.lower, m.upper, m.arm_offset)
+        return None if found < 0 else int(found)
 
     def _limit_message(self, state: FloatArray) -> str:
         m = self.model
