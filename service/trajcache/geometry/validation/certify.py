@@ -42,7 +42,13 @@ from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import segment_deltas
 from trajcache.geometry.validation.advance import Advancer
 from trajcache.geometry.validation.refine import PIECES, certify_in_pieces
-from trajcache.geometry.validation.segments import Finding, MovingPoints, OpenPairs, SegmentStatus
+from trajcache.geometry.validation.segments import (
+    Finding,
+    MovingPoints,
+    OpenPairs,
+    SegmentStatus,
+    unique_rows,
+)
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
@@ -144,31 +150,18 @@ class SegmentCertifier:
         found)."""
         rg = self.robot
         step = np.ascontiguousarray(step, dtype=float)
+        world, links, half, support = self.clearance.scene, posed.links, rg.element_half, rg.support
         rows, lows = scene_open_kernel(
-            posed.links,
-            step,
-            rg.kernel_robot,
-            rg.element_half,
-            rg.support.kernel_args,
-            rg.kernel_motion,
-            self.clearance.scene.kernel_scene,
-            self.clearance.scene.support.kernel_args,
-            self._allowed,
-            first_only,
-        )
+            links, step, rg.kernel_robot, half, support.kernel_args, rg.kernel_motion,
+            world.kernel_scene, world.support.kernel_args, self._allowed, first_only,
+        )  # fmt: skip
         scene = OpenPairs(True, rows, lows[:, 0], lows[:, 1], lows[:, 2])
         if first_only and len(rows):
             return [scene, OpenPairs(False, np.zeros((0, 2), np.int64), *np.zeros((3, 0)))]
         rows, lows = self_open_kernel(
-            posed.links,
-            step,
-            rg.kernel_robot,
-            rg.element_half,
-            rg.support.kernel_args,
-            rg.kernel_motion,
-            self.checker.kernel_pairs,
-            first_only,
-        )
+            links, step, rg.kernel_robot, half, support.kernel_args, rg.kernel_motion,
+            self.checker.kernel_pairs, first_only,
+        )  # fmt: skip
         return [scene, OpenPairs(False, rows, lows[:, 0], lows[:, 1], lows[:, 2])]
 
     def _dense(self, posed: Posed, step: FloatArray) -> tuple[OpenPairs, OpenPairs]:
@@ -371,7 +364,7 @@ class SegmentCertifier:
             ends = np.concatenate(
                 [group.rows[group.lower_a <= 0.0], group.ends[group.lower_b <= 0.0]]
             )
-            touching.append(np.unique(ends, axis=0) if len(ends) else ends)
+            touching.append(unique_rows(ends)[0] if len(ends) else ends)
         hit_scene, hit_self, *_ = self.narrow.first_collision(posed, *touching, stop_at_first=True)
         hits = [(int(r[0]), self.checker.contact(r, scene=True)) for r in touching[0][hit_scene]]
         hits += [(int(r[0]), self.checker.contact(r, scene=False)) for r in touching[1][hit_self]]
@@ -386,8 +379,7 @@ class SegmentCertifier:
         if count == 0:
             return group
         both = np.concatenate([group.rows, group.ends])
-        unique, where = np.unique(both, axis=0, return_inverse=True)
-        where = where.reshape(-1)
+        unique, where = unique_rows(both)
         need = np.zeros(len(unique))  # an end's bound settles its segment above the motion
         np.maximum.at(need, where, np.concatenate([group.motion, group.motion]))
         exact = self.narrow.scene_exact if group.scene else self.narrow.self_exact
