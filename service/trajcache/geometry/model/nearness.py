@@ -42,13 +42,19 @@ def relevant_rows(keys, rows, queries, threshold, planar, arm_only):  # type: ig
     for rev in range(2):
         for k in range(n):
             key = keys[rows[k]]
-            ends = np.zeros(2)
+            first_end = second_end = 0.0
             relevant = True
             for end in range(2):
                 at = end * dim
                 arm = 0.0
-                for j in range(at + arm_from, at + dim):
-                    arm = max(arm, abs(queries[rev, j] - key[j]))
+                for j in range(at + arm_from, at + dim):  # most rows fail on their first value
+                    gap = abs(queries[rev, j] - key[j])
+                    if not gap < threshold:
+                        relevant = False
+                        break
+                    arm = max(arm, gap)
+                if not relevant:
+                    break
                 base = 0.0
                 if planar and not arm_only:
                     dx, dy = queries[rev, at] - key[at], queries[rev, at + 1] - key[at + 1]
@@ -59,10 +65,13 @@ def relevant_rows(keys, rows, queries, threshold, planar, arm_only):  # type: ig
                 if not (base < threshold and arm < threshold):
                     relevant = False
                     break
-                ends[end] = base + arm
+                if end == 0:
+                    first_end = base + arm
+                else:
+                    second_end = base + arm
             if relevant:
                 found[count], reverse[count] = k, rev
-                near_start[count] = ends[1] if rev else ends[0]
-                near_goal[count] = ends[0] if rev else ends[1]
+                near_start[count] = second_end if rev else first_end
+                near_goal[count] = first_end if rev else second_end
                 count += 1
     return found[:count], reverse[:count], near_start[:count], near_goal[:count]
