@@ -43,3 +43,62 @@ def test_warm_compiles_every_kernel_called_from_python() -> None:
     assert {"self_open_kernel", "hull_support_climb", "sphere_state"} <= short
     cold = sorted(name for name, signatures in entry_points.items() if signatures == 0)
     assert not cold, f"kernels warm() leaves to compile on first use: {cold}"
+
+
+_READ_ONLY_PROBE = """
+import importlib, json, pkgutil
+import numpy as np
+from numba.core.registry import CPUDispatcher
+import trajcache.geometry as geometry
+from trajcache.cache.index import TrajectoryIndex
+from trajcache.geometry.model.robot import BaseType
+from trajcache.geometry.path_quality import ee_path_length
+from trajcache.geometry.validation.end_clearance import SegmentClearance
+from trajcache.geometry.validation.validator import TrajectoryValidator, interpolate
+from trajcache.geometry.warm import warm, warm_problem
+
+def signatures():
+    counts = {}
+    for info in pkgutil.walk_packages(geometry.__path__, "trajcache.geometry."):
+        for name, value in vars(importlib.import_module(info.name)).items():
+            if isinstance(value, CPUDispatcher):
+                counts[f"{info.name}.{name}"] = len(value.signatures)
+    return counts
+
+warm()
+before = signatures()
+model, scene = warm_problem()
+states = np.array([[-1.5, 0.0], [0.0, 0.05], [1.5, 0.1]])
+states.flags.writeable = False  # as the index's cached key states are
+ee_path_length(model, states)
+interpolate(states[:2], model, TrajectoryValidator(model, scene).resolution)
+TrajectoryValidator(model, scene).validate(states[:2])
+validator = TrajectoryValidator(model, scene)
+fractions, bounds = np.array([0.0, 1.0]), np.full((1, len(validator.checker.robot.radius)), 0.05)
+pairs = np.full((1, len(validator.checker.robot.pair_i)), 0.05)
+for array in (fractions, bounds, pairs):
+    array.flags.writeable = False
+SegmentClearance(fractions, bounds, pairs).unproved(validator.checker, states[:2], states[1:])
+index = TrajectoryIndex(2, base=BaseType.FIXED, background_rebuild=False)
+index.add(np.arange(3), states, states[::-1])
+index.rebuild()  # a main block: its keys are read-only
+index.add(np.array([7]), states[:1], states[2:])  # and a delta
+index.query(states[0], states[2], threshold=0.3)
+after = signatures()
+print(json.dumps({name: [before.get(name, 0), count] for name, count in after.items()}))
+"""
+
+
+def test_read_only_states_compile_nothing_after_warm() -> None:
+    """A request's arrays may be read-only (the index's main block, its cached key states), which
+    numba types apart: the kernels they reach are warmed for them, or given a writable copy."""
+    run = subprocess.run(
+        [sys.executable, "-c", _READ_ONLY_PROBE],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=900,
+    )
+    counts = json.loads(run.stdout.strip().splitlines()[-1])
+    grown = sorted(name for name, (before, after) in counts.items() if after > before)
+    assert not grown, f"compiled on use after warm(): {grown}"

@@ -27,7 +27,7 @@ from trajcache.geometry.model.kernels import forward_kinematics_kernel
 from trajcache.geometry.model.kinematics import fk_tables, link_motion_bounds
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.model.space import segment_deltas
+from trajcache.geometry.model.space import compiled_input, segment_deltas
 from trajcache.geometry.validation.validator import Resolution, interpolate
 
 MAX_DISTANCE_QUERIES = 20_000  # FCL calls per clearance; beyond it the result is an upper bound
@@ -94,10 +94,10 @@ def ee_path_length(
     `max_samples` in all (a chord sum; shorter than the true curve by a fraction of a percent).
     Compiled (`_ee_length_kernel`): it runs for every answer.
     """
-    array = np.ascontiguousarray(states, dtype=float)
+    array = compiled_input(states)
     if len(array) < 2:
         return 0.0
-    deltas = np.ascontiguousarray(segment_deltas(array, base=model.base))
+    deltas = compiled_input(segment_deltas(array, base=model.base))
     link, n_links = end_effector_link(model), len(model.link_names)
     fk = fk_tables(model)
     return float(_ee_length_kernel(array, deltas, step, max_samples, link, n_links, fk))

@@ -70,8 +70,10 @@ def warm() -> None:
 
 
 def _warm_bounds() -> None:
-    keys = np.zeros((1, 4))  # the cache's relevance test, on one key of a two-dof robot
-    relevant_rows(keys, np.zeros(1, dtype=np.int64), np.zeros((2, 4)), 0.2, False, False)
+    for writable in (True, False):  # the index's delta, and its main block (read-only keys)
+        keys = np.zeros((1, 4))  # the cache's relevance test, one key of a two-dof robot
+        keys.flags.writeable = writable
+        relevant_rows(keys, np.zeros(1, dtype=np.int64), np.zeros((2, 4)), 0.2, False, False)
     vertices = np.zeros((1, 3))
     index = np.zeros(1, dtype=np.int64)
     hull_support_climb(

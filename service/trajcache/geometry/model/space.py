@@ -62,3 +62,13 @@ def base_is_still(start: npt.ArrayLike, goal: npt.ArrayLike, base: BaseType) -> 
         return False
     delta = np.abs(state_steps(np.asarray(start)[:3], np.asarray(goal)[:3], base=base))
     return bool(np.all(delta <= BASE_STILL_TOLERANCE))
+
+
+def compiled_input(values: npt.ArrayLike) -> FloatArray:
+    """`values` as the compiled kernels are warmed for: float64, C-ordered and writable. numba
+    types a read-only array apart and would compile the kernel again, on a request, for it (the
+    index's cached key states are read-only); such an array is copied, any other passed as is."""
+    array = np.asarray(values, dtype=np.float64)
+    if array.flags.c_contiguous and array.flags.writeable:
+        return array
+    return np.array(array, dtype=np.float64, order="C")

@@ -56,7 +56,7 @@ from trajcache.geometry.collision.bodies import Posed, RobotGeometry
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.model.space import segment_deltas
+from trajcache.geometry.model.space import compiled_input, segment_deltas
 from trajcache.geometry.validation.certificates import CertificateDisagreement
 from trajcache.geometry.validation.sampling import interpolate
 from trajcache.geometry.validation.validator import (
@@ -109,11 +109,11 @@ class SegmentClearance:
             return 0.0, 1.0
         element, pair = motion_tables(checker.robot)
         first, last = open_intervals(
-            self.fractions,
-            np.ascontiguousarray(self.scene),
-            np.ascontiguousarray(self.pairs),
-            np.ascontiguousarray(new[0] - old[0], dtype=float),
-            np.ascontiguousarray(new[1] - old[1], dtype=float),
+            compiled_input(self.fractions),
+            compiled_input(self.scene),
+            compiled_input(self.pairs),
+            compiled_input(new[0] - old[0]),
+            compiled_input(new[1] - old[1]),
             element,
             pair,
         )

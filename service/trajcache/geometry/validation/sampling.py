@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from trajcache.geometry.model.robot import BaseType, RobotModel
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.model.space import segment_deltas
+from trajcache.geometry.model.space import compiled_input, segment_deltas
 
 IntArray = NDArray[np.int64]
 
@@ -68,7 +68,7 @@ def interpolate(
         r = resolution
         planar = model.base is BaseType.PLANAR
         return _one_segment(
-            np.ascontiguousarray(key), delta[0], model.arm_offset, planar, float(r.position_m),
+            compiled_input(key), delta[0], model.arm_offset, planar, float(r.position_m),
             float(r.orientation_rad), float(r.joint_rad), int(subdivision),
         )  # fmt: skip
     counts = sample_counts(key, model, resolution, subdivision)

@@ -37,7 +37,7 @@ from trajcache.geometry.collision.shared import GeometryCache
 from trajcache.geometry.model.kinematics import check_states
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
-from trajcache.geometry.model.space import state_steps
+from trajcache.geometry.model.space import compiled_input, state_steps
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certify import (
     MAX_DEPTH,
@@ -267,7 +267,7 @@ class TrajectoryValidator:
 
     def _limit_violation(self, samples: FloatArray) -> int | None:
         m = self.model
-        found = first_out_of_limits(np.ascontiguousarray(samples), m.lower, m.upper, m.arm_offset)
+        found = first_out_of_limits(compiled_input(samples), m.lower, m.upper, m.arm_offset)
         return None if found < 0 else int(found)
 
     def _limit_message(self, state: FloatArray) -> str:
