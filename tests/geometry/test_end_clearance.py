@@ -341,3 +341,20 @@ def test_no_point_of_a_moved_body_moves_further_than_moved_by() -> None:
 def _rotation(axis: FloatArray, angle: float) -> FloatArray:
     k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return np.asarray(np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k)
+
+
+def test_a_clearance_measured_for_other_elements_or_pairs_proves_nothing(
+    panda: RobotModel,
+) -> None:
+    checker = CollisionChecker(panda, make_scene([_box("a", 1.0)]))
+    elements, pairs = len(checker.robot.radius), len(checker.robot.pair_i)
+    segment = np.array([np.zeros(panda.dof), np.full(panda.dof, 0.1)])
+    ends = np.array([0.0, 1.0])
+
+    def clearance(e: int, p: int) -> SegmentClearance:
+        return SegmentClearance(ends, np.full((1, e), 1.0), np.full((1, p), 1.0))
+
+    assert clearance(elements, pairs).unproved(checker, segment, segment) is None
+    assert clearance(elements, 0).unproved(checker, segment, segment) is None  # no pairs kept
+    assert clearance(elements + 1, pairs).unproved(checker, segment, segment) == (0.0, 1.0)
+    assert clearance(elements, pairs + 1).unproved(checker, segment, segment) == (0.0, 1.0)

@@ -76,9 +76,9 @@ __all__ = [
 
 CAP = 0.10  # m: clearance measured up to this; an adapted end moves no point further
 
-_TABLES: weakref.WeakKeyDictionary[RobotGeometry, tuple[FloatArray, FloatArray]] = (
-    weakref.WeakKeyDictionary()
-)
+_TABLES: weakref.WeakKeyDictionary[
+    RobotGeometry, tuple[tuple[FloatArray, ...], FloatArray, FloatArray]
+] = weakref.WeakKeyDictionary()
 
 
 @dataclass(frozen=True)
@@ -108,6 +108,8 @@ class SegmentClearance:
         if checker.robot.model.base is not BaseType.FIXED:
             return 0.0, 1.0
         element, pair = motion_tables(checker.robot)
+        if self.scene.shape[1] != len(element) or self.pairs.shape[1] not in (0, len(pair)):
+            return 0.0, 1.0  # measured for other elements or pairs: proves nothing here
         first, last = open_intervals(
             compiled_input(self.fractions),
             compiled_input(self.scene),
@@ -212,15 +214,16 @@ def _between(at: FloatArray, motion: FloatArray) -> FloatArray:
 def motion_tables(robot: RobotGeometry) -> tuple[FloatArray, FloatArray]:
     """W (E, D) and V (P, D): the most a point of an element, and a pair's distance, move per
     unit step of each dof, whatever the configuration (the certifier's whole-element bounds;
-    the pairs as `kernel_pairs` holds them, those still checked); C-ordered."""
-    tables = _TABLES.get(robot)
-    if tables is None:
+    the pairs as `kernel_pairs` holds them, those still checked); C-ordered, kept per robot
+    while its pairs stay those."""
+    kept = _TABLES.get(robot)
+    if kept is None or kept[0] is not robot.kernel_pairs:
         turning = robot.motion.rotation & robot.motion.ancestors
         coef = robot.centre_coef + robot.radius[:, None] * turning[robot.element_link]
         element = np.ascontiguousarray(coef, dtype=float)
         pair = np.ascontiguousarray(robot.kernel_pairs[4].T, dtype=float)
-        tables = _TABLES[robot] = (element, pair)
-    return tables
+        kept = _TABLES[robot] = (robot.kernel_pairs, element, pair)
+    return kept[1], kept[2]
 
 
 def validate_ends(
