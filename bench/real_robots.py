@@ -9,7 +9,7 @@ of `example-robot-data` (trajcache.reference.example_robots; --robots to choose)
 - Generates seeded problems (scene_families: table, shelf, box, cage; scaled to the robot's
   reach; start and goal free by the dense check, sampled within both the URDF's and the service's
   limits). Each problem gets its own robot, its scene uploaded with PUT, and one plan request
-  (fallback planning on, --budget seconds, the default planner).
+  (fallback planning on, --budget seconds, the default planner or --planner).
 - Replays every problem --replays times with ±0.02 uniform noise on every start and goal value
   (seeded; redrawn until free), after all problems of the robot were planned: how often the
   cache answers, and how fast the server is then (its `timings_ms.total`).
@@ -26,6 +26,7 @@ Prints a table with a row per robot; the last line is one JSON object with the f
 robots and per robot. Exits 1 when a returned path collides or the service answered 5xx.
 
     python bench/real_robots.py [--smoke] [--robots panda,ur5] [--problems N] [--budget S]
+                                [--planner NAME]
 """
 
 from __future__ import annotations
@@ -296,7 +297,9 @@ def run_robot(client: Client, robot: ExampleRobot, args: argparse.Namespace) -> 
     lower, upper = _limits(detail.lower, -np.inf), _limits(detail.upper, np.inf)
     ws = workspace(checker, args.seed, lower, upper)
     run = RobotRun(client, tally, model_id, checker, ws)
-    options = {"fallback": True, "budget_s": args.budget}
+    options: dict[str, Any] = {"fallback": True, "budget_s": args.budget}
+    if args.planner:  # OMPL's, say, to tell a hard problem from one with no path
+        options["planner"] = args.planner
     problems = []
     tight = robot.name == TIGHT.name
     clearance = TIGHT_CLEARANCE if tight else None
@@ -356,6 +359,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replays", type=int, default=1, help="noisy replays per problem")
     parser.add_argument("--budget", type=float, help="planning budget s (default 5; smoke 2)")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--planner", help="the planner of every request (default the service's)")
     parser.add_argument("--without-srdf", action="store_true", help="register URDF and joints only")
     parser.add_argument("--smoke", action="store_true", help="a short run for CI")
     args = parser.parse_args(argv)
@@ -382,6 +386,7 @@ def main(argv: list[str] | None = None) -> int:
         "per_robot": {t.robot: t.figures() for t in tallies},
         "registration_errors": {t.robot: t.message for t in tallies if not t.registered},
         "budget_s": args.budget,
+        "planner": args.planner,
         "seed": args.seed,
         "wall_s": round(wall_s, 1),
         "smoke": args.smoke,
