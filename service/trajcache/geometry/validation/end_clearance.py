@@ -124,6 +124,18 @@ class SegmentClearance:
         return float(self.fractions[first]), float(self.fractions[last + 1])
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _above(bounds, table, sigma):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Whether every bound (C,) exceeds its motion table row (C, D) times σ (D,); True for none."""
+    for c in range(bounds.shape[0]):
+        motion = 0.0
+        for d in range(sigma.shape[0]):
+            motion += sigma[d] * table[c, d]
+        if not bounds[c] > motion:
+            return False
+    return True
+
+
 @numba.njit(cache=True, nogil=True)
 def open_intervals(fractions, scene, pairs, d0, d1, element, pair):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The first and last interval k (of fractions[k] to fractions[k + 1]) where the bounds
@@ -139,21 +151,7 @@ def open_intervals(fractions, scene, pairs, d0, d1, element, pair):  # type: ign
             at_a = abs(d0[d] + fractions[k] * (d1[d] - d0[d]))
             at_b = abs(d0[d] + fractions[k + 1] * (d1[d] - d0[d]))
             sigma[d] = max(at_a, at_b)
-        proved = True
-        for e in range(scene.shape[1]):
-            motion = 0.0
-            for d in range(n_dof):
-                motion += sigma[d] * element[e, d]
-            if not scene[k, e] > motion:
-                proved = False
-                break
-        for p in range(pairs.shape[1] if proved else 0):
-            motion = 0.0
-            for d in range(n_dof):
-                motion += sigma[d] * pair[p, d]
-            if not pairs[k, p] > motion:
-                proved = False
-                break
+        proved = _above(scene[k], element, sigma) and _above(pairs[k], pair, sigma)
         if not proved:
             first = k if first < 0 else first
             last = k
