@@ -9,6 +9,7 @@ them (numbers, strings, None).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -28,7 +29,7 @@ def insert_rows(
     connection = session.connection()
     if connection.dialect.name != "postgresql":
         keyed = [dict(zip(names, row, strict=True)) for row in rows]
-        connection.execute(sa.insert(table), keyed)
+        connection.execute(_insert(table), keyed)
         return
     quote = connection.dialect.identifier_preparer.quote  # `end` is a reserved word
     columns = ", ".join(quote(name) for name in names)
@@ -40,3 +41,9 @@ def insert_rows(
     ):
         for row in rows:
             copy.write_row(row)
+
+
+@functools.cache
+def _insert(table: sa.Table) -> sa.Insert:
+    """The table's INSERT, built once: a new statement's cache key is computed on each run."""
+    return sa.insert(table)

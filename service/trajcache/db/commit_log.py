@@ -14,11 +14,17 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from datetime import datetime
+from typing import cast
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from trajcache.db.models import TrajectoryCommit, TrajectoryTombstone, utcnow
+
+_LOG = cast(sa.Table, TrajectoryCommit.__table__)
+# Core statements, built once: the ORM's insert cost a planned answer 0.3 ms more per row.
+_INSERT = sa.insert(_LOG)
+_INSERT_RETURNING = sa.insert(_LOG).returning(_LOG.c.id)
 
 
 def log_commits(session: Session, ranges: Iterable[tuple[int, int]]) -> None:
@@ -26,14 +32,13 @@ def log_commits(session: Session, ranges: Iterable[tuple[int, int]]) -> None:
     now = utcnow()
     rows = [{"first_id": a, "last_id": b, "created_at": now} for a, b in ranges]
     if rows:
-        session.execute(sa.insert(TrajectoryCommit), rows)
+        session.connection().execute(_INSERT, rows)
 
 
 def log_commit(session: Session, first_id: int, last_id: int) -> int:
     """Add one log row for the range in the session's transaction; its id."""
     row = {"first_id": first_id, "last_id": last_id, "created_at": utcnow()}
-    logged = session.execute(sa.insert(TrajectoryCommit).returning(TrajectoryCommit.id), row)
-    return int(logged.scalar_one())
+    return int(session.connection().execute(_INSERT_RETURNING, row).scalar_one())
 
 
 def prune_commit_log(session: Session, *, before: datetime) -> int:
