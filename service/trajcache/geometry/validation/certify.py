@@ -41,7 +41,7 @@ from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.model.space import segment_deltas
 from trajcache.geometry.validation.advance import Advancer
-from trajcache.geometry.validation.refine import PIECES, certify_in_pieces
+from trajcache.geometry.validation.refine import PIECES, certify_in_pieces, restricted
 from trajcache.geometry.validation.segments import (
     Finding,
     MovingPoints,
@@ -52,6 +52,7 @@ from trajcache.geometry.validation.segments import (
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
+Groups = list[OpenPairs] | None  # open scene pairs, then robot pairs
 
 
 @dataclass(frozen=True)
@@ -105,14 +106,15 @@ class SegmentCertifier:
         self._pair_coef, self._pair_whole = rg.pair_motion()
         self._allowed = checker._allowed
 
-    def certify(self, states: FloatArray, *, cut: bool = True) -> Finding:
+    def certify(self, states: FloatArray, *, cut: bool = True, only: Groups = None) -> Finding:
         """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it.
-        With `cut`, open segments are cut into pieces before exact distances (`refine.py`)."""
+        With `cut`, open segments are cut into pieces before exact distances (`refine.py`),
+        which certify only the pairs left `only` open on them (compiled levels)."""
         posed = Posed.build(self.robot, states)
         delta = segment_deltas(states, base=self.base)
         step = self.robot.motion.steps(delta)
         if self.compiled:
-            groups = self._compiled_levels(posed, step)
+            groups = self._compiled_levels(posed, step, only=only)
         else:
             groups = [self._covers(posed, step, g) for g in self._dense(posed, step)]
             if not self.checker.self_collision:
@@ -120,7 +122,7 @@ class SegmentCertifier:
         if not any(len(group.rows) for group in groups):
             return Finding(SegmentStatus.FREE)  # the usual case: every pair certified
         if cut and self.pieces > 1:  # the pieces hold every sample of the open segments
-            piece_fn = functools.partial(self.certify, cut=False)
+            piece_fn = functools.partial(self.certify, cut=False, only=groups)
             return certify_in_pieces(piece_fn, states, delta, groups, self.pieces)
         groups = [self._exact(posed, g) for g in groups]
         found = self._sample_collision(posed, groups)  # where not even they are positive
@@ -143,25 +145,32 @@ class SegmentCertifier:
         return not any(len(g.rows) for g in self._compiled_levels(posed, step, first_only=True))
 
     def _compiled_levels(
-        self, posed: Posed, step: FloatArray, *, first_only: bool = False
+        self, posed: Posed, step: FloatArray, *, first_only: bool = False, only: Groups = None
     ) -> list[OpenPairs]:
         """Levels 1 to 3 on every segment at once, compiled (`collision/compiled/`): what they
         leave open, scene pairs then robot pairs (with `first_only`, at most the first one
-        found)."""
+        found; with `only`, of the pairs open in those groups alone, `refine.py`)."""
         rg = self.robot
         step = np.ascontiguousarray(step, dtype=float)
         world, links, half, support = self.clearance.scene, posed.links, rg.element_half, rg.support
+        allowed, pairs, pair_ids = self._allowed, self.checker.kernel_pairs, None
+        if only is not None:
+            allowed, pairs, pair_ids = restricted(
+                only, allowed, (len(rg.radius), len(world.ids)), pairs
+            )
         rows, lows = scene_open_kernel(
             links, step, rg.kernel_robot, half, support.kernel_args, rg.kernel_motion,
-            world.kernel_scene, world.support.kernel_args, self._allowed, first_only,
+            world.kernel_scene, world.support.kernel_args, allowed, first_only,
         )  # fmt: skip
         scene = OpenPairs(True, rows, lows[:, 0], lows[:, 1], lows[:, 2])
-        if first_only and len(rows):
+        if (first_only and len(rows)) or (only is not None and len(pairs[0]) == 0):
             return [scene, OpenPairs(False, np.zeros((0, 2), np.int64), *np.zeros((3, 0)))]
         rows, lows = self_open_kernel(
             links, step, rg.kernel_robot, half, support.kernel_args, rg.kernel_motion,
-            self.checker.kernel_pairs, first_only,
+            pairs, first_only,
         )  # fmt: skip
+        if pair_ids is not None:
+            rows[:, 1] = pair_ids[rows[:, 1]]
         return [scene, OpenPairs(False, rows, lows[:, 0], lows[:, 1], lows[:, 2])]
 
     def _dense(self, posed: Posed, step: FloatArray) -> tuple[OpenPairs, OpenPairs]:

@@ -7,6 +7,11 @@ the whole segment leaves to exact distances (coal) and conservative advancement 
 Only segments with a pair left open are cut, once, so a path whose every pair the levels settle
 pays nothing. What the pieces leave open goes to exact distances and advancement, as before.
 
+Pieces are certified for the pairs left open on their segments alone (`restricted`: the union
+over a run of segments; the scene's others count as allowed, the robot's others go unchecked). A
+pair the levels settled on a segment is certified on the whole segment, so on each of its
+pieces: checking it again on them would prove nothing new.
+
 A finding in a piece is mapped back to its segment: piece i·k + j at fraction f is segment i at
 fraction (j + f) / k, the same state (the pieces are the segment's own linear interpolation).
 """
@@ -16,11 +21,12 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numpy.typing import NDArray
 
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.validation.segments import Finding, OpenPairs, SegmentStatus
 
-__all__ = ["PIECES", "certify_in_pieces"]
+__all__ = ["PIECES", "certify_in_pieces", "restricted"]
 
 PIECES = 4  # pieces an open segment is cut into (bench/certify_sampling.py measures the choice)
 
@@ -64,3 +70,26 @@ def certify_in_pieces(
                 found.status, run[0] + segment, (piece + found.at) / k, found.contacts, probes
             )
     return Finding(SegmentStatus.FREE, subdivisions=probes)
+
+
+def restricted(
+    groups: list[OpenPairs],
+    allowed: NDArray[np.bool_],
+    shape: tuple[int, int],
+    pairs: tuple[NDArray[np.generic], ...],
+) -> tuple[NDArray[np.bool_], tuple[NDArray[np.generic], ...], NDArray[np.int64]]:
+    """The compiled levels' arguments for pieces of segments whose open pairs are `groups`
+    (scene, robot): the allowed (element, object) matrix of `shape` with every pair but the
+    open ones allowed too (`allowed` may be empty: none), the robot pairs as the kernels take
+    them (`CollisionChecker.kernel_pairs`: the pair axis first in the first three arrays, last
+    in the others) kept to the open ones, and the kept pairs' indices among all of them."""
+    scene, robot = groups
+    only = np.ones(shape, dtype=bool)
+    only[scene.rows[:, 1], scene.rows[:, 2]] = False
+    if allowed.shape[0]:
+        only |= allowed
+    ids = np.unique(robot.rows[:, 1])
+    kept = tuple(
+        np.ascontiguousarray(p[..., ids] if k >= 3 else p[ids]) for k, p in enumerate(pairs)
+    )
+    return only, kept, ids
