@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
-from sqlalchemy import Engine, create_engine, event
+from sqlalchemy import Connection, Engine, create_engine, event
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import DisconnectionError
 from sqlalchemy.orm import Session, sessionmaker
@@ -17,6 +17,16 @@ SQLITE_PRAGMAS = (
     "PRAGMA busy_timeout=5000",
     "PRAGMA synchronous=NORMAL",
 )
+
+
+# Where reads run: an ORM session (in its transaction) or a Core connection, which the plan flow's
+# hit path uses for its reads (the session's transaction bookkeeping cost more than the query).
+Reads: TypeAlias = Session | Connection
+
+
+def connection_of(reads: Reads) -> Connection:
+    """The Core connection that `reads` run on (a session's begins its transaction)."""
+    return reads if isinstance(reads, Connection) else reads.connection()
 
 
 def _set_sqlite_pragmas(dbapi_connection: Any, _connection_record: Any) -> None:

@@ -75,10 +75,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sqlalchemy as sa
-from sqlalchemy.orm import InstrumentedAttribute, Session
+from sqlalchemy.orm import InstrumentedAttribute
 
 from trajcache.cache.index import TrajectoryIndex
 from trajcache.db.models import Trajectory, TrajectoryCommit, TrajectoryTombstone, unpack_states
+from trajcache.db.session import Reads, connection_of
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.services.catalog.id_stream import IdStream
@@ -127,21 +128,21 @@ class IndexStore:
         self._states.clear()
 
     def index(
-        self, session: Session, model: RobotModel, *, arrived: float | None = None
+        self, reads: Reads, model: RobotModel, *, arrived: float | None = None
     ) -> TrajectoryIndex:
         """The model's index, after picking up what other replicas wrote before the request
         arrived (`time.monotonic()`; default now)."""
         asked = time.monotonic() if arrived is None else arrived
         with self._lock:
             if self._sync_due(asked):
-                self._sync(session)
+                self._sync(reads)
             index = self._indexes.get(model.model_id)
             if index is None:
-                index = self._load_model(session, model)
+                index = self._load_model(reads, model)
             return index
 
     def read_with_sync(
-        self, session: Session, rider: AnySelect, params: Mapping[str, Any], *, arrived: float
+        self, reads: Reads, rider: AnySelect, params: Mapping[str, Any], *, arrived: float
     ) -> tuple[Any, ...] | None:
         """The row of `rider` (a query of at most one row), read together with the sync that a
         request which arrived at `arrived` (`time.monotonic()`) needs: one query instead of two.
@@ -151,8 +152,8 @@ class IndexStore:
         """
         with self._lock:
             if self._sync_due(arrived):
-                return self._sync(session, rider, params)
-        row = session.connection().execute(rider, params).one_or_none()
+                return self._sync(reads, rider, params)
+        row = connection_of(reads).execute(rider, params).one_or_none()
         return None if row is None else tuple(row)
 
     def add_stored(
@@ -174,11 +175,11 @@ class IndexStore:
             _add_rows(index, [(int(trajectory_id), kept[0], kept[-1])])
             stream.advance([commit_id], time.monotonic())
 
-    def states(self, session: Session, ids: Iterable[int]) -> dict[int, FloatArray]:
+    def states(self, reads: Reads, ids: Iterable[int]) -> dict[int, FloatArray]:
         """Key states (read-only arrays) of the trajectories `ids` that exist, by id."""
         found, missing = self._states.get_many(ids)
         if missing:  # one prepared Core statement: the ORM's layer cost more than the read
-            rows = session.connection().execute(_STATES, {"ids": missing}).all()
+            rows = connection_of(reads).execute(_STATES, {"ids": missing}).all()
             for row in rows:
                 states = unpack_states(row.states, n_states=row.n_states, dof=row.dof)
                 states.flags.writeable = False
@@ -190,14 +191,19 @@ class IndexStore:
         with self._lock:
             return {m: len(i) for m, i in self._indexes.items()}
 
-    def _start(self, session: Session, now: float) -> None:
+    def _start(self, reads: Reads, now: float) -> None:
         for stream, column in (
             (self._commits, TrajectoryCommit.id),
             (self._tombs, TrajectoryTombstone.id),
         ):
-            top = session.execute(sa.select(sa.func.max(column))).scalar() or 0
+            top = connection_of(reads).execute(sa.select(sa.func.max(column))).scalar() or 0
             floor = max(0, top - _STARTUP_WINDOW)
-            seen = session.execute(sa.select(column).where(column > floor)).scalars().all()
+            seen = (
+                connection_of(reads)
+                .execute(sa.select(column).where(column > floor))
+                .scalars()
+                .all()
+            )
             stream.hwm = floor
             stream.advance([int(i) for i in seen], now)
             stream.hwm = max(stream.hwm, int(top))
@@ -209,21 +215,21 @@ class IndexStore:
 
     def _sync(
         self,
-        session: Session,
+        reads: Reads,
         rider: AnySelect | None = None,
         rider_params: Mapping[str, Any] | None = None,
     ) -> tuple[Any, ...] | None:
         began = time.monotonic()
         if not self._started:
-            self._start(session, began)
-        found = self._read_changes(session, began, rider, rider_params or {})
+            self._start(reads, began)
+        found = self._read_changes(reads, began, rider, rider_params or {})
         self.syncs += 1
         self._synced_from = began
         return found
 
     def _read_changes(
         self,
-        session: Session,
+        reads: Reads,
         now: float,
         rider: AnySelect | None,
         rider_params: Mapping[str, Any],
@@ -241,14 +247,14 @@ class IndexStore:
         statement = _changes_statement(bool(commit_gaps), bool(tomb_gaps), rider)
         if rider is not None:
             params.update(rider_params)
-        changes = session.connection().execute(statement, params).all()
+        changes = connection_of(reads).execute(statement, params).all()
         ridden = next((tuple(c)[_SYNC_COLUMNS:] for c in changes if c.kind == _RIDER), None)
         oldest = next((c.id for c in changes if c.kind == _OLDEST), None)
         oldest_tomb = next((c.id for c in changes if c.kind == _OLDEST_TOMB), None)
         if (oldest is not None and oldest > self._commits.hwm + 1) or (
             oldest_tomb is not None and oldest_tomb > self._tombs.hwm + 1
         ):
-            self._reload(session, now)  # rows above a mark were pruned unread
+            self._reload(reads, now)  # rows above a mark were pruned unread
             return ridden
         logged = [c for c in changes if c.kind == _ROW]
         tombstones = [c for c in changes if c.kind == _TOMBSTONE]
@@ -271,20 +277,24 @@ class IndexStore:
             if index is not None and tomb.ref in index:
                 index.remove(np.array([tomb.ref], dtype=np.int64))
 
-    def _reload(self, session: Session, now: float) -> None:
+    def _reload(self, reads: Reads, now: float) -> None:
         """Start over as a new replica: indexes load again when next asked for."""
         self.reloads += 1
         self._indexes.clear()
         self._states.clear()
         self._commits, self._tombs = IdStream(), IdStream()
-        self._start(session, now)
+        self._start(reads, now)
 
-    def _load_model(self, session: Session, model: RobotModel) -> TrajectoryIndex:
-        rows = session.execute(
-            sa.select(Trajectory.id, Trajectory.start, Trajectory.goal).where(
-                Trajectory.model_id == model.model_id
+    def _load_model(self, reads: Reads, model: RobotModel) -> TrajectoryIndex:
+        rows = (
+            connection_of(reads)
+            .execute(
+                sa.select(Trajectory.id, Trajectory.start, Trajectory.goal).where(
+                    Trajectory.model_id == model.model_id
+                )
             )
-        ).all()
+            .all()
+        )
         index = TrajectoryIndex(model.dof, base=model.base)
         _add_rows(index, [(r.id, r.start, r.goal) for r in rows])
         self._indexes[model.model_id] = index

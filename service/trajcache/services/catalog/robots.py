@@ -14,6 +14,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from trajcache.db import models as tables
+from trajcache.db.session import Reads, connection_of
 from trajcache.db.sources import read_scene_payload
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.scene.parse import parse_scene
@@ -167,7 +168,7 @@ class RobotScene:
 
 def robot_scene(
     *,
-    session: Session,
+    session: Reads,
     scenes: SceneCache,
     robot_id: str,
     read_fn: Callable[[AnySelect, Mapping[str, Any]], Sequence[Any] | None] | None = None,
@@ -180,7 +181,7 @@ def robot_scene(
     params = {"robot_id": robot_id}
     row: Sequence[Any] | None
     if read_fn is None:
-        row = session.connection().execute(ROBOT_SCENE, params).one_or_none()
+        row = connection_of(session).execute(ROBOT_SCENE, params).one_or_none()
     else:
         row = read_fn(ROBOT_SCENE, params)
     if row is None:
@@ -235,14 +236,14 @@ def held_values(text: str | None) -> dict[str, float] | None:
 
 
 def _resolve_scene(
-    session: Session, scenes: SceneCache, robot_id: str, version: int, scene_hash: str | None
+    session: Reads, scenes: SceneCache, robot_id: str, version: int, scene_hash: str | None
 ) -> tuple[Scene, int]:
     """The parsed scene of a robot's version (from the cache, else its stored payload)."""
     if version == 0 or scene_hash is None:
         return EMPTY_SCENE, 0
     scene = scenes.get(scene_hash)
     if scene is None:
-        payload = session.scalar(
+        payload = connection_of(session).scalar(
             sa.select(tables.SceneVersion.payload).where(
                 tables.SceneVersion.robot_id == robot_id, tables.SceneVersion.version == version
             )

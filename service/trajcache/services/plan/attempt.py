@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
+from sqlalchemy import Connection
 from sqlalchemy.orm import Session
 
 from trajcache.cache.memo import MemoScope, MemoUse
@@ -170,10 +171,13 @@ class PhaseClock:
 
 @dataclass(eq=False)
 class PlanAttempt:
-    """One plan request being answered, in one session."""
+    """One plan request being answered, in one session; its reads before validation (the
+    robot, its scene, the replica sync, the candidates) run on a Core connection of their own,
+    closed when the lookup ends."""
 
     ctx: ServiceContext
     session: Session
+    reads: Connection
     caller: str  # the robot (or seed job) recorded in the plan event
     origin: Origin
     model: RobotModel  # as registered: what the cache and the planner key on

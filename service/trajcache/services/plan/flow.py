@@ -14,7 +14,8 @@ empty world and its answer says so in `warnings` (under `require_scene` it is re
 A cache hit, the hot path, reads the database once: the robot with its current scene version
 (parsed scenes are cached by hash), and in the same query the replica sync (what other replicas
 stored or deleted since the last sync; with `index_sync_interval_s=0` a sync that began after the
-request arrived).
+request arrived). These reads run on a Core connection of their own (`PlanAttempt.reads`), not in
+the request's ORM session, whose transaction bookkeeping cost more than the query itself.
 Candidates' key states come from a per-process cache (stored states never change), and so do
 their ranking facts while less than a second old (`services.bookkeeping.ranking_facts`). The read
 transaction ends before validation, so no connection is held while checking collisions.
@@ -54,6 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import sqlalchemy as sa
+from sqlalchemy import Connection
 from sqlalchemy.orm import Session
 
 from trajcache.cache.adapt import adapt_trajectory
@@ -170,11 +172,12 @@ def plan_in_scene(
     `seed_job`, and a trajectory the planner finds is stored with source `store_as`.
     """
     clock = PhaseClock()
-    with ctx.sessions() as session:
+    with ctx.sessions() as session, ctx.engine.connect() as reads:
         with clock.measure("db"):
+            _read_without_transaction(reads)
             model = get_model(session=session, registry=ctx.models, model_id=model_id)
         origin = Origin(store_as, None, real=False, requester=Requester.SEED_JOB)
-        attempt = _open(ctx, session, caller, origin, model, scene, request, clock)
+        attempt = _open(ctx, (session, reads), caller, origin, model, scene, request, clock)
         return _answer(attempt)
 
 
@@ -183,16 +186,14 @@ def _plan_robot(
 ) -> tuple[PlanAnswer, PlanAttempt]:
     """A robot's request in its current scene: one query for the robot, its scene and the sync."""
     clock = PhaseClock()
-    with ctx.sessions() as session:
+    with ctx.sessions() as session, ctx.engine.connect() as reads:
         with clock.measure("db"):
-            _read_without_transaction(session)
+            _read_without_transaction(reads)
             robot = robot_scene(  # one query, the replica sync riding along
-                session=session,
+                session=reads,
                 scenes=ctx.scenes,
                 robot_id=robot_id,
-                read_fn=functools.partial(
-                    ctx.indexes.read_with_sync, session, arrived=clock.arrived
-                ),
+                read_fn=functools.partial(ctx.indexes.read_with_sync, reads, arrived=clock.arrived),
             )
             model = get_model(session=session, registry=ctx.models, model_id=robot.model_id)
         if robot.version == 0 and ctx.settings.require_scene:
@@ -207,7 +208,7 @@ def _plan_robot(
             held=robot.joint_values,
             scene_stored=robot.version > 0,
         )
-        attempt = _open(ctx, session, robot_id, origin, model, robot.scene, request, clock)
+        attempt = _open(ctx, (session, reads), robot_id, origin, model, robot.scene, request, clock)
         answer = _answer(attempt)
         if request.goal_pose is not None:
             answer.timings_ms["pose_goal"] = round(attempt.pose_goal_ms, 3)
@@ -220,7 +221,7 @@ def _plan_robot(
 
 def _open(
     ctx: ServiceContext,
-    session: Session,
+    db: tuple[Session, Connection],  # the request's session, and its reads' connection
     caller: str,
     origin: Origin,
     model: RobotModel,
@@ -240,9 +241,7 @@ def _open(
         goal = check_states(model, goal_values, name="goal")[0]
         check_limits(model, start, name="start")
         check_limits(model, goal, name="goal")
-    return PlanAttempt(
-        ctx, session, caller, origin, model, scene, request, clock, checked, start, goal
-    )
+    return PlanAttempt(ctx, *db, caller, origin, model, scene, request, clock, checked, start, goal)
 
 
 def _answer(attempt: PlanAttempt) -> PlanAnswer:
@@ -282,10 +281,10 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
     Lookup fetches up to `ranking_pool` candidates, nearest first; ranking (`cache.ranking`:
     environment nearness, real-robot validations, failure streaks) orders them.
     """
-    ctx, session, clock, request = attempt.ctx, attempt.session, attempt.clock, attempt.request
+    ctx, reads, clock, request = attempt.ctx, attempt.reads, attempt.clock, attempt.request
     with clock.measure("db"):
         # what other replicas wrote before the request arrived (no query if `plan` read it)
-        index = ctx.indexes.index(session, attempt.model, arrived=clock.arrived)
+        index = ctx.indexes.index(reads, attempt.model, arrived=clock.arrived)
     with clock.measure("lookup"):
         start, goal = attempt.start, attempt.goal
         arm_only = request.arm_only and base_is_still(start, goal, attempt.model.base)
@@ -300,10 +299,14 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
                 arm_only=arm_only,
             )
         if ranking and len(matches) > 1:
-            matches = _ranked(session, ctx, matches, attempt.scene)
+            matches = _ranked(reads, ctx, matches, attempt.scene)
         matches = matches[: request.max_candidates]
-        attempt.candidates = ctx.indexes.states(session, [m.trajectory_id for m in matches])
-        session.rollback()  # end the read transaction: no connection is held while validating
+        attempt.candidates = ctx.indexes.states(reads, [m.trajectory_id for m in matches])
+        # End the reads: no connection is held while validating. The session has one only if
+        # it read a model the registry lacked, or a pose goal's ends.
+        reads.close()
+        if attempt.session.in_transaction():
+            attempt.session.rollback()
     return matches
 
 
@@ -336,12 +339,12 @@ def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | No
 
 
 def _ranked(
-    session: Session, ctx: ServiceContext, matches: list[Match], scene: Scene
+    reads: Connection, ctx: ServiceContext, matches: list[Match], scene: Scene
 ) -> list[Match]:
     """`matches` in the order the ranking rules give (facts not fresh in `ctx.facts`: one query)."""
     facts, missing = ctx.facts.get_many(m.trajectory_id for m in matches)
     if missing:
-        rows = session.execute(
+        rows = reads.execute(
             sa.select(*(getattr(Trajectory, c) for c in RANKING_COLUMNS)).where(
                 Trajectory.id.in_(missing)
             )
@@ -352,12 +355,12 @@ def _ranked(
     return rank_matches(matches, facts, env=scene.env, now=utcnow(), rules=ctx.ranking)
 
 
-def _read_without_transaction(session: Session) -> None:
+def _read_without_transaction(reads: Connection) -> None:
     """On PostgreSQL, run the lookup's reads in autocommit: no BEGIN and ROLLBACK round trips.
 
     Each read sees its own snapshot either way (read committed) and none writes; the connection
-    goes back to the pool (its isolation level reset) when the reads end, so later writes of the
-    request run in an ordinary transaction.
+    goes back to the pool (its isolation level reset) when the reads end. The request's writes
+    run in its session's own transaction.
     """
-    if session.get_bind().dialect.name == "postgresql":
-        session.connection(execution_options={"isolation_level": "AUTOCOMMIT"})
+    if reads.dialect.name == "postgresql":
+        reads.execution_options(isolation_level="AUTOCOMMIT")
