@@ -566,3 +566,25 @@ def test_a_hit_before_the_writer_measured_a_plan_s_ends_does_not_measure_them_ag
     assert len(measured) == 2 and len(ctx.end_clearances) == 2  # each end once, by the plan's job
     again = ask(ctx, [0.024, 0.003], [0.976, -0.003], max_candidates=1)
     assert again.ends_proved == 1.0
+
+
+def test_a_hit_is_validated_with_its_reads_ended(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The lookup's reads end before validation: their connection closed, and the session's
+    transaction (opened to read a model the registry lacks) rolled back."""
+    stored = setup_robot(ctx)
+    seen: list[tuple[bool, bool]] = []
+    validate = flow.validate_candidate
+
+    def spy(attempt: Any, *args: Any) -> Any:
+        seen.append((attempt.reads.closed, attempt.session.in_transaction()))
+        return validate(attempt, *args)
+
+    monkeypatch.setattr(flow, "validate_candidate", spy)
+    for registry_knows in (True, False):
+        if not registry_knows:
+            ctx.models.clear()  # the model is read in the session, not on the reads' connection
+        answer = ask(ctx, [0.02, 0.0], [0.98, 0.0])
+        assert (answer.source, answer.trajectory_id) == (PlanSource.CACHE, stored)
+    assert seen == [(True, False), (True, False)]

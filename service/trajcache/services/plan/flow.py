@@ -17,8 +17,8 @@ stored or deleted since the last sync; with `index_sync_interval_s=0` a sync tha
 request arrived). These reads run on a Core connection of their own (`PlanAttempt.reads`), not in
 the request's ORM session, whose transaction bookkeeping cost more than the query itself.
 Candidates' key states come from a per-process cache (stored states never change), and so do
-their ranking facts while less than a second old (`services.bookkeeping.ranking_facts`). The read
-transaction ends before validation, so no connection is held while checking collisions.
+their ranking facts while less than a second old (`services.bookkeeping.ranking_facts`). The reads
+end before validation, so no connection is held while checking collisions.
 
 Validation memo (`cache.memo`). A cached trajectory's verdict depends on its key states, the
 robot model (id = content hash of the robot), the scene (hash = content hash of every object and
@@ -276,7 +276,7 @@ def _answer(attempt: PlanAttempt) -> PlanAnswer:
 
 def lookup(attempt: PlanAttempt) -> list[Match]:
     """Candidates within the threshold, ranked, the first `max_candidates`; their key states
-    are read (or cached) before the read transaction ends.
+    are read (or cached) before the reads end.
 
     Lookup fetches up to `ranking_pool` candidates, nearest first; ranking (`cache.ranking`:
     environment nearness, real-robot validations, failure streaks) orders them.
