@@ -31,6 +31,7 @@ KERNEL_MODULES = [
     "trajcache.geometry.collision.compiled.self_open",
     "trajcache.geometry.collision.compiled.state_rows",
     "trajcache.geometry.collision.compiled.spheres",
+    "trajcache.geometry.collision.compiled.gjk",
     "trajcache.planning.compiled.search",
 ]
 

@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from trajcache.geometry.collision.bodies import Posed
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.collision.compiled.spheres import sphere_state
 from trajcache.geometry.collision.sphere_tables import sphere_tables
@@ -86,6 +87,8 @@ def _warm_validation(model: RobotModel, scene: Scene) -> None:
     validator = TrajectoryValidator(model, scene)
     validator.validate(_KEY)
     validator.certifier.settled_by_bounds(_KEY)
+    posed = Posed.build(validator.checker.robot, _KEY)  # the exact level (compiled GJK)
+    validator.checker.narrow.scene_exact(posed, np.ones((1, 3), dtype=np.int64))
     ee_path_length(model, _KEY)  # every answer's quality
     one, two = np.zeros((1, 1)), np.zeros((1, 2))  # one interval, element and pair; two dofs
     open_intervals(np.array([0.0, 1.0]), one, one, _KEY[0].copy(), _KEY[1].copy(), two, two)

@@ -1,18 +1,21 @@
 """The narrow phase: exact distances for the last bound level, and the verdict.
 
-Two libraries answer here, one call per row. coal gives the exact distance between the two
-bodies: first with meshes as their convex hulls (cheap), then, where that is not enough, as
-their triangles, which settles pairs near concave meshes where every cheaper level only bounds
-the distance to a hull or a box. It is level 4 of the bounds (`EXACT_MARGIN` less, for GJK's
-tolerance). python-fcl gives the verdict, its collision
-test, so that a check agrees with a per-state FCL loop; FCL's distances are never used as bounds
-(python-fcl 0.7 overestimates some by centimetres), only as a heuristic for planners' clearance
-checks. Calls are counted per thread.
+Level 4 of the bounds bounds the distance between the two bodies of each row as convex shapes,
+meshes as their convex hulls: a compiled GJK whose every answer is a slab bound, so a proved
+lower bound (`compiled/gjk.py`; `EXACT_MARGIN` less, for round-off), which stops as soon as it
+exceeds what the row needs. Where that is not enough for a concave mesh, coal measures its
+triangles, one call per row, which settles pairs where every cheaper level only bounds the
+distance to a hull or a box (`EXACT_MARGIN` less, for coal's GJK tolerance). python-fcl gives
+the verdict, its collision test, so that a check agrees with a per-state FCL loop; FCL's
+distances are never used as bounds (python-fcl 0.7 overestimates some by centimetres), only as
+a heuristic for planners' clearance checks. Calls (rows bounded, meshes measured, FCL queries)
+are counted per thread.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 
 import coal
 import fcl
@@ -20,10 +23,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trajcache.geometry.collision.bodies import ExactBodies, Posed, RobotGeometry, SceneGeometry
+from trajcache.geometry.collision.compiled.gjk import convex_lower_rows
 from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
+# One side of exact rows: its support table (`SupportTable.kernel_args`), each row's shape and
+# world pose (K, 4, 4).
+_Side = tuple[tuple[np.ndarray, ...], IntArray, FloatArray]
+# coal's bodies of both sides (the second built on first use) and which of them are concave.
+_Bodies = tuple[ExactBodies, Callable[[], ExactBodies], BoolArray, BoolArray]
 
 # Subtracted from coal's distances: ten times its GJK tolerance (1e-6), in metres.
 EXACT_MARGIN = 1e-5
@@ -49,21 +58,21 @@ class Narrow:
     def scene_exact(
         self, posed: Posed, rows: IntArray, need: FloatArray | float = np.inf
     ) -> FloatArray:
-        """Level 4 for scene rows: coal's distance between element and object, less
-        `EXACT_MARGIN` (≤ 0 where they touch).
+        """Level 4 for scene rows: a lower bound of the distance between element and object,
+        less `EXACT_MARGIN` (≤ 0 where they touch).
 
-        Meshes are measured as their convex hulls first (a lower bound, and several times
-        cheaper); where that is not above `need` (per row) or not positive, as their triangles.
+        Every row is first bounded as convex shapes, meshes as their hulls (compiled GJK,
+        `compiled/gjk.py`), which stops once its bound exceeds `need` (per row); a concave
+        mesh's row whose bound does not is measured as its triangles (coal).
         """
         if len(rows) == 0:
             return np.zeros(0)
-        poses = posed.pose(rows[:, 0], rows[:, 1])
-        placed = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses]
-        scene = self.scene
+        robot, scene = self.robot, self.scene
         return self._exact(
-            (self.robot.exact, rows[:, 1], placed),
-            (scene.exact, rows[:, 2], [scene.placements[m] for m in rows[:, 2].tolist()]),
+            (robot.support.kernel_args, rows[:, 1], posed.pose(rows[:, 0], rows[:, 1])),
+            (scene.support.kernel_args, rows[:, 2], scene.poses[rows[:, 2]]),
             need,
+            (robot.exact, lambda: scene.exact, robot.differs, scene.differs),
         )
 
     def self_exact(
@@ -74,40 +83,44 @@ class Narrow:
             return np.zeros(0)
         robot = self.robot
         first, second = robot.pair_i[rows[:, 1]], robot.pair_j[rows[:, 1]]
-        sides = []
-        for element in (first, second):
-            poses = posed.pose(rows[:, 0], element)
-            sides.append(
-                (robot.exact, element, [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses])
-            )
-        return self._exact(sides[0], sides[1], need)
+        sup = robot.support.kernel_args
+        return self._exact(
+            (sup, first, posed.pose(rows[:, 0], first)),
+            (sup, second, posed.pose(rows[:, 0], second)),
+            need,
+            (robot.exact, lambda: robot.exact, robot.differs, robot.differs),
+        )
 
     def _exact(
-        self,
-        first: tuple[ExactBodies, IntArray, list[coal.Transform3s]],
-        second: tuple[ExactBodies, IntArray, list[coal.Transform3s]],
-        need: FloatArray | float,
+        self, first: _Side, second: _Side, need: FloatArray | float, bodies: _Bodies
     ) -> FloatArray:
-        """coal's distances, row by row, of bodies `first` and `second` (their geometries, the
-        index of each row's body and its placement), hulls first, less `EXACT_MARGIN`."""
-        (bodies_a, index_a, placed_a), (bodies_b, index_b, placed_b) = first, second
-        pairs = list(zip(index_a.tolist(), index_b.tolist(), strict=True))
-        request = coal.DistanceRequest()
-        out = np.empty(len(pairs))
-        for k, (a, b) in enumerate(pairs):
-            out[k] = coal.distance(
-                bodies_a.hull[a], placed_a[k], bodies_b.hull[b], placed_b[k], request,
-                coal.DistanceResult(),
-            )  # fmt: skip
-        differs = bodies_a.differs[index_a] | bodies_b.differs[index_b]
-        refine = differs & (out <= np.maximum(need, 0.0))
-        for k in np.flatnonzero(refine).tolist():
-            a, b = pairs[k]
-            out[k] = coal.distance(
-                bodies_a.exact[a], placed_a[k], bodies_b.exact[b], placed_b[k], request,
-                coal.DistanceResult(),
-            )  # fmt: skip
-        self._count(len(pairs) + int(refine.sum()))
+        """Lower bounds of the distances of the rows of bodies `first` and `second` (their
+        support tables, each row's body and world pose), as convex shapes (compiled), then
+        as triangles where a concave mesh's bound is not above `need` or not positive; less
+        `EXACT_MARGIN`."""
+        (sup_a, index_a, poses_a), (sup_b, index_b, poses_b) = first, second
+        count = len(index_a)
+        needs = np.ascontiguousarray(np.broadcast_to(np.asarray(need, dtype=float), (count,)))
+        out = np.empty(count)
+        convex_lower_rows(
+            np.ascontiguousarray(poses_a), sup_a, index_a, np.ascontiguousarray(poses_b), sup_b,
+            index_b, needs, np.empty((4, 3)), out,
+        )  # fmt: skip
+        exact_a, exact_b, differs_a, differs_b = bodies
+        refine = np.flatnonzero(
+            (differs_a[index_a] | differs_b[index_b]) & (out <= np.maximum(needs, 0.0))
+        )
+        if len(refine):
+            meshes_a, meshes_b = exact_a.exact, exact_b().exact
+            request = coal.DistanceRequest()
+            for k in refine.tolist():
+                a, b = poses_a[k], poses_b[k]
+                out[k] = coal.distance(
+                    meshes_a[index_a[k]], coal.Transform3s(a[:3, :3], a[:3, 3]),
+                    meshes_b[index_b[k]], coal.Transform3s(b[:3, :3], b[:3, 3]),
+                    request, coal.DistanceResult(),
+                )  # fmt: skip
+        self._count(count + len(refine))
         return out - EXACT_MARGIN
 
     def first_collision(

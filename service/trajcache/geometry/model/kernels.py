@@ -75,6 +75,27 @@ def hull_climb(
 ) -> float:  # pragma: no cover - compiled
     """max over the vertices v of hull s of (x, y, z)·v, by the climb `hull_support_climb`
     describes (one direction; also called from the certification kernels)."""
+    v = hull_vertex(
+        vertices, anchors, anchor_start, anchor_count, neighbours, neighbour_start, s, x, y, z
+    )
+    return x * vertices[v, 0] + y * vertices[v, 1] + z * vertices[v, 2]
+
+
+@numba.njit(cache=True, nogil=True, **BORROWED)
+def hull_vertex(
+    vertices: FloatArray,
+    anchors: np.ndarray,
+    anchor_start: np.ndarray,
+    anchor_count: np.ndarray,
+    neighbours: np.ndarray,
+    neighbour_start: np.ndarray,
+    s: int,
+    x: float,
+    y: float,
+    z: float,
+) -> int:  # pragma: no cover - compiled
+    """The packed index of a vertex of hull s where (x, y, z)·v is largest (`hull_climb`'s
+    value; the support point GJK needs, `collision/compiled/gjk.py`)."""
     best = -np.inf
     at = -1
     for a in range(anchor_start[s], anchor_start[s] + anchor_count[s]):
@@ -93,7 +114,7 @@ def hull_climb(
                 best = value
                 at = v
                 moved = True
-    return best
+    return at
 
 
 @numba.njit(cache=True, nogil=True, **BORROWED)
