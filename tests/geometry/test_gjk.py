@@ -133,12 +133,20 @@ def test_a_concave_mesh_is_measured_as_its_triangles_where_its_hull_falls_short(
     )
     # Needing little still measures it: the hull's bound, 0, is not above any need.
     assert checker.narrow.scene_exact(posed, rows, np.array([0.001]))[0] > 0.001
+    # The U's hull strays 0.05 from it (the middle of its open side, between the arms): a
+    # certifier needing more than that gets the hull's bound, as the triangles cannot lift it
+    # past the need, and needing less, the triangles'.
+    gap = checker.narrow.scene.gaps[0]
+    assert gap == pytest.approx(0.05, abs=0.002)
+    for need, bound in ((0.2, -EXACT_MARGIN), (0.04, 0.03 - EXACT_MARGIN)):
+        got = checker.narrow.scene_exact(posed, rows, np.array([need]), past_need=True)
+        assert got[0] == pytest.approx(bound, abs=1e-6)
     # A convex mesh is bounded as itself: the ball beside a box-shaped mesh.
     box = trimesh.creation.box((0.1, 0.1, 0.1))
     mesh = Shape(ShapeKind.MESH, vertices=np.asarray(box.vertices), faces=np.asarray(box.faces))
     scene = make_scene([SceneObject("box", mesh, _moved(0.1, 0.0, 0.0))])
     checker = CollisionChecker(load_robot_model(BALL_URDF), scene)
-    assert not checker.narrow.scene.differs[0]
+    assert checker.narrow.scene.gaps[0] < 1e-9
     posed = checker.pose(np.zeros((1, checker.model.dof)))
     assert checker.narrow.scene_exact(posed, rows)[0] == pytest.approx(
         0.05 - 0.02 - EXACT_MARGIN, abs=1e-6

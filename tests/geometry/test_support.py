@@ -169,10 +169,14 @@ def test_a_mesh_cover_keeps_cells_inside_overlapping_parts() -> None:
     assert np.min(np.linalg.norm(centres, axis=1)) < 1e-9
 
 
-def test_only_meshes_well_below_their_hull_are_measured_by_their_triangles() -> None:
+def test_a_hull_gap_is_how_far_a_meshs_hull_strays_from_its_triangles() -> None:
     cube = _mesh(((0.2, 0.2, 0.2), (0.0, 0.0, 0.0)))
     ell = _mesh(((0.3, 0.03, 0.03), (0.15, 0.015, 0.0)), ((0.03, 0.3, 0.03), (0.015, 0.15, 0.0)))
-    assert cube.hull_is_tight() and SHAPES["box"].hull_is_tight()
-    assert not ell.hull_is_tight()  # the L fills under a fifth of its hull
+    assert cube.hull_gap() < 1e-9 and SHAPES["box"].hull_gap() == 0.0
+    # The L's hull spans its notch: the middle of the hull's slanted face, (0.165, 0.165) in
+    # the plane, is farthest from the L, 0.135 from both arms (their inner faces at 0.03).
+    assert ell.hull_gap() == pytest.approx(0.135, abs=0.005)
     open_mesh = Shape(ShapeKind.MESH, vertices=TETRA.vertices, faces=TETRA.faces[:3])
-    assert not open_mesh.hull_is_tight()  # no volume to compare: measured as triangles
+    assert open_mesh.hull_gap() > 0.0  # the missing face is the hull's, not the mesh's
+    flat = Shape(ShapeKind.MESH, vertices=TETRA.vertices[:3], faces=TETRA.faces[:1])
+    assert flat.hull_gap() == np.inf  # no 3-D hull: always measured as its triangles

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from trajcache.geometry.model.kinematics import forward_kinematics
 from trajcache.geometry.model.motion import MotionBounds, motion_bounds
 from trajcache.geometry.model.robot import RobotModel
-from trajcache.geometry.model.shapes import FloatArray, Shape, ShapeKind
+from trajcache.geometry.model.shapes import FloatArray, Shape
 from trajcache.geometry.model.support import SupportTable, sphere_cover
 from trajcache.geometry.scene.scene import Scene
 
@@ -35,7 +35,7 @@ class RobotGeometry:
         elements = model.elements
         self.geometries = [e.shape.to_fcl() for e in elements]
         self.exact = ExactBodies.of([e.shape for e in elements])
-        self.differs = self.exact.differs
+        self.gaps = self.exact.gaps
         self.element_link = np.array([e.link for e in elements], dtype=np.int64)
         self.element_origin = np.array([e.origin for e in elements], dtype=float).reshape(-1, 4, 4)
         self.support = SupportTable.build([e.shape for e in elements])
@@ -176,25 +176,23 @@ class RobotGeometry:
 class ExactBodies:
     """coal's geometries of some shapes (`narrow.py`, `pair_tables.py`; FCL's distances can be
     too large): each shape's own (a mesh as its triangles), its convex hull (the shape itself
-    for a primitive), and whether a mesh falls short of its hull enough to measure its
-    triangles (`differing`)."""
+    for a primitive), and how far the hull strays from the shape (`Shape.hull_gap`)."""
 
     exact: list[coal.CollisionGeometry]
     hull: list[coal.CollisionGeometry]
-    differs: NDArray[np.bool_]
+    gaps: FloatArray
 
     @classmethod
-    def of(cls, shapes: list[Shape], differs: NDArray[np.bool_] | None = None) -> ExactBodies:
-        """The coal geometries of `shapes` (`differs`: their `differing`, if known)."""
+    def of(cls, shapes: list[Shape], gaps: FloatArray | None = None) -> ExactBodies:
+        """The coal geometries of `shapes` (`gaps`: their `hull_gaps`, if known)."""
         exact = [s.to_coal() for s in shapes]
         hull = [s.to_coal_hull(g) for s, g in zip(shapes, exact, strict=True)]
-        return cls(exact, hull, differing(shapes) if differs is None else differs)
+        return cls(exact, hull, hull_gaps(shapes) if gaps is None else gaps)
 
 
-def differing(shapes: list[Shape]) -> NDArray[np.bool_]:
-    """Per shape, whether it is a mesh that its convex hull does not fit tightly
-    (`Shape.hull_is_tight`): its distance bounded as its hull's may fall short of its own."""
-    return np.array([s.kind is ShapeKind.MESH and not s.hull_is_tight() for s in shapes], bool)
+def hull_gaps(shapes: list[Shape]) -> FloatArray:
+    """Per shape, how far its convex hull strays from it (`Shape.hull_gap`; 0 for a primitive)."""
+    return np.array([s.hull_gap() for s in shapes], dtype=float)
 
 
 class SceneGeometry:
@@ -227,12 +225,12 @@ class SceneGeometry:
     def exact(self) -> ExactBodies:
         """coal's geometries of the objects, built on first use: only concave meshes near the
         robot need them."""
-        return ExactBodies.of([o.shape for o in self.scene.objects], self.differs)
+        return ExactBodies.of([o.shape for o in self.scene.objects], self.gaps)
 
     @functools.cached_property
-    def differs(self) -> NDArray[np.bool_]:
-        """Per object, whether its triangles may be farther than its hull (`differing`)."""
-        return differing([o.shape for o in self.scene.objects])
+    def gaps(self) -> FloatArray:
+        """Per object, how far its convex hull strays from it (`Shape.hull_gap`)."""
+        return hull_gaps([o.shape for o in self.scene.objects])
 
     @functools.cached_property
     def poses(self) -> FloatArray:

@@ -3,9 +3,10 @@
 Level 4 of the bounds bounds the distance between the two bodies of each row as convex shapes,
 meshes as their convex hulls: a compiled GJK whose every answer is a slab bound, so a proved
 lower bound (`compiled/gjk.py`; `EXACT_MARGIN` less, for round-off), which stops as soon as it
-exceeds what the row needs. Where that is not enough for a concave mesh, coal measures its
-triangles, one call per row, which settles pairs where every cheaper level only bounds the
-distance to a hull or a box (`EXACT_MARGIN` less, for coal's GJK tolerance). python-fcl gives
+exceeds what the row needs. Where that is not enough and a mesh's hull strays from it far
+enough that its triangles could be (`Shape.hull_gap`), coal measures its triangles, one call
+per row, which settles pairs where every cheaper level only bounds the distance to a hull or a
+box (`EXACT_MARGIN` less, for coal's GJK tolerance). python-fcl gives
 the verdict, its collision test, so that a check agrees with a per-state FCL loop; FCL's
 distances are never used as bounds (python-fcl 0.7 overestimates some by centimetres), only as
 a heuristic for planners' clearance checks. Calls (rows bounded, meshes measured, FCL queries)
@@ -23,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trajcache.geometry.collision.bodies import ExactBodies, Posed, RobotGeometry, SceneGeometry
-from trajcache.geometry.collision.compiled.gjk import convex_lower_rows
+from trajcache.geometry.collision.compiled.gjk import TOLERANCE, convex_lower_rows
 from trajcache.geometry.model.shapes import FloatArray
 
 IntArray = NDArray[np.int64]
@@ -31,8 +32,8 @@ BoolArray = NDArray[np.bool_]
 # One side of exact rows: its support table (`SupportTable.kernel_args`), each row's shape and
 # world pose (K, 4, 4).
 _Side = tuple[tuple[np.ndarray, ...], IntArray, FloatArray]
-# coal's bodies of both sides (the second built on first use) and which of them are concave.
-_Bodies = tuple[ExactBodies, Callable[[], ExactBodies], BoolArray, BoolArray]
+# coal's bodies of both sides (the second built on first use) and their hull gaps.
+_Bodies = tuple[ExactBodies, Callable[[], ExactBodies], FloatArray, FloatArray]
 
 # Subtracted from coal's distances: ten times its GJK tolerance (1e-6), in metres.
 EXACT_MARGIN = 1e-5
@@ -56,14 +57,21 @@ class Narrow:
         self._counts.calls = self.calls + calls
 
     def scene_exact(
-        self, posed: Posed, rows: IntArray, need: FloatArray | float = np.inf
+        self,
+        posed: Posed,
+        rows: IntArray,
+        need: FloatArray | float = np.inf,
+        *,
+        past_need: bool = False,
     ) -> FloatArray:
         """Level 4 for scene rows: a lower bound of the distance between element and object,
         less `EXACT_MARGIN` (≤ 0 where they touch).
 
         Every row is first bounded as convex shapes, meshes as their hulls (compiled GJK,
-        `compiled/gjk.py`), which stops once its bound exceeds `need` (per row); a concave
-        mesh's row whose bound does not is measured as its triangles (coal).
+        `compiled/gjk.py`), which stops once its bound exceeds `need` (per row); where it does
+        not, a mesh is measured as its triangles (coal) if its hull strays from them at all,
+        or, `past_need`, only if that could lift the bound past `need` (a caller that needs
+        no bound below `need` to be as tight as it can be: the certifier's).
         """
         if len(rows) == 0:
             return np.zeros(0)
@@ -71,12 +79,17 @@ class Narrow:
         return self._exact(
             (robot.support.kernel_args, rows[:, 1], posed.pose(rows[:, 0], rows[:, 1])),
             (scene.support.kernel_args, rows[:, 2], scene.poses[rows[:, 2]]),
-            need,
-            (robot.exact, lambda: scene.exact, robot.differs, scene.differs),
+            (need, past_need),
+            (robot.exact, lambda: scene.exact, robot.gaps, scene.gaps),
         )
 
     def self_exact(
-        self, posed: Posed, rows: IntArray, need: FloatArray | float = np.inf
+        self,
+        posed: Posed,
+        rows: IntArray,
+        need: FloatArray | float = np.inf,
+        *,
+        past_need: bool = False,
     ) -> FloatArray:
         """Level 4 for robot pairs, as `scene_exact`."""
         if len(rows) == 0:
@@ -87,18 +100,23 @@ class Narrow:
         return self._exact(
             (sup, first, posed.pose(rows[:, 0], first)),
             (sup, second, posed.pose(rows[:, 0], second)),
-            need,
-            (robot.exact, lambda: robot.exact, robot.differs, robot.differs),
+            (need, past_need),
+            (robot.exact, lambda: robot.exact, robot.gaps, robot.gaps),
         )
 
     def _exact(
-        self, first: _Side, second: _Side, need: FloatArray | float, bodies: _Bodies
+        self,
+        first: _Side,
+        second: _Side,
+        wanted: tuple[FloatArray | float, bool],
+        bodies: _Bodies,
     ) -> FloatArray:
         """Lower bounds of the distances of the rows of bodies `first` and `second` (their
         support tables, each row's body and world pose), as convex shapes (compiled), then
-        as triangles where a concave mesh's bound is not above `need` or not positive; less
-        `EXACT_MARGIN`."""
+        as triangles where the bound is not above `need` (or 0) and the hull gaps leave room for
+        the triangles' to be (`wanted`: the need, and whether past it); less `EXACT_MARGIN`."""
         (sup_a, index_a, poses_a), (sup_b, index_b, poses_b) = first, second
+        need, past_need = wanted
         count = len(index_a)
         needs = np.ascontiguousarray(np.broadcast_to(np.asarray(need, dtype=float), (count,)))
         out = np.empty(count)
@@ -106,10 +124,14 @@ class Narrow:
             np.ascontiguousarray(poses_a), sup_a, index_a, np.ascontiguousarray(poses_b), sup_b,
             index_b, needs, np.empty((4, 3)), out,
         )  # fmt: skip
-        exact_a, exact_b, differs_a, differs_b = bodies
-        refine = np.flatnonzero(
-            (differs_a[index_a] | differs_b[index_b]) & (out <= np.maximum(needs, 0.0))
-        )
+        exact_a, exact_b, gaps_a, gaps_b = bodies
+        # The triangles' distance exceeds the hulls' by at most their gaps (`Shape.hull_gap`).
+        enough = np.maximum(needs, 0.0)
+        gap = gaps_a[index_a] + gaps_b[index_b]
+        lifts = (gap > 0.0) & (out <= enough)
+        if past_need:
+            lifts &= out + gap + TOLERANCE > enough
+        refine = np.flatnonzero(lifts)
         if len(refine):
             meshes_a, meshes_b = exact_a.exact, exact_b().exact
             request = coal.DistanceRequest()

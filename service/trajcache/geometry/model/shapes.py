@@ -12,6 +12,7 @@ import trimesh
 from numpy.typing import NDArray
 from scipy.spatial import QhullError
 
+from trajcache.geometry.disk_cache import cached_arrays, digest
 from trajcache.geometry.errors import SceneError
 
 FloatArray = NDArray[np.float64]
@@ -138,20 +139,24 @@ class Shape:
             return exact
         return exact.convex
 
-    def hull_is_tight(self) -> bool:
-        """True for a primitive, and for a closed mesh within 0.1 % of its convex hull's
-        volume: measuring it as its hull then loses next to nothing (micrometres on the
-        Panda's links), so its triangles need not be measured. Either answer is safe: the
-        hull's distance never exceeds the mesh's."""
+    def hull_gap(self) -> float:
+        """How far the shape's convex hull strays from the shape: 0 for a primitive; for a mesh,
+        the largest distance from a point of its hull's surface to its triangles, sampled (the
+        hull's vertices and `GAP_SAMPLES` points spread over its faces), or inf for a mesh with
+        no 3-D hull (flat). Kept on disk by the mesh's content (`disk_cache.py`).
+
+        Where the hull's distance to another body is d, the triangles' is at most d + gap (the
+        hull's nearest point is within gap of a triangle), so the triangles need measuring only
+        where d + gap exceeds what is needed (`narrow.py`). A sampled gap can fall short of the
+        largest; that only skips a measurement that might have proved more: the hull's distance
+        is a lower bound either way.
+        """
         if self.kind is not ShapeKind.MESH:
-            return True
-        mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
-        if not mesh.is_watertight:
-            return False
-        try:
-            return bool(abs(mesh.volume) >= (1.0 - 1e-3) * mesh.convex_hull.volume)
-        except (QhullError, ValueError):
-            return False
+            return 0.0
+        assert self.vertices is not None and self.faces is not None
+        vertices, faces = np.asarray(self.vertices, float), np.asarray(self.faces, np.int64)
+        key = digest([vertices, faces, GAP_SAMPLES])
+        return float(cached_arrays("hull-gaps", key, lambda: _hull_gap(vertices, faces))["gap"])
 
     def canonical(self) -> dict[str, object]:
         """A JSON-ready description used for content hashing."""
@@ -174,3 +179,20 @@ def pose_matrix(xyz: FloatArray | list[float], quat_xyzw: FloatArray | list[floa
     ]
     t[:3, 3] = np.asarray(xyz, dtype=float)
     return t
+
+
+GAP_SAMPLES = 2000  # points of a mesh's hull surface whose distance to its triangles is measured
+
+
+def _hull_gap(vertices: FloatArray, faces: NDArray[np.int64]) -> dict[str, np.ndarray]:
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    try:
+        hull = mesh.convex_hull
+    except (QhullError, ValueError):
+        return {"gap": np.array(np.inf)}
+    if len(hull.faces) < 4 or hull.volume <= 0.0:
+        return {"gap": np.array(np.inf)}
+    points, _ = trimesh.sample.sample_surface_even(hull, GAP_SAMPLES, seed=0)
+    points = np.vstack([points, hull.vertices])
+    _, distance, _ = trimesh.proximity.closest_point(mesh, points)
+    return {"gap": np.array(float(np.max(distance)))}

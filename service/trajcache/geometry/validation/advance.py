@@ -110,7 +110,8 @@ class Advancer:
             weak = lower <= need
         if np.any(weak):
             exact = self.narrow.scene_exact if left.scene else self.narrow.self_exact
-            lower[weak] = np.maximum(lower[weak], exact(posed, rows[weak], need[weak]))
+            bound = exact(posed, rows[weak], need[weak], past_need=True)
+            lower[weak] = np.maximum(lower[weak], bound)
         hit = np.zeros(len(rows), dtype=bool)
         zero = lower <= 0.0
         if np.any(zero):

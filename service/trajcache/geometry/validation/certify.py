@@ -392,7 +392,7 @@ class SegmentCertifier:
         need = np.zeros(len(unique))  # an end's bound settles its segment above the motion
         np.maximum.at(need, where, np.concatenate([group.motion, group.motion]))
         exact = self.narrow.scene_exact if group.scene else self.narrow.self_exact
-        bound = exact(posed, unique, need)
+        bound = exact(posed, unique, need, past_need=True)
         group.lower_a = np.maximum(group.lower_a, bound[where[:count]])
         group.lower_b = np.maximum(group.lower_b, bound[where[count:]])
         return group.open()
