@@ -198,12 +198,17 @@ class CollisionChecker:
                 np.ascontiguousarray(epad, dtype=float),
                 np.ascontiguousarray(ppad, dtype=float),
             )
-            return (
-                scene_rows,
-                self_rows,
-                epad[scene_rows[:, 0], scene_rows[:, 1]],
-                ppad[self_rows[:, 0], self_rows[:, 1]],
-            )
+            scene_pad = epad[scene_rows[:, 0], scene_rows[:, 1]]
+            self_pad = ppad[self_rows[:, 0], self_rows[:, 1]]
+            # Level 4, as convex shapes (GJK): a row whose bound exceeds its pad is clear by
+            # more than it, so FCL would find it neither colliding nor near.
+            if len(scene_rows):
+                keep = self.narrow.convex_bounds(posed, scene_rows, scene_pad) <= scene_pad
+                scene_rows, scene_pad = scene_rows[keep], scene_pad[keep]
+            if len(self_rows):
+                keep = self.narrow.convex_bounds(posed, self_rows, self_pad) <= self_pad
+                self_rows, self_pad = self_rows[keep], self_pad[keep]
+            return scene_rows, self_rows, scene_pad, self_pad
         cl = self.clearance
         scene_rows = cl.scene_ball_rows(posed, np.asarray(epad, dtype=float))
         self_rows = np.argwhere(cl.self_balls(posed) <= ppad)

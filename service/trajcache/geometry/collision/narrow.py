@@ -39,6 +39,18 @@ _Bodies = tuple[ExactBodies, Callable[[], ExactBodies], FloatArray, FloatArray]
 EXACT_MARGIN = 1e-5
 
 
+def _convex(first: _Side, second: _Side, need: FloatArray) -> FloatArray:
+    """GJK's lower bounds (`compiled/gjk.py`) of the rows of `first` and `second`, each
+    stopping once above need[k]."""
+    (sup_a, index_a, poses_a), (sup_b, index_b, poses_b) = first, second
+    out = np.empty(len(index_a))
+    convex_lower_rows(
+        np.ascontiguousarray(poses_a), sup_a, index_a, np.ascontiguousarray(poses_b), sup_b,
+        index_b, np.ascontiguousarray(need, dtype=float), np.empty((4, 3)), out,
+    )  # fmt: skip
+    return out
+
+
 class Narrow:
     """coal and FCL queries on rows of one robot and one scene, the robot posed per row."""
 
@@ -104,6 +116,23 @@ class Narrow:
             (robot.exact, lambda: robot.exact, robot.gaps, robot.gaps),
         )
 
+    def convex_bounds(self, posed: Posed, rows: IntArray, need: FloatArray) -> FloatArray:
+        """Lower bounds of scene rows (state, element, object) or robot-pair rows (state,
+        pair), as convex shapes alone (meshes as their hulls; compiled GJK, no triangles),
+        less `EXACT_MARGIN`: each stops once above need[k]."""
+        robot = self.robot
+        sup = robot.support.kernel_args
+        if rows.shape[1] == 3:
+            scene = self.scene
+            first = (sup, rows[:, 1], posed.pose(rows[:, 0], rows[:, 1]))
+            second = (scene.support.kernel_args, rows[:, 2], scene.poses[rows[:, 2]])
+        else:
+            i, j = robot.pair_i[rows[:, 1]], robot.pair_j[rows[:, 1]]
+            first, second = (sup, i, posed.pose(rows[:, 0], i)), (sup, j, posed.pose(rows[:, 0], j))
+        out = _convex(first, second, need)
+        self._count(len(rows))
+        return out - EXACT_MARGIN
+
     def _exact(
         self,
         first: _Side,
@@ -115,15 +144,11 @@ class Narrow:
         support tables, each row's body and world pose), as convex shapes (compiled), then
         as triangles where the bound is not above `need` (or 0) and the hull gaps leave room for
         the triangles' to be (`wanted`: the need, and whether past it); less `EXACT_MARGIN`."""
-        (sup_a, index_a, poses_a), (sup_b, index_b, poses_b) = first, second
+        (_, index_a, poses_a), (_, index_b, poses_b) = first, second
         need, past_need = wanted
         count = len(index_a)
         needs = np.ascontiguousarray(np.broadcast_to(np.asarray(need, dtype=float), (count,)))
-        out = np.empty(count)
-        convex_lower_rows(
-            np.ascontiguousarray(poses_a), sup_a, index_a, np.ascontiguousarray(poses_b), sup_b,
-            index_b, needs, np.empty((4, 3)), out,
-        )  # fmt: skip
+        out = _convex(first, second, needs)
         exact_a, exact_b, gaps_a, gaps_b = bodies
         # The triangles' distance exceeds the hulls' by at most their gaps (`Shape.hull_gap`).
         enough = np.maximum(needs, 0.0)
