@@ -44,7 +44,8 @@ lint: setup
 # Every benchmark at smoke size, $(JOBS) at a time (each starts its own services on free ports and
 # temporary databases), the longest first; each one's output is printed whole when it ends.
 SMOKES := paper_tables reuse_quality load mbm safety_soak real_robots pose_goals pose_cartesian \
-	plan_hit transfer certify_sampling validation planning stats rejections ik lookup
+	plan_hit transfer certify_sampling validation planning stats rejections ik lookup \
+	exact_distances
 SMOKE_mbm := bench/mbm.py --smoke --moveit --cross-scene
 SMOKE_pose_cartesian := bench/pose_goals.py --smoke --cartesian
 
