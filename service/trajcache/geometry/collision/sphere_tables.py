@@ -82,6 +82,7 @@ class SphereTables:
             np.zeros((len(self.robot[1]), 3)),  # type: ignore[arg-type]
             np.full(len(self.robot[1]), -1, dtype=np.int64),  # type: ignore[arg-type]
             np.zeros((len(self.robot[1]), 4)),  # type: ignore[arg-type]
+            np.zeros((4, 3)),  # GJK's simplex
         )
 
 

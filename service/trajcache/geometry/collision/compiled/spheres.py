@@ -17,8 +17,15 @@ the object (negative inside):
   r(c), the distance from c to the nearest point of the element FCL tests: that point is
   within r(c) of c, so it lies inside the object's solid, which is a collision for FCL too.
   Nothing else is called colliding.
-- OPEN otherwise: the trees neither prove the state free nor colliding, and the exact check
-  (FCL, in Python) decides. Self-collision pairs are never proven colliding here.
+- A row or pair the trees leave open is tried as convex shapes (the element's mesh as its
+  hull, which holds it; `gjk.py`): a bound above `CLEAR` proves it clear, for FCL too. Rows
+  nearer than that wait for the exact check, as all did before: taken at once, they let the
+  search hug obstacles, and the paths it found cost more to certify than the search saved
+  (MBM Panda, 105 problems in process: at 2 mm certification took 2.75 ms at the median
+  against 1.85, at 5 mm 1.91, while the search took 0.96 ms against 1.37 and its mean fell from
+  15 to 10 ms).
+- OPEN otherwise: neither proves the state free nor colliding, and the exact check (FCL, in
+  Python) decides. Self-collision pairs are never proven colliding here.
 
 `sphere_state` returns 0 (FREE), 1 (OPEN) or 2 (COLLIDING). Its arrays:
 - robot: element link (E,), element root node (E,), node centres in their link's frame (N, 3),
@@ -31,8 +38,9 @@ the object (negative inside):
 - pairs: i (P,), j (P,), then the distance tables of `pair_tables.py`;
 - work: links (1, L, 4, 4), world centres (N, 3), stamps (N,), clock (1,), stack (S,), pair
   stack (S, 2), element poses (E, 3, 4), counts (2,) of the states checked and of those found
-  OPEN, element box centres (E, 3), element pose stamps (E,), and every element's root ball
-  (E, 4): its placed centre and radius side by side, which every row and pair reads.
+  OPEN, element box centres (E, 3), element pose stamps (E,), every element's root ball (E, 4):
+  its placed centre and radius side by side, which every row and pair reads, and GJK's
+  scratch simplex (4, 3).
 
 Every kernel here compiles without numba's reference counting (`model/kernels.BORROWED`): they
 allocate nothing and return no array, so every array they touch is borrowed from the caller,
@@ -48,11 +56,13 @@ import math
 
 import numba
 
+from trajcache.geometry.collision.compiled.gjk import convex_lower
 from trajcache.geometry.collision.compiled.primitives import box_distance_at
 from trajcache.geometry.collision.compiled.slabs import self_slabs
 from trajcache.geometry.model.kernels import BORROWED, forward_kinematics_kernel
 
 FREE, OPEN, COLLIDING = 0, 1, 2
+CLEAR = 0.005  # metres: an open row or pair proved this far apart is free (module docstring)
 BOX, SPHERE, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
 
 
@@ -202,7 +212,9 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
             row = _scene_row(e, m, robot, scene, work)
             if row == COLLIDING:
                 return COLLIDING
-            if row == OPEN:
+            if row == OPEN and not _convex_apart(
+                poses[e], robot[8], e, scene[5][m], scene[6], m, work
+            ):
                 status = OPEN
     if status == OPEN:
         work[7][1] += 1
@@ -221,7 +233,9 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
             continue
         if _pair_slab(i, j, robot, work):
             continue
-        if _pair_open(pi[p], pj[p], robot, work):
+        if _pair_open(pi[p], pj[p], robot, work) and not _convex_apart(
+            poses[i], robot[8], i, poses[j], robot[8], j, work
+        ):
             work[7][1] += 1
             return OPEN
     return FREE
@@ -322,6 +336,13 @@ def _pose_element(e, robot, work):  # type: ignore[no-untyped-def]  # pragma: no
             + poses[e, r, 2] * local[e, 2] + poses[e, r, 3]
         )  # fmt: skip
     stamp[e] = clock
+
+
+@numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
+def _convex_apart(pose_a, sup_a, a, pose_b, sup_b, b, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Whether GJK's bound proves shape a of `sup_a` at pose_a and shape b of `sup_b` at
+    pose_b more than `CLEAR` apart (meshes as their hulls)."""
+    return convex_lower(pose_a, sup_a, a, pose_b, sup_b, b, CLEAR, work[11]) > CLEAR
 
 
 @numba.njit(cache=True, nogil=True, **BORROWED)
