@@ -212,9 +212,7 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
             row = _scene_row(e, m, robot, scene, work)
             if row == COLLIDING:
                 return COLLIDING
-            if row == OPEN and not _convex_apart(
-                poses[e], robot[8], e, scene[5][m], scene[6], m, work
-            ):
+            if row == OPEN and not _convex_apart(e, m, robot, scene, work):
                 status = OPEN
     if status == OPEN:
         work[7][1] += 1
@@ -233,9 +231,7 @@ def sphere_state(q, fk, robot, scene, pairs, work):  # type: ignore[no-untyped-d
             continue
         if _pair_slab(i, j, robot, work):
             continue
-        if _pair_open(pi[p], pj[p], robot, work) and not _convex_apart(
-            poses[i], robot[8], i, poses[j], robot[8], j, work
-        ):
+        if _pair_open(i, j, robot, work) and not _convex_apart(i, -1 - j, robot, scene, work):
             work[7][1] += 1
             return OPEN
     return FREE
@@ -339,10 +335,16 @@ def _pose_element(e, robot, work):  # type: ignore[no-untyped-def]  # pragma: no
 
 
 @numba.njit(cache=True, nogil=True, inline="always", **BORROWED)
-def _convex_apart(pose_a, sup_a, a, pose_b, sup_b, b, work):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Whether GJK's bound proves shape a of `sup_a` at pose_a and shape b of `sup_b` at
-    pose_b more than `CLEAR` apart (meshes as their hulls)."""
-    return convex_lower(pose_a, sup_a, a, pose_b, sup_b, b, CLEAR, work[11]) > CLEAR
+def _convex_apart(e, other, robot, scene, work):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Whether GJK's bound proves element e more than `CLEAR` from object `other` (≥ 0), or
+    from element −1 − `other` (< 0), meshes as their hulls; the elements posed (work[6])."""
+    poses, sup, simplex = work[6], robot[8], work[11]
+    if other >= 0:
+        return (
+            convex_lower(poses[e], sup, e, scene[5][other], scene[6], other, CLEAR, simplex) > CLEAR
+        )
+    j = -1 - other
+    return convex_lower(poses[e], sup, e, poses[j], sup, j, CLEAR, simplex) > CLEAR
 
 
 @numba.njit(cache=True, nogil=True, **BORROWED)
