@@ -215,7 +215,6 @@ class SceneGeometry:
         self.offset = np.einsum("mj,mji->mi", self.position, self.rotation)
         reach = np.einsum("mij,mj->mi", np.abs(self.rotation), self.half)
         self.aabb_lo, self.aabb_hi = self.position - reach, self.position + reach
-        self.placements = [coal.Transform3s(o.pose[:3, :3], o.pose[:3, 3]) for o in scene.objects]
         self.kernel_scene = tuple(
             np.ascontiguousarray(a, dtype=float)
             for a in (self.rotation, self.position, self.half, self.aabb_lo, self.aabb_hi)

@@ -88,12 +88,8 @@ class Narrow:
         if len(rows) == 0:
             return np.zeros(0)
         robot, scene = self.robot, self.scene
-        return self._exact(
-            (robot.support.kernel_args, rows[:, 1], posed.pose(rows[:, 0], rows[:, 1])),
-            (scene.support.kernel_args, rows[:, 2], scene.poses[rows[:, 2]]),
-            (need, past_need),
-            (robot.exact, lambda: scene.exact, robot.gaps, scene.gaps),
-        )
+        bodies = (robot.exact, lambda: scene.exact, robot.gaps, scene.gaps)
+        return self._exact(*self._sides(posed, rows), (need, past_need), bodies)
 
     def self_exact(
         self,
@@ -107,31 +103,28 @@ class Narrow:
         if len(rows) == 0:
             return np.zeros(0)
         robot = self.robot
-        first, second = robot.pair_i[rows[:, 1]], robot.pair_j[rows[:, 1]]
-        sup = robot.support.kernel_args
-        return self._exact(
-            (sup, first, posed.pose(rows[:, 0], first)),
-            (sup, second, posed.pose(rows[:, 0], second)),
-            (need, past_need),
-            (robot.exact, lambda: robot.exact, robot.gaps, robot.gaps),
-        )
+        bodies = (robot.exact, lambda: robot.exact, robot.gaps, robot.gaps)
+        return self._exact(*self._sides(posed, rows), (need, past_need), bodies)
 
     def convex_bounds(self, posed: Posed, rows: IntArray, need: FloatArray) -> FloatArray:
         """Lower bounds of scene rows (state, element, object) or robot-pair rows (state,
         pair), as convex shapes alone (meshes as their hulls; compiled GJK, no triangles),
         less `EXACT_MARGIN`: each stops once above need[k]."""
+        out = _convex(*self._sides(posed, rows), need)
+        self._count(len(rows))
+        return out - EXACT_MARGIN
+
+    def _sides(self, posed: Posed, rows: IntArray) -> tuple[_Side, _Side]:
+        """Both sides of scene rows (state, element, object: the element, the object) or of
+        robot-pair rows (state, pair: its two elements), posed."""
         robot = self.robot
         sup = robot.support.kernel_args
         if rows.shape[1] == 3:
             scene = self.scene
-            first = (sup, rows[:, 1], posed.pose(rows[:, 0], rows[:, 1]))
-            second = (scene.support.kernel_args, rows[:, 2], scene.poses[rows[:, 2]])
-        else:
-            i, j = robot.pair_i[rows[:, 1]], robot.pair_j[rows[:, 1]]
-            first, second = (sup, i, posed.pose(rows[:, 0], i)), (sup, j, posed.pose(rows[:, 0], j))
-        out = _convex(first, second, need)
-        self._count(len(rows))
-        return out - EXACT_MARGIN
+            element = (sup, rows[:, 1], posed.pose(rows[:, 0], rows[:, 1]))
+            return element, (scene.support.kernel_args, rows[:, 2], scene.poses[rows[:, 2]])
+        i, j = robot.pair_i[rows[:, 1]], robot.pair_j[rows[:, 1]]
+        return (sup, i, posed.pose(rows[:, 0], i)), (sup, j, posed.pose(rows[:, 0], j))
 
     def _exact(
         self,
