@@ -32,6 +32,7 @@ KERNEL_MODULES = [
     "trajcache.geometry.collision.compiled.state_rows",
     "trajcache.geometry.collision.compiled.spheres",
     "trajcache.geometry.collision.compiled.gjk",
+    "trajcache.geometry.collision.compiled.settle",
     "trajcache.planning.compiled.search",
 ]
 

@@ -21,7 +21,7 @@ for info in pkgutil.walk_packages(geometry.__path__, "trajcache.geometry."):
         if isinstance(value, CPUDispatcher) and value.__module__ == info.name:
             kernels[f"{info.name}.{name}"] = value
 called = {n for k in kernels.values() for n in k.py_func.__code__.co_names}
-python = {"forward_kinematics_kernel"}  # called from Python and from kernels
+python = {"forward_kinematics_kernel", "scene_open_kernel", "self_open_kernel"}  # and kernels
 entry = {
     n: len(k.signatures)
     for n, k in kernels.items()
@@ -40,7 +40,7 @@ def test_warm_compiles_every_kernel_called_from_python() -> None:
     entry_points = json.loads(run.stdout.strip().splitlines()[-1])
     short = {name.rpartition(".")[2] for name in entry_points}
     assert {"forward_kinematics_kernel", "scene_open_kernel", "state_rows_kernel"} <= short
-    assert {"self_open_kernel", "hull_support_climb", "sphere_state"} <= short
+    assert {"self_open_kernel", "hull_support_climb", "sphere_state", "settle_kernel"} <= short
     cold = sorted(name for name, signatures in entry_points.items() if signatures == 0)
     assert not cold, f"kernels warm() leaves to compile on first use: {cold}"
 

@@ -17,7 +17,8 @@ certified the same way (`refine.py`). Then exact distances, and FCL's collision 
 even they are positive at a sample: a colliding sample ends the search at once, as in the plain
 check (a free one whose exact distance is positive needs no collision test). A pair no level
 settles is conservative advancement's job (`advance.py`), which ends in a certificate, a
-colliding state, or TOO_CLOSE.
+colliding state, or TOO_CLOSE. All of it is tried first in one compiled call (`settle.py`),
+which certifies a chain or leaves it to these stages.
 
 Every bound is a true bound (coal's exact distances less a margin for its tolerance; FCL
 supplies the collision test, never a distance), so a certified motion has no collision anywhere
@@ -49,6 +50,7 @@ from trajcache.geometry.validation.segments import (
     SegmentStatus,
     unique_rows,
 )
+from trajcache.geometry.validation.settle import ChainSettler
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
@@ -77,7 +79,7 @@ class CertifierOptions:
 
     min_pad: float = MIN_PAD
     max_depth: int = MAX_DEPTH
-    compiled: bool = True
+    compiled: bool = True  # and the compiled first try (`settle.py`)
     pieces: int = PIECES
 
 
@@ -98,6 +100,7 @@ class SegmentCertifier:
         self.narrow = checker.narrow
         self.base = base
         self.advancer = Advancer(checker, min_pad=options.min_pad, max_depth=options.max_depth)
+        self.settler = ChainSettler(checker, min_pad=options.min_pad, max_depth=options.max_depth)
         rg = self.robot
         turning = rg.motion.rotation & rg.motion.ancestors
         self._turn = turning[rg.element_link].T.astype(float)  # (D, E)
@@ -110,9 +113,12 @@ class SegmentCertifier:
         """Certify every segment of `states` (N ≥ 2); the earliest collision found stops it.
         With `cut`, open segments are cut into pieces before exact distances (`refine.py`),
         which certify only the pairs left `only` open on them (compiled levels)."""
-        posed = Posed.build(self.robot, states)
         delta = segment_deltas(states, base=self.base)
         step = self.robot.motion.steps(delta)
+        settled = self.settler.free(states, delta, step) if self.compiled and only is None else None
+        if settled is not None:  # the compiled call certified it (`settle.py`)
+            return Finding(SegmentStatus.FREE, subdivisions=settled)
+        posed = Posed.build(self.robot, states)
         if self.compiled:
             groups = self._compiled_levels(posed, step, only=only)
         else:
@@ -174,11 +180,8 @@ class SegmentCertifier:
         return [scene, OpenPairs(False, rows, lows[:, 0], lows[:, 1], lows[:, 2])]
 
     def _dense(self, posed: Posed, step: FloatArray) -> tuple[OpenPairs, OpenPairs]:
-        """Level 1 on every segment at once, with configuration-independent motion bounds.
-
-        Returns what the balls leave, with the (configuration-independent) motion of the whole
-        elements.
-        """
+        """Level 1 on every segment at once, with configuration-independent motion bounds: what
+        the balls leave, with the (configuration-independent) motion of the whole elements."""
         rg, cl = self.robot, self.clearance
         centre = step @ self._centre_coef  # (N − 1, E)
         whole = centre + rg.radius * (step @ self._turn)
@@ -224,10 +227,8 @@ class SegmentCertifier:
         return whole
 
     def _covers(self, posed: Posed, step: FloatArray, left: OpenPairs) -> OpenPairs:
-        """Levels 2 and 3: the element's slabs, then every cover ball with its own motion.
-
-        Both ends of every segment go through one call per level.
-        """
+        """Levels 2 and 3: the element's slabs, then every cover ball with its own motion; both
+        ends of every segment go through one call per level."""
         if len(left.rows) == 0:
             return left
         left = self._slabs(posed, step, left)
@@ -364,10 +365,8 @@ class SegmentCertifier:
 
     def _sample_collision(self, posed: Posed, groups: list[OpenPairs]) -> Finding:
         """FCL's collision test at the ends where no bound is positive; the earliest hit wins.
-
         Like the plain check, a colliding sample ends the search at once: what lies between
-        earlier samples is not looked at.
-        """
+        earlier samples is not looked at."""
         touching = []
         for group in groups:
             ends = np.concatenate(
