@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections import defaultdict
 from functools import cache
 
@@ -20,9 +21,12 @@ from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
 from trajcache.geometry.scene.scene import Scene, SceneObject, make_scene
 from trajcache.geometry.validation.validator import TrajectoryValidator
-from trajcache.planning.compiled_planner import plan_compiled
+from trajcache.planning.compiled.search import FREE as TREES_FREE
+from trajcache.planning.compiled.search import distance, motion, sample_count, seed, simplify
+from trajcache.planning.compiled_planner import _Search, plan_compiled
 from trajcache.planning.options import SearchOptions
 from trajcache.planning.problem import PlannerStatus, PlanResult
+from trajcache.planning.query import prepare_query
 from trajcache.reference.example_robots import ROBOTS
 
 
@@ -250,3 +254,37 @@ def test_pending_motions_are_decided_as_each_ones_exact_check_decides_it() -> No
     alone = [search.motion_free(a, b) for a, b in chosen]
     assert [bool(v) for v in pending[4]] == alone
     assert any(alone) and not all(alone)
+
+
+def test_simplification_keeps_the_ends_shortens_and_takes_only_free_motions() -> None:
+    """A random walk of motions the trees prove free, simplified: the same ends, a path at
+    most as long (and here much shorter), every motion of it FREE by the trees."""
+    model = load_robot_model(TWO_JOINT_URDF)
+    scene = make_scene([_box("lid", (0.15, 0.3, 0.06), (0.05, 0.0, 0.57))])
+    query = prepare_query(model, scene, [-1.2, 0.3], [1.2, 0.3])
+    assert not isinstance(query, PlanResult)
+    search = _Search(query, sphere_tables(query.checker.checker), defaultdict(float))  # type: ignore[arg-type]
+    rng = np.random.default_rng(3)
+    seed(3)
+    lower, upper = model.lower, model.upper
+    shortened = 0
+    for _ in range(10):
+        walk = [np.array([-1.2, 0.3])]
+        while len(walk) < 12:
+            step = np.clip(walk[-1] + rng.normal(0.0, 0.5, 2), lower, upper)
+            if search._open_states(walk[-1], step)[0] == TREES_FREE:
+                walk.append(step)
+        path = np.zeros((40, 2))
+        path[: len(walk)] = walk
+        before = sum(distance(a, b, False) for a, b in itertools.pairwise(walk))
+        count = simplify(path, len(walk), *search._args(), 24)  # type: ignore[call-arg]
+        out = path[:count]
+        np.testing.assert_array_equal(out[0], walk[0])
+        np.testing.assert_array_equal(out[-1], walk[-1])
+        after = sum(distance(a, b, False) for a, b in itertools.pairwise(out))
+        assert after <= before + 1e-9
+        shortened += after < 0.8 * before
+        for a, b in itertools.pairwise(out):
+            buffer = np.empty((sample_count(a, b, search.space), 2))
+            assert motion(a, b, *search._args(), buffer)[0] == TREES_FREE  # type: ignore[call-arg]
+    assert shortened >= 8

@@ -30,6 +30,7 @@ from trajcache.geometry.model.kernels import BORROWED
 
 SOLVED, ROUND, FULL = 1, 0, -1
 WAIT = -2  # `_connect`: a motion that would join the trees awaits the exact check
+MIN_GAIN = 0.01  # a random shortcut must save this share of the path length to be checked
 
 
 @numba.njit(cache=True, nogil=True, **BORROWED)
@@ -278,7 +279,8 @@ def simplify(path, n, space, fk, robot, scene, pairs, work, iterations):  # type
 
     First greedily from the start: from each kept vertex on, the last vertex, else the one
     half as far, and so on, that a FREE motion reaches; then `iterations` shortcuts between
-    random points of two segments."""
+    two points drawn uniformly along the path's length, tried only where the straight motion
+    would save `MIN_GAIN` of it (so the checks go to the shortcuts worth having)."""
     none = np.empty((0, path.shape[1]))
     planar = space[3]
     kept, i = 1, 0  # path[:kept] is the result; reads are at i and beyond, writes at kept ≤ i + 1
@@ -295,17 +297,28 @@ def simplify(path, n, space, fk, robot, scene, pairs, work, iterations):  # type
         i = nxt
     n = kept
     a, b = np.empty(path.shape[1]), np.empty(path.shape[1])
+    along = np.empty(path.shape[0])
     for _ in range(iterations):
         if n < 3 or n + 1 > path.shape[0]:
             break
-        i = np.random.randint(0, n - 2)
-        j = np.random.randint(i + 1, n - 1)
-        _at(path[i], path[i + 1], np.random.random(), 1.0, planar, a)
-        _at(path[j], path[j + 1], np.random.random(), 1.0, planar, b)
-        old = distance(a, path[i + 1], planar) + distance(path[j], b, planar)
-        for k in range(i + 1, j):
-            old += distance(path[k], path[k + 1], planar)
-        if distance(a, b, planar) >= old - 1e-9:
+        along[0] = 0.0
+        for k in range(n - 1):
+            along[k + 1] = along[k] + distance(path[k], path[k + 1], planar)
+        total = along[n - 1]
+        s1, s2 = np.random.random() * total, np.random.random() * total
+        s1, s2 = min(s1, s2), max(s1, s2)
+        i, j = 0, 0
+        while i < n - 2 and along[i + 1] <= s1:
+            i += 1
+        while j < n - 2 and along[j + 1] <= s2:
+            j += 1
+        if i == j or along[i + 1] <= along[i] or along[j + 1] <= along[j]:
+            continue
+        fa = (s1 - along[i]) / (along[i + 1] - along[i])
+        fb = (s2 - along[j]) / (along[j + 1] - along[j])
+        _at(path[i], path[i + 1], fa, 1.0, planar, a)
+        _at(path[j], path[j + 1], fb, 1.0, planar, b)
+        if distance(a, b, planar) > (s2 - s1) - MIN_GAIN * total:
             continue
         if _free(a, b, space, fk, robot, scene, pairs, work, none):
             tail = path[j + 1 : n].copy()  # path[i + 1 .. j] become a, b
