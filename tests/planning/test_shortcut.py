@@ -11,6 +11,8 @@ from tests.planning.test_rris import Geometry
 from tests.waiting import NEVER_BINDS_S
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.planning.shortcut import (
+    END_REACH,
+    anchor_ends,
     path_length,
     remove_redundant,
     shortcut,
@@ -160,12 +162,13 @@ def test_zero_budget_does_no_work_and_stays_valid() -> None:
 
 def test_finishing_falls_back_to_the_raw_path_when_the_shortcut_fails_validation() -> None:
     raw = wiggly_path(np.random.default_rng(2))
+    anchored = anchor_ends(raw, distance_fn=distance, interpolate_fn=interpolate)
     geometry = ExactGeometry()
     seen: list[int] = []
 
     def validate(path: np.ndarray) -> tuple[bool, str]:
         seen.append(len(path))
-        return len(path) == len(raw), "too short for this test"
+        return len(path) == len(anchored), "too short for this test"
 
     finished = shortcut_and_certify(
         raw,
@@ -176,8 +179,8 @@ def test_finishing_falls_back_to_the_raw_path_when_the_shortcut_fails_validation
         budget_s=NEVER_BINDS_S,
         rng=np.random.default_rng(0),
     )
-    assert finished.path is not None and len(finished.path) == len(raw)
-    assert seen == [seen[0], len(raw)] and seen[0] < len(raw)
+    assert finished.path is not None and len(finished.path) == len(anchored)
+    assert seen == [seen[0], len(anchored)] and seen[0] < len(anchored)
     assert finished.stats["shortcut_rejected"] == 1.0
     assert finished.stats["length_after"] == pytest.approx(finished.stats["length_before"])
 
@@ -192,3 +195,23 @@ def test_finishing_falls_back_to_the_raw_path_when_the_shortcut_fails_validation
     )
     assert rejected.path is None and "nope" in rejected.message
     assert 2 <= len(rejected.short) < len(raw)  # the shortcut path, for a repair to mend
+
+
+def test_end_anchors_lie_on_the_end_segments_and_keep_the_motion() -> None:
+    """An anchor END_REACH along the first and the last segment, where they are long enough;
+    the same states otherwise, and the same length."""
+    path = [
+        np.array([0.0, 0.0]),
+        np.array([1.0, 0.0]),
+        np.array([1.0, 0.15]),
+        np.array([3.0, 0.15]),
+    ]
+    out = anchor_ends(path, distance_fn=distance, interpolate_fn=interpolate)
+    assert len(out) == 6
+    np.testing.assert_allclose(out[1], [END_REACH, 0.0])
+    np.testing.assert_allclose(out[-2], [3.0 - END_REACH, 0.15])
+    for kept, state in zip(path, [out[0], out[2], out[3], out[5]], strict=True):
+        np.testing.assert_array_equal(kept, state)
+    assert path_length(out, distance) == pytest.approx(path_length(path, distance))
+    short = [np.array([0.0, 0.0]), np.array([0.15, 0.0])]
+    assert len(anchor_ends(short, distance_fn=distance, interpolate_fn=interpolate)) == 2
