@@ -199,13 +199,16 @@ class Rejection(_Answer):
 
 class ValidationReuse(_Answer):
     """What a cache answer's validation could skip: `reused` is "none", "ends", "whole" or
-    "certificate" (then `objects_reproved` of the scene's `objects` were proved again);
-    `ends_proved`: the share of the new end segments proved from stored clearances."""
+    "certificate" (then `objects_reproved` of the scene's `objects` were proved again, while
+    `objects_moved` moved within the clearance it keeps and `objects_clear` lie clear of its
+    swept envelope); `ends_proved`: the share of the new end segments proved from stored
+    clearances."""
 
     reused: Literal["none", "ends", "whole", "certificate"]
     objects: int | None = None
     objects_reproved: int | None = None
     objects_moved: int | None = None
+    objects_clear: int | None = None
     ends_proved: float | None = None
 
 

@@ -214,6 +214,8 @@ class TrajectoryCertificate(Base):
     objects: Mapped[list[str]] = mapped_column(JSON)  # digests of the objects it was proved for
     # by object id: [digest of its shape and allowed names, its pose (12 floats), clearance]
     clearances: Mapped[dict[str, list[Any]] | None] = mapped_column(JSON, nullable=True)
+    # the interior's swept envelope: float64 rows (x, y, z, radius) (`validation/envelope.py`)
+    envelope: Mapped[bytes | None] = mapped_column(LargeBinary, nullable=True)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime(), default=utcnow)
 
 

@@ -27,8 +27,9 @@ from trajcache.geometry.validation.certificates import (
     CertificateKey,
     object_digest,
 )
+from trajcache.geometry.validation.envelope import Envelope
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
-from trajcache.services.catalog.certificates import CertificateWrite
+from trajcache.services.catalog.certificates import CertificateWrite, ClearanceJob
 from trajcache.services.catalog.robots import put_robot
 from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
@@ -174,7 +175,13 @@ def test_another_replica_builds_on_the_stored_certificate(ctx: ServiceContext, u
         scene(other, [*AWAY[:2], box("high", 0.5, reach=2.0)])  # 0.5 m: more than it keeps
         answer = ask(other, 0.05, 0.95)
         assert answer.memo is MemoUse.CERTIFICATE and answer.certificate is not None
-        assert (answer.certificate.reproved, answer.certificate.moved) == (1, 0)
+        use = answer.certificate  # yet still clear of the interior's swept envelope
+        assert (use.reproved, use.moved, use.clear) == (0, 0, 1)
+        scene(other, [*AWAY[:2], box("high", 0.5, reach=0.55, size=0.01)])  # inside it, free
+        answer = ask(other, 0.06, 0.94)
+        assert answer.memo is MemoUse.CERTIFICATE and answer.certificate is not None
+        use = answer.certificate
+        assert (use.reproved, use.moved, use.clear) == (1, 0, 0)
 
 
 def test_a_certificate_keeps_each_object_s_clearance(ctx: ServiceContext) -> None:
@@ -267,3 +274,37 @@ def test_an_export_carries_no_certificate(ctx: ServiceContext) -> None:
         text = "".join(dumps(r) for r in export_records(session=session, filt=ExportFilter()))
     assert row.path not in text and row.stamp not in text
     assert not any(digest in text for digest in row.objects)
+
+
+def test_an_object_clear_of_the_swept_envelope_needs_no_proof(
+    ctx: ServiceContext, url: str
+) -> None:
+    """A new object away from the interior's sweep is certified by the envelope the certificate
+    keeps (here read back from the table by another replica); one inside it is proved again."""
+    robot(ctx, AWAY)
+    ask(ctx)
+    (row,) = certificates(ctx)
+    assert row.envelope is not None and len(row.envelope) % 32 == 0  # (x, y, z, r) float64
+    with context(url, certificate_audit=True) as other:
+        scene(other, [*AWAY, box("new", -1.6, reach=0.3)])
+        answer = ask(other, 0.04, 0.96)
+        assert answer.memo is MemoUse.CERTIFICATE and answer.certificate is not None
+        assert (answer.certificate.reproved, answer.certificate.clear) == (0, 1)
+        scene(other, [*AWAY, box("beside", 0.5, reach=0.25, size=0.01)])  # THIN: in the sweep
+        answer = ask(other, 0.05, 0.95)
+        assert answer.source is None and answer.rejected
+
+
+def test_the_audit_catches_an_envelope_that_claims_too_much(ctx: ServiceContext) -> None:
+    """A forged envelope (a speck far away) would pass the object blocking the interior as
+    clear of it; the audit proves the verdict again and fails."""
+    trajectory_id = robot(ctx, AWAY)
+    ask(ctx)
+    (row,) = certificates(ctx)
+    speck = Envelope(np.array([[5.0, 5.0, 5.0]]), np.array([0.001]))
+    job = ClearanceJob(lambda: ({}, None), envelope=speck)
+    key = CertificateKey(row.variant, row.stamp, row.path)
+    ctx.certificates.put(CertificateWrite(trajectory_id, key, frozenset(row.objects), job))
+    scene(ctx, [*AWAY, THIN | {"id": "thin"}])
+    with pytest.raises(CertificateDisagreement, match="thin"):
+        ask(ctx, 0.03, 0.97)

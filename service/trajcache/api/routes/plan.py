@@ -133,5 +133,6 @@ def _validation(answer: PlanAnswer) -> dict[str, object] | None:
         "objects": use.objects if use is not None else None,
         "objects_reproved": use.reproved if use is not None else None,
         "objects_moved": use.moved if use is not None else None,
+        "objects_clear": use.clear if use is not None else None,
         "ends_proved": answer.ends_proved,
     }

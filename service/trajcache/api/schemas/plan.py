@@ -176,15 +176,16 @@ class ValidationReuse(BaseModel):
     proved), "ends" (only its new first and last segments: the rest was proved in this scene),
     "whole" (the exact path was proved in this scene) or "certificate" (the ends, and the rest
     only against the scene's objects its stored certificate lacks: `objects_reproved` of
-    `objects`; `objects_moved` moved by less than the clearance it keeps for them, so were not
-    proved again). `ends_proved`: with "ends" or "certificate", the share (0 to 1) of the new
-    end segments proved from the clearance measured along the stored ones, without
-    validation."""
+    `objects`; `objects_moved` moved by less than the clearance it keeps for them, and
+    `objects_clear` lie clear of the swept envelope it keeps, so neither was proved again).
+    `ends_proved`: with "ends" or "certificate", the share (0 to 1) of the new end segments
+    proved from the clearance measured along the stored ones, without validation."""
 
     reused: Literal["none", "ends", "whole", "certificate"]
     objects: int | None = None
     objects_reproved: int | None = None
     objects_moved: int | None = None
+    objects_clear: int | None = None
     ends_proved: float | None = None
 
 

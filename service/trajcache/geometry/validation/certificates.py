@@ -62,6 +62,7 @@ __all__ = [
     "CertificateDisagreement",
     "CertificateKey",
     "CertificateUse",
+    "Held",
     "ObjectClearance",
     "moved_by",
     "object_digest",
@@ -93,12 +94,13 @@ class CertificateKey:
 
 @dataclass(frozen=True)
 class CertificateUse:
-    """How a validation used a certificate: the scene's objects, those proved again, and those
-    whose move its clearances covered."""
+    """How a validation used a certificate: the scene's objects, those proved again, those
+    whose move its clearances covered, and those clear of its swept envelope."""
 
     objects: int
     reproved: int
     moved: int = 0
+    clear: int = 0
 
 
 def stamp_of(settings_key: tuple[object, ...]) -> str:
@@ -211,25 +213,33 @@ def merged(known: frozenset[str], scene: Mapping[str, str]) -> frozenset[str]:
     return frozenset(current | set(sorted(known - current)[:room]))
 
 
+@dataclass(frozen=True)
+class Held:
+    """What a certificate holds, as a validation uses it: the object digests it was certified
+    for, its clearances by object id, and the test of its swept envelope."""
+
+    objects: frozenset[str]
+    clearances: Mapping[str, ObjectClearance] | None = None
+    clear_of: Callable[[SceneObject], bool] | None = None
+
+
 def validate_with_certificate(
     states: FloatArray,
     *,
     full: TrajectoryValidator,
     scene_only: Callable[[list[SceneObject]], TrajectoryValidator],
     scene: Scene,
-    certified: frozenset[str],
+    held: Held,
     audit: bool = False,
     ends_fn: Callable[[FloatArray, list[int]], ValidationResult] | None = None,
-    clearances: Mapping[str, ObjectClearance] | None = None,
 ) -> tuple[ValidationResult, CertificateUse]:
-    """Validate an adapted path (n ≥ 4) whose interior holds a certificate for `certified`
-    object digests: its first and last segments with `ends_fn` (default `full`'s
-    `validate_segments`), its interior against the objects the certificate lacks with
-    `scene_only(objects)`, except those that moved within their `clearances` (module
-    docstring)."""
+    """Validate an adapted path (n ≥ 4) whose interior holds a certificate (`held`): its first
+    and last segments with `ends_fn` (default `full`'s `validate_segments`), its interior
+    against the objects the certificate lacks with `scene_only(objects)`, except those that
+    moved within its clearances and those clear of its swept envelope (module docstring)."""
     digests = object_digests(scene)
-    new = [obj for obj in scene.objects if digests[obj.id] not in certified]
-    moved = 0
+    new = [obj for obj in scene.objects if digests[obj.id] not in held.objects]
+    moved, clearances, clear_fn = 0, held.clearances, held.clear_of
     if clearances and new:
         shapes = shape_digests(scene)
         within = {
@@ -237,7 +247,11 @@ def validate_with_certificate(
         }
         moved = len(within)
         new = [o for o in new if o.id not in within]
-    use = CertificateUse(len(scene.objects), len(new), moved)
+    clear = 0
+    if clear_fn is not None and new:
+        remaining = [o for o in new if not clear_fn(o)]
+        clear, new = len(new) - len(remaining), remaining
+    use = CertificateUse(len(scene.objects), len(new), moved, clear)
     result = (ends_fn or full.validate_segments)(states, [0, len(states) - 2])
     if result.valid and new:
         inner = scene_only(new).validate(states[1:-1])

@@ -8,12 +8,14 @@ one when the validation memo does not already know a candidate's interior, and w
 through the plan records (`services.bookkeeping.record_batch`), after the answer has gone out.
 
 A certificate written after a scene change also keeps its objects' clearances (`clearances`:
-how far the interior stayed from each, by id), measured by the record writer before its
+how far the interior stayed from each, by id) and its interior's swept envelope (`envelope`,
+`geometry/validation/envelope.py`: it depends on the path and the model variant alone, so it is
+measured once per certificate and carried over), measured by the record writer before its
 transaction (`ClearanceJob`); a process that wrote it knows them once they are measured.
 
-Bounds: at most `MAX_OBJECTS` digests and `MAX_KEPT` clearances per certificate,
-`PER_TRAJECTORY` certificates per trajectory (the most recently written), and only the current
-stamp's.
+Bounds: at most `MAX_OBJECTS` digests, `MAX_KEPT` clearances and `MAX_BALLS` envelope balls
+per certificate, `PER_TRAJECTORY` certificates per trajectory (the most recently written), and
+only the current stamp's.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from sqlalchemy.orm import Session
 from trajcache.core.lru import LRU
 from trajcache.db.models import Trajectory, TrajectoryCertificate
 from trajcache.geometry.validation.certificates import CertificateKey, ObjectClearance
+from trajcache.geometry.validation.envelope import Envelope
 from trajcache.geometry.validation.object_clearance import MAX_KEPT
 
 __all__ = [
@@ -48,23 +51,32 @@ _log = logging.getLogger(__name__)
 Clearances = Mapping[str, ObjectClearance]
 
 
-class ClearanceJob:
-    """A certificate's object clearances, measured once, by the record writer."""
+Measure = Callable[[], tuple[Clearances, Envelope | None]]
 
-    def __init__(self, compute: Callable[[], Clearances], kept: Clearances | None = None):
-        self._compute: Callable[[], Clearances] | None = compute
+
+class ClearanceJob:
+    """A certificate's object clearances and swept envelope, measured once, by the record
+    writer (`compute` gives what it measured: clearances, and the envelope unless `envelope`,
+    the one the certificate holds already, is given)."""
+
+    def __init__(
+        self, compute: Measure, kept: Clearances | None = None, envelope: Envelope | None = None
+    ) -> None:
+        self._compute: Measure | None = compute
         self._kept = dict(kept or {})  # earlier ones, for objects not measured now
         self._values: Clearances | None = None
+        self.envelope = envelope
 
     def run(self) -> Clearances:
         """Measure (the first call); a failure is logged and leaves the earlier ones."""
         if self._compute is not None:
             compute, self._compute = self._compute, None
+            measured: Clearances = {}
             try:
-                measured = compute()
+                measured, envelope = compute()
+                self.envelope = self.envelope or envelope
             except Exception:
                 _log.exception("object clearances could not be measured")
-                measured = {}
             merged = {**self._kept, **measured}
             self._values = dict(list(merged.items())[-MAX_KEPT:])
         return self._values or {}
@@ -91,11 +103,13 @@ class CertificateWrite:
 
 @dataclass(frozen=True)
 class Certified:
-    """What a certificate holds: object digests, and object clearances by id."""
+    """What a certificate holds: object digests, object clearances by id, and its swept
+    envelope."""
 
     objects: frozenset[str] = frozenset()
     job: ClearanceJob | None = field(default=None, repr=False)
     read: Clearances | None = None
+    read_envelope: Envelope | None = None
 
     @property
     def clearances(self) -> Clearances:
@@ -103,6 +117,13 @@ class Certified:
         if self.read is not None:
             return self.read
         return self.job.ready if self.job is not None else {}
+
+    @property
+    def envelope(self) -> Envelope | None:
+        """The swept envelope known now (none while the writer has not measured it)."""
+        if self.read_envelope is not None:
+            return self.read_envelope
+        return self.job.envelope if self.job is not None else None
 
 
 class CertificateStore:
@@ -117,7 +138,7 @@ class CertificateStore:
         if known is not None:
             return known
         row = session.execute(
-            sa.select(_C.objects, _C.clearances).where(
+            sa.select(_C.objects, _C.clearances, _C.envelope).where(
                 _C.trajectory_id == trajectory_id,
                 _C.variant == key.variant,
                 _C.stamp == key.stamp,
@@ -126,7 +147,9 @@ class CertificateStore:
         ).first()
         if row is None:
             return Certified()
-        found = Certified(frozenset(str(d) for d in row[0]), read=decode(row[1]))
+        envelope = Envelope.from_bytes(row[2]) if row[2] else None
+        objects = frozenset(str(d) for d in row[0])
+        found = Certified(objects, read=decode(row[1]), read_envelope=envelope)
         self._known.put((trajectory_id, key), found)
         return found
 
@@ -147,13 +170,15 @@ def write_certificates(conn: Connection, writes: Iterable[CertificateWrite], at:
         same = (_C.trajectory_id == tid) & (_C.variant == key.variant) & (_C.path == key.path)
         conn.execute(sa.delete(_C).where(same & (_C.stamp == key.stamp)))
         conn.execute(sa.delete(_C).where((_C.trajectory_id == tid) & (_C.stamp != key.stamp)))
+        measured = write.clearances.run() if write.clearances else None  # and the envelope
         values: dict[str, Any] = {
             "trajectory_id": tid,
             "variant": key.variant,
             "stamp": key.stamp,
             "path": key.path,
             "objects": sorted(write.objects),
-            "clearances": encode(write.clearances.run()) if write.clearances else None,
+            "clearances": encode(measured) if measured is not None else None,
+            "envelope": _envelope_bytes(write.clearances),
             "updated_at": at,
         }
         source = sa.select(
@@ -170,6 +195,12 @@ def write_certificates(conn: Connection, writes: Iterable[CertificateWrite], at:
         conn.execute(
             sa.delete(_C).where(_C.trajectory_id == tid, _C.id.not_in(newest.scalar_subquery()))
         )
+
+
+def _envelope_bytes(job: ClearanceJob | None) -> bytes | None:
+    """The stored form of a measured envelope (after `job.run`), or None."""
+    envelope = job.envelope if job is not None else None
+    return envelope.to_bytes() if envelope is not None else None
 
 
 def encode(clearances: Clearances) -> dict[str, list[Any]] | None:

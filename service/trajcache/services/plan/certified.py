@@ -5,7 +5,7 @@
 - Otherwise the candidate's certificate (`geometry/validation/certificates.py`), from this or
   another replica (`services.catalog.certificates`): the first and last segments are checked in
   full, the interior only against the scene's objects the certificate lacks, less those that
-  moved by less than the clearance it keeps for them.
+  moved by less than the clearance it keeps for them and those clear of its swept envelope.
 - Either way, the first and last segments only where the clearance measured along the stored
   path's ends (`geometry/validation/end_clearance.py`, after it was planned) leaves them.
 - Otherwise the whole path is validated.
@@ -13,7 +13,8 @@
 Every valid verdict on a path of four states or more gives its interior a certificate, holding
 the scene's object digests (and those it held before): `attempt.certificates` collects them,
 and the plan record writes them after the answer (`services.plan.answers`); where the verdict
-proved objects the certificate lacked, the writer first measures their clearances.
+proved objects the certificate lacked, the writer first measures their clearances (and, once
+per certificate, the interior's swept envelope).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.scene import SceneObject, make_scene
 from trajcache.geometry.validation.certificates import (
     CertificateKey,
+    Held,
     ObjectClearance,
     merged,
     object_digests,
@@ -40,6 +42,7 @@ from trajcache.geometry.validation.end_clearance import (
     measure_clearance,
     validate_ends,
 )
+from trajcache.geometry.validation.envelope import Envelope, swept_envelope
 from trajcache.geometry.validation.object_clearance import object_clearances
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
@@ -74,9 +77,12 @@ def validate_candidate(
                 ends_fn=_ends_fn(attempt, match),
                 scene_only=lambda objects: _scene_only(attempt, objects),
                 scene=attempt.scene,
-                certified=certified.objects,
+                held=Held(
+                    certified.objects,
+                    certified.clearances,
+                    envelope.clear_of if (envelope := certified.envelope) else None,
+                ),
                 audit=ctx.settings.certificate_audit,
-                clearances=certified.clearances,
             )
             attempt.certificate_use = use
             if result.valid:
@@ -202,19 +208,25 @@ def _keep(
     where it proves objects the certificate lacked, their clearances are measured too (by the
     writer), along the interior of `states`."""
     objects = merged(known.objects, object_digests(attempt.scene))
-    clearances = None
-    if objects != known.objects or not known.clearances:
+    clearances, envelope = None, known.envelope
+    if objects != known.objects or not known.clearances or envelope is None:
         validator, scene, interior = attempt.validator, attempt.scene, states[1:-1].copy()
         budget = attempt.ctx.measuring
         found: dict[str, ObjectClearance] = {}
+        swept: list[Envelope] = []
 
-        def measure() -> dict[str, ObjectClearance]:  # within the writer's share, or none
-            budget.spend(lambda: found.update(object_clearances(validator, interior, scene)))
-            return found
+        def work() -> None:
+            found.update(object_clearances(validator, interior, scene))
+            if envelope is None:  # the path's and the variant's alone: measured once
+                swept.append(swept_envelope(validator, interior))
 
-        clearances = ClearanceJob(measure, kept=known.clearances)
+        def measure() -> tuple[dict[str, ObjectClearance], Envelope | None]:
+            budget.spend(work)  # within the writer's share, or none
+            return found, swept[0] if swept else None
+
+        clearances = ClearanceJob(measure, kept=known.clearances, envelope=envelope)
     elif known.clearances:
-        clearances = ClearanceJob(lambda: {}, kept=known.clearances)
+        clearances = ClearanceJob(lambda: ({}, None), kept=known.clearances, envelope=envelope)
     write = CertificateWrite(trajectory_id, key, objects, clearances)
     attempt.ctx.certificates.put(write)
     attempt.certificates.append(write)
