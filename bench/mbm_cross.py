@@ -6,11 +6,13 @@
   new first and last segments, and the interior against the moved object, are proved again.
   `moved_cache_rate` (answers from the cache over asked), `moved_validate_ms_median` (the hits'
   `timings_ms.validate`), `pairs_reproved_share` ((path, object) pairs proved again over those
-  checked, on hits that used a certificate).
+  checked, on hits that used a certificate), `pairs_clear_share` (those found clear of the
+  certificate's swept envelope instead).
 - Cross (part 2): the family's next scene (every object elsewhere), the problem's start and goal.
   Counted over the problems whose ends are free there (a start or goal in collision is a 422,
   counted as `cross_ends_invalid`): `cross_cache_rate` (answers from the cache or repaired from
-  a cached path), `cross_repaired`, `cross_server_ms_median` (of those answers).
+  a cached path), `cross_repaired`, `cross_server_ms_median` (of those answers), and on hits
+  that used a certificate `cross_pairs_reproved_share` and `cross_pairs_clear_share`.
 
 Every returned path is dense-checked in the scene it was asked in, as the rest of the benchmark.
 """
@@ -94,6 +96,7 @@ class CrossScenes:
         if reuse is not None and reuse.reused == "certificate" and reuse.objects:
             tally.moved_pairs += reuse.objects
             tally.moved_reproved += reuse.objects_reproved or 0
+            tally.moved_clear += reuse.objects_clear or 0
 
     def cross(
         self, tally: Tally, problem: Problem, ends: tuple[FloatArray, FloatArray], other: Problem
@@ -107,6 +110,11 @@ class CrossScenes:
         if answer.source == "cache":
             tally.cross_hits += 1
             tally.cross_server_ms.append(float(answer.timings_ms["total"]))
+            reuse = answer.validation
+            if reuse is not None and reuse.reused == "certificate" and reuse.objects:
+                tally.cross_pairs += reuse.objects
+                tally.cross_reproved += reuse.objects_reproved or 0
+                tally.cross_clear += reuse.objects_clear or 0
         elif answer.source == "repaired":
             tally.cross_repaired += 1
             tally.cross_server_ms.append(float(answer.timings_ms["total"]))

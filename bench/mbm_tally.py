@@ -70,9 +70,13 @@ class Tally:
     moved_validate_ms: list[float] = field(default_factory=list)
     moved_pairs: int = 0  # (path, object) pairs checked on hits that used a certificate
     moved_reproved: int = 0  # of which proved again
+    moved_clear: int = 0  # of which clear of the certificate's swept envelope
     cross_asked: int = 0  # --cross-scene: the family's next scene, ends free there
     cross_hits: int = 0
     cross_server_ms: list[float] = field(default_factory=list)
+    cross_pairs: int = 0  # (path, object) pairs checked on next-scene hits using a certificate
+    cross_reproved: int = 0  # of which proved again
+    cross_clear: int = 0  # of which clear of the certificate's swept envelope
     counts: Counter[str] = field(default_factory=Counter)  # paths, collisions, 4xx, …
     notes: Counter[str] = field(default_factory=Counter)  # messages, contact pairs
     phases: dict[str, list[float]] = field(default_factory=dict)  # planned answers' timings_ms
@@ -194,6 +198,9 @@ def cross_summary(tallies: list[Tally], counts: Counter[str]) -> dict[str, Any]:
         "pairs_reproved_share": _share(
             total(t.moved_reproved for t in tallies), total(t.moved_pairs for t in tallies)
         ),
+        "pairs_clear_share": _share(
+            total(t.moved_clear for t in tallies), total(t.moved_pairs for t in tallies)
+        ),
         "cross_asked": total(t.cross_asked for t in tallies),
         "cross_ends_invalid": counts["cross_ends_invalid"],
         "cross_cache_rate": _share(
@@ -202,6 +209,12 @@ def cross_summary(tallies: list[Tally], counts: Counter[str]) -> dict[str, Any]:
         ),
         "cross_repaired": total(t.cross_repaired for t in tallies),
         "cross_server_ms_median": percentile(_all(tallies, "cross_server_ms")),
+        "cross_pairs_reproved_share": _share(
+            total(t.cross_reproved for t in tallies), total(t.cross_pairs for t in tallies)
+        ),
+        "cross_pairs_clear_share": _share(
+            total(t.cross_clear for t in tallies), total(t.cross_pairs for t in tallies)
+        ),
     }
 
 

@@ -6,9 +6,11 @@ the example-robot-data arms that ended 13 of 40 problems of bench/real_robots.py
 and each time the unshortened path failed too: the rejected segments were the search's own,
 not the shortcut's. So, within the budget:
 
-1. An endpoint that no motion can leave certified (a pair's distance bound there is not
-   positive) is INVALID_START / INVALID_GOAL at once: no search can help.
-2. Each search's path is shortcut and certified (`shortcut.shortcut_and_certify`).
+1. Each search's path is shortcut and certified (`shortcut.shortcut_and_certify`).
+2. When the first one is rejected, or no search finds any, an endpoint that no motion can
+   leave certified (a pair's distance bound there is not positive) is INVALID_START /
+   INVALID_GOAL: no search can help. (Asked only then: a certified path proves its ends, and
+   the question costs two validations, a few per cent of a plan.)
 3. A rejected path is repaired (`repair.repair_path`): each segment that fails certification
    is replaced by an RRIS detour whose segments are certified, within `REPAIR_S`.
 4. Failing that, the next search: the random generators go on, so it finds another path.
@@ -56,9 +58,6 @@ def plan_until_certified(finisher: Finisher, *, search_fn: SearchFn, none_found:
         finisher.deadline,
         finisher.stats,
     )
-    stuck = _stuck_endpoint(query, validator)
-    if stuck is not None:
-        return PlanResult(stuck[0], message=stuck[1], stats=stats)
     found, reason = 0, ""
     for key in ("attempts", "paths_found", "repairs", "repair_ms", *_SUMMED):
         stats.setdefault(key, 0.0)
@@ -78,6 +77,11 @@ def plan_until_certified(finisher: Finisher, *, search_fn: SearchFn, none_found:
             return PlanResult(
                 PlannerStatus.SOLVED, path, stats=stats, certificate=validator.certificate(path)
             )
+        if finisher.stuck is not None:
+            return PlanResult(finisher.stuck[0], message=finisher.stuck[1], stats=stats)
+    stuck = finisher.stuck or (None if found else _stuck_endpoint(query, validator))
+    if stuck is not None:
+        return PlanResult(stuck[0], message=stuck[1], stats=stats)
     if not found:
         return PlanResult(PlannerStatus.TIMEOUT, message=none_found, stats=stats)
     message = (
@@ -106,6 +110,9 @@ class Finisher:
     stats: dict[str, float]
     repair_s: float | None = None  # None: `REPAIR_S`, read when a repair starts
     certify: SegmentFn = field(init=False)
+    # after a rejected path: the status and message of an endpoint no motion can leave certified
+    stuck: tuple[PlannerStatus, str] | None = field(init=False, default=None)
+    _ends_asked: bool = field(init=False, default=False)
 
     def __post_init__(self) -> None:
         validator = self.validator
@@ -127,6 +134,11 @@ class Finisher:
         self.stats.update(finished.stats)
         if finished.path is not None:
             return finished.path, ""
+        if not self._ends_asked:  # no repair or search helps an endpoint no motion can leave
+            self._ends_asked = True
+            self.stuck = _stuck_endpoint(self.query, self.validator)
+            if self.stuck is not None:
+                return None, self.stuck[1]
         return self.repair(finished.short), finished.message
 
     def repair(self, path: Sequence[FloatArray]) -> FloatArray | None:
