@@ -10,10 +10,10 @@ looked up the other way round finds its clearance reversed.
 
 In the scene they were measured in, they hold as measured. In another scene whose every object
 has an id and a shape digest (shape, sizes, allowed names) of that scene's, each moved by at
-most δ (`certificates.moved_by`), the clearance to the scene is at least the measured one less
-the largest δ (distance is 1-Lipschitz in every point of every object); the robot pairs' part
-does not depend on the scene. Any other scene (an object added, reshaped or allowed to touch
-something else) gets none.
+most δ (`certificates.moved_by`; `moves_by`, all at once), the clearance to the scene is at
+least the measured one less the largest δ (distance is 1-Lipschitz in every point of every
+object); the robot pairs' part does not depend on the scene. Any other scene (an object added,
+reshaped or allowed to touch something else) gets none.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from trajcache.cache.memo import MemoScope
 from trajcache.core.lru import LRU
 from trajcache.geometry.model.shapes import FloatArray
 from trajcache.geometry.scene.scene import Scene
-from trajcache.geometry.validation.certificates import moved_by, shape_digests
+from trajcache.geometry.validation.certificates import moves_by, shape_digests
 from trajcache.geometry.validation.end_clearance import CAP, SegmentClearance
 
 __all__ = ["EndClearances"]
@@ -119,15 +119,18 @@ class EndClearances:
 
 def _largest_move(measured: _Measured, scene: Scene) -> float | None:
     shapes = shape_digests(scene)
-    slack = 0.0
+    before = []
     for obj in scene.objects:
         then = measured.objects.get(obj.id)
         if then is None or then[0] != shapes[obj.id]:
             return None
-        slack = max(slack, moved_by(then[1], obj.pose, obj.shape.bounding_radius()))
-        if slack >= CAP:
-            return None
-    return slack
+        before.append(then[1])
+    if not before:
+        return 0.0
+    after = np.stack([np.asarray(o.pose, dtype=float) for o in scene.objects])
+    radii = np.array([o.shape.bounding_radius() for o in scene.objects])
+    slack = float(moves_by(np.stack(before), after, radii).max())
+    return None if slack >= CAP else slack
 
 
 def _key(scope: MemoScope, segment: FloatArray) -> _Key:

@@ -43,7 +43,6 @@ digest, so the pairs the statement excludes are the same. Not used: swept envelo
 from __future__ import annotations
 
 import hashlib
-import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
@@ -65,6 +64,7 @@ __all__ = [
     "Held",
     "ObjectClearance",
     "moved_by",
+    "moves_by",
     "object_digest",
     "object_digests",
     "path_digest",
@@ -120,23 +120,44 @@ def path_digest(states: FloatArray) -> str:
 
 def object_digest(obj: SceneObject, touches: Iterable[str] = ()) -> str:
     """SHA-256 of what an object's statement depends on: its shape (kind, exact sizes, mesh
-    vertices and faces), its exact pose, and the names it may touch; not its id."""
-    return _digest(obj, touches, pose=True)
+    vertices and faces), its exact pose, and the names it may touch; not its id. (Its
+    `shape_digest` hashed again with the pose.)"""
+    return _posed(shape_digest(obj, touches), obj)
 
 
 def shape_digest(obj: SceneObject, touches: Iterable[str] = ()) -> str:
     """`object_digest` without the pose: what an object's clearance is about besides where it
     is."""
-    return _digest(obj, touches, pose=False)
+    shape = obj.shape
+    digest = hashlib.sha256(shape.kind.value.encode())
+    digest.update(np.asarray(shape.size, dtype=np.float64).tobytes())
+    if shape.kind is ShapeKind.MESH:
+        assert shape.vertices is not None and shape.faces is not None
+        digest.update(np.ascontiguousarray(shape.vertices, dtype=np.float64).tobytes())
+        digest.update(np.ascontiguousarray(shape.faces, dtype=np.int64).tobytes())
+    digest.update(repr(sorted(touches)).encode())
+    return digest.hexdigest()[:32]
+
+
+def _posed(shape: str, obj: SceneObject) -> str:
+    digest = hashlib.sha256(shape.encode())
+    digest.update(np.ascontiguousarray(obj.pose, dtype=np.float64).tobytes())
+    return digest.hexdigest()[:32]
 
 
 def moved_by(before: FloatArray, after: FloatArray, radius: float) -> float:
     """The most a point within `radius` of a body's origin moves when its pose changes from
     `before` to `after` (4 × 4): |Δt| + 2·sin(θ/2)·radius, θ the angle between the rotations."""
-    turn = after[:3, :3] @ before[:3, :3].T
-    cos = min(max((float(np.trace(turn)) - 1.0) / 2.0, -1.0), 1.0)
-    chord = 2.0 * math.sin(math.acos(cos) / 2.0)
-    return float(np.linalg.norm(after[:3, 3] - before[:3, 3])) + chord * radius
+    return float(moves_by(before[None], after[None], np.array([radius]))[0])
+
+
+def moves_by(before: FloatArray, after: FloatArray, radii: FloatArray) -> FloatArray:
+    """`moved_by` of many bodies at once: poses (B, 4, 4) before and after, radii (B,).
+    With cos θ = (tr(R'Rᵀ) − 1)/2, 2·sin(θ/2) = √(2 − 2·cos θ); tr(R'Rᵀ) = Σ R' ∘ R."""
+    trace = np.einsum("bij,bij->b", after[:, :3, :3], before[:, :3, :3])
+    cos = np.clip((trace - 1.0) / 2.0, -1.0, 1.0)
+    chord = np.sqrt(np.maximum(2.0 - 2.0 * cos, 0.0))
+    return np.asarray(np.linalg.norm(after[:, :3, 3] - before[:, :3, 3], axis=1) + chord * radii)
 
 
 @dataclass(frozen=True)
@@ -158,20 +179,6 @@ class ObjectClearance:
         return moved_by(self.pose, obj.pose, obj.shape.bounding_radius()) < self.clearance
 
 
-def _digest(obj: SceneObject, touches: Iterable[str], *, pose: bool) -> str:
-    shape = obj.shape
-    digest = hashlib.sha256(shape.kind.value.encode())
-    digest.update(np.asarray(shape.size, dtype=np.float64).tobytes())
-    if shape.kind is ShapeKind.MESH:
-        assert shape.vertices is not None and shape.faces is not None
-        digest.update(np.ascontiguousarray(shape.vertices, dtype=np.float64).tobytes())
-        digest.update(np.ascontiguousarray(shape.faces, dtype=np.int64).tobytes())
-    if pose:
-        digest.update(np.ascontiguousarray(obj.pose, dtype=np.float64).tobytes())
-    digest.update(repr(sorted(touches)).encode())
-    return digest.hexdigest()[:32]
-
-
 def object_digests(scene: Scene) -> dict[str, str]:
     """Each world object's digest, by id (an object id in an allowed pair covers its parts);
     kept per scene content hash."""
@@ -188,13 +195,15 @@ def _digests(scene: Scene, *, pose: bool) -> dict[str, str]:
     if known is not None:
         return known
     touches = _touches(scene)
-    digests = {
-        obj.id: _digest(obj, touches.get(obj.id.partition("#")[0], ()), pose=pose)
+    shapes = {
+        obj.id: shape_digest(obj, touches.get(obj.id.partition("#")[0], ()))
         for obj in scene.objects
     }
-    if scene.hash:
-        _SCENE_DIGESTS.put((scene.hash, pose), digests)
-    return digests
+    posed = {obj.id: _posed(shapes[obj.id], obj) for obj in scene.objects}
+    if scene.hash:  # both at once: a scene's first certificate use asks for both
+        _SCENE_DIGESTS.put((scene.hash, False), shapes)
+        _SCENE_DIGESTS.put((scene.hash, True), posed)
+    return posed if pose else shapes
 
 
 def _touches(scene: Scene) -> dict[str, list[str]]:

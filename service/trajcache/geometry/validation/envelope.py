@@ -45,7 +45,7 @@ from trajcache.geometry.validation.validator import TrajectoryValidator
 __all__ = ["CHUNK", "MAX_BALLS", "Envelope", "swept_envelope"]
 
 CHUNK = 8  # intervals between samples whose balls one envelope ball holds, per element
-MAX_BALLS = 2048  # balls an envelope keeps at most (chunks grow to stay within it)
+MAX_BALLS = 512  # balls an envelope keeps at most (chunks grow to stay within it): 16 KiB
 
 
 @dataclass(frozen=True, eq=False)
