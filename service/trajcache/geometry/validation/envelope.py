@@ -42,7 +42,7 @@ from trajcache.geometry.validation.end_clearance import motion_tables
 from trajcache.geometry.validation.sampling import interpolate
 from trajcache.geometry.validation.validator import TrajectoryValidator
 
-__all__ = ["CHUNK", "MAX_BALLS", "Envelope", "swept_envelope"]
+__all__ = ["CHUNK", "MAX_BALLS", "Envelope", "envelope_of", "swept_envelope"]
 
 CHUNK = 8  # intervals between samples whose balls one envelope ball holds, per element
 MAX_BALLS = 512  # balls an envelope keeps at most (chunks grow to stay within it): 16 KiB
@@ -86,9 +86,15 @@ def swept_envelope(validator: TrajectoryValidator, states: FloatArray) -> Envelo
     sampled as it samples them (module docstring)."""
     robot, model = validator.checker.robot, validator.model
     samples = interpolate(states, model, validator.resolution, validator.subdivision)
-    centres = Posed.build(robot, samples).centres[:-1]  # (K, E, 3): each interval's start
     steps = robot.motion.steps(segment_deltas(samples, base=model.base))
-    reach = robot.radius + steps @ motion_tables(robot)[0].T  # (K, E)
+    return envelope_of(Posed.build(robot, samples), steps @ motion_tables(robot)[0].T)
+
+
+def envelope_of(posed: Posed, motion: FloatArray) -> Envelope:
+    """The envelope of posed samples (K + 1) whose elements move by at most `motion` (K, E)
+    between consecutive ones (the whole-element bounds of `motion_tables`)."""
+    centres = posed.centres[:-1]  # (K, E, 3): each interval's start
+    reach = posed.robot.radius + motion  # (K, E)
     intervals, elements = reach.shape
     chunk = max(CHUNK, math.ceil(intervals * elements / MAX_BALLS))
     out_centres, out_radii = [], []

@@ -20,28 +20,32 @@ from trajcache.geometry.model.space import segment_deltas
 from trajcache.geometry.scene.scene import Scene
 from trajcache.geometry.validation.certificates import ObjectClearance, shape_digests
 from trajcache.geometry.validation.end_clearance import CAP, motion_tables
+from trajcache.geometry.validation.envelope import Envelope, envelope_of
 from trajcache.geometry.validation.sampling import interpolate
 from trajcache.geometry.validation.validator import TrajectoryValidator
 
-__all__ = ["MAX_KEPT", "object_clearances"]
+__all__ = ["MAX_KEPT", "interior_bounds"]
 
 MAX_KEPT = 512  # objects whose clearance a certificate keeps (the scene's first)
 
 
-def object_clearances(
-    validator: TrajectoryValidator, states: FloatArray, scene: Scene
-) -> dict[str, ObjectClearance]:
+def interior_bounds(
+    validator: TrajectoryValidator, states: FloatArray, scene: Scene, *, sweep: bool
+) -> tuple[dict[str, ObjectClearance], Envelope | None]:
     """The clearance of the motion through `states` (n ≥ 2) from each of `scene`'s objects (the
-    scene `validator` checks), by object id, with the object's shape digest and pose."""
+    scene `validator` checks), by object id, with the object's shape digest and pose; and with
+    `sweep`, the motion's swept envelope (`envelope.py`), from the same samples and forward
+    kinematics."""
     checker, model = validator.checker, validator.model
     robot = checker.robot
-    objects = scene.objects[:MAX_KEPT]
-    if not objects:
-        return {}
     samples = interpolate(states, model, validator.resolution, validator.subdivision)
     posed = Posed.build(robot, samples)
     steps = robot.motion.steps(segment_deltas(samples, base=model.base))
     motion = steps @ motion_tables(robot)[0].T  # (K − 1, E)
+    envelope = envelope_of(posed, motion) if sweep else None
+    objects = scene.objects[:MAX_KEPT]
+    if not objects:
+        return {}, envelope
     clearance = np.full(len(objects), CAP - float(motion.max(initial=0.0)) / 2.0)
     n, e = len(samples), len(robot.radius)
     rows = checker.clearance.scene_ball_rows(posed, np.full((n, e), CAP))
@@ -57,4 +61,4 @@ def object_clearances(
     return {
         obj.id: ObjectClearance(shapes[obj.id], np.array(obj.pose, dtype=float), float(c))
         for obj, c in zip(objects, clearance, strict=True)
-    }
+    }, envelope

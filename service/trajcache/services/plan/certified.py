@@ -42,8 +42,8 @@ from trajcache.geometry.validation.end_clearance import (
     measure_clearance,
     validate_ends,
 )
-from trajcache.geometry.validation.envelope import Envelope, swept_envelope
-from trajcache.geometry.validation.object_clearance import object_clearances
+from trajcache.geometry.validation.envelope import Envelope
+from trajcache.geometry.validation.object_clearance import interior_bounds
 from trajcache.geometry.validation.validator import (
     TrajectoryValidator,
     ValidationResult,
@@ -212,17 +212,14 @@ def _keep(
     if objects != known.objects or not known.clearances or envelope is None:
         validator, scene, interior = attempt.validator, attempt.scene, states[1:-1].copy()
         budget = attempt.ctx.measuring
-        found: dict[str, ObjectClearance] = {}
-        swept: list[Envelope] = []
+        found: list[tuple[dict[str, ObjectClearance], Envelope | None]] = []
 
-        def work() -> None:
-            found.update(object_clearances(validator, interior, scene))
-            if envelope is None:  # the path's and the variant's alone: measured once
-                swept.append(swept_envelope(validator, interior))
+        def work() -> None:  # the envelope is the path's and the variant's alone: once
+            found.append(interior_bounds(validator, interior, scene, sweep=envelope is None))
 
         def measure() -> tuple[dict[str, ObjectClearance], Envelope | None]:
             budget.spend(work)  # within the writer's share, or none
-            return found, swept[0] if swept else None
+            return found[0] if found else ({}, None)
 
         clearances = ClearanceJob(measure, kept=known.clearances, envelope=envelope)
     elif known.clearances:
