@@ -276,16 +276,16 @@ def test_an_export_carries_no_certificate(ctx: ServiceContext) -> None:
     assert not any(digest in text for digest in row.objects)
 
 
-def test_an_object_clear_of_the_swept_envelope_needs_no_proof(
-    ctx: ServiceContext, url: str
-) -> None:
+def test_an_object_clear_of_the_swept_envelope_needs_no_proof(database_url: str) -> None:
     """A new object away from the interior's sweep is certified by the envelope the certificate
-    keeps (here read back from the table by another replica); one inside it is proved again."""
-    robot(ctx, AWAY)
-    ask(ctx)
-    (row,) = certificates(ctx)
+    keeps (read back from the table by another replica, SQLite and PostgreSQL); one inside it is
+    proved again."""
+    with context(database_url, certificate_audit=True) as ctx:
+        robot(ctx, AWAY)
+        ask(ctx)
+        (row,) = certificates(ctx)
     assert row.envelope is not None and len(row.envelope) % 32 == 0  # (x, y, z, r) float64
-    with context(url, certificate_audit=True) as other:
+    with context(database_url, certificate_audit=True) as other:
         scene(other, [*AWAY, box("new", -1.6, reach=0.3)])
         answer = ask(other, 0.04, 0.96)
         assert answer.memo is MemoUse.CERTIFICATE and answer.certificate is not None
