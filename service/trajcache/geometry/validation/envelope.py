@@ -96,14 +96,14 @@ def envelope_of(posed: Posed, motion: FloatArray) -> Envelope:
     centres = posed.centres[:-1]  # (K, E, 3): each interval's start
     reach = posed.robot.radius + motion  # (K, E)
     intervals, elements = reach.shape
-    chunk = max(CHUNK, math.ceil(intervals * elements / MAX_BALLS))
-    out_centres, out_radii = [], []
-    for lo in range(0, intervals, chunk):
-        part, grown = centres[lo : lo + chunk], reach[lo : lo + chunk]
-        middle = (part.min(axis=0) + part.max(axis=0)) / 2.0  # (E, 3)
-        spread = np.linalg.norm(part - middle, axis=2)  # (k, E)
-        out_centres.append(middle)
-        out_radii.append((spread + grown).max(axis=0))
-    if not out_centres:
+    if not intervals:
         return Envelope(np.zeros((0, 3)), np.zeros(0))
-    return Envelope(np.concatenate(out_centres), np.concatenate(out_radii))
+    chunk = max(CHUNK, math.ceil(intervals * elements / MAX_BALLS))
+    pad = -intervals % chunk  # the last interval again: no chunk's min, max or reach changes
+    centres = np.concatenate([centres, np.repeat(centres[-1:], pad, axis=0)])
+    reach = np.concatenate([reach, np.repeat(reach[-1:], pad, axis=0)])
+    parts = centres.reshape(-1, chunk, elements, 3)  # (chunks, chunk, E, 3)
+    middle = (parts.min(axis=1) + parts.max(axis=1)) / 2.0  # (chunks, E, 3)
+    spread = np.linalg.norm(parts - middle[:, None], axis=3)  # (chunks, chunk, E)
+    radii = (spread + reach.reshape(-1, chunk, elements)).max(axis=1)  # (chunks, E)
+    return Envelope(middle.reshape(-1, 3), radii.reshape(-1))
