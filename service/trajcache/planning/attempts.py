@@ -79,10 +79,10 @@ def plan_until_certified(finisher: Finisher, *, search_fn: SearchFn, none_found:
             )
         if finisher.stuck is not None:
             return PlanResult(finisher.stuck[0], message=finisher.stuck[1], stats=stats)
-    stuck = finisher.stuck or (None if found else _stuck_endpoint(query, validator))
-    if stuck is not None:
-        return PlanResult(stuck[0], message=stuck[1], stats=stats)
-    if not found:
+    if not found:  # a rejected path asked already (the finisher), so only now if none was
+        stuck = _stuck_endpoint(query, validator)
+        if stuck is not None:
+            return PlanResult(stuck[0], message=stuck[1], stats=stats)
         return PlanResult(PlannerStatus.TIMEOUT, message=none_found, stats=stats)
     message = (
         f"no certifiable path within the budget ({found} found, none certified or repaired); "

@@ -8,6 +8,7 @@ disagreement fails the request (`certificate_audit`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -29,7 +30,12 @@ from trajcache.geometry.validation.certificates import (
 )
 from trajcache.geometry.validation.envelope import Envelope
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
-from trajcache.services.catalog.certificates import CertificateWrite, ClearanceJob
+from trajcache.services.catalog.certificates import (
+    CertificateWrite,
+    ClearanceJob,
+    decode,
+    encode,
+)
 from trajcache.services.catalog.robots import put_robot
 from trajcache.services.catalog.scene_writes import put_scene
 from trajcache.services.context import ServiceContext
@@ -308,3 +314,29 @@ def test_the_audit_catches_an_envelope_that_claims_too_much(ctx: ServiceContext)
     scene(ctx, [*AWAY, THIN | {"id": "thin"}])
     with pytest.raises(CertificateDisagreement, match="thin"):
         ask(ctx, 0.03, 0.97)
+
+
+def test_a_missing_envelope_is_swept_alone(url: str) -> None:
+    """A certificate that holds its objects' clearances but no envelope (an older row, or a
+    writer out of its share) gains the envelope at the next valid verdict; the clearances are
+    carried over as they were, not measured again."""
+    with context(url, certificate_audit=True) as ctx:
+        robot(ctx, AWAY)
+        ask(ctx)
+        (row,) = certificates(ctx)
+        kept = {
+            oid: dataclasses.replace(c, clearance=c.clearance / 2)
+            for oid, c in decode(row.clearances).items()
+        }  # smaller than measured, so still true: a re-measure would overwrite them
+        with ctx.sessions() as session, session.begin():
+            session.execute(
+                sa.update(TrajectoryCertificate).values(envelope=None, clearances=encode(kept))
+            )
+    with context(url, certificate_audit=True) as other:
+        answer = ask(other, 0.03, 0.97)
+        assert answer.memo is MemoUse.CERTIFICATE
+        (after,) = certificates(other)
+    assert after.envelope is not None and len(after.envelope) % 32 == 0
+    assert {oid: c.clearance for oid, c in decode(after.clearances).items()} == {
+        oid: c.clearance for oid, c in kept.items()
+    }

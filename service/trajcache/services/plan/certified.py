@@ -210,7 +210,10 @@ def _keep(
     objects = merged(known.objects, object_digests(attempt.scene))
     clearances, envelope = None, known.envelope
     if objects != known.objects or not known.clearances or envelope is None:
-        validator, scene, interior = attempt.validator, attempt.scene, states[1:-1].copy()
+        validator, interior = attempt.validator, states[1:-1].copy()
+        # the objects measured already: the sweep alone, the clearances carried over
+        same = objects == known.objects and bool(known.clearances)
+        scene = make_scene([]) if same else attempt.scene
         budget = attempt.ctx.measuring
         found: list[tuple[dict[str, ObjectClearance], Envelope | None]] = []
 
