@@ -17,6 +17,10 @@ gives it (`goal_pose`, native form):
   that path is clear and ends within the service's default lookup threshold (0.2 rad on every
   joint) of the cached end. `replay_servable_hit_rate` is the hit rate over servable replays;
   the others are counted by reason (`replays_unservable`), and a hit among them is a bonus.
+  A moved pose may have no free state at all: `replay_solved_rate` is the share of replays the
+  service answered (from the cache, repaired or planned within --budget s), and
+  `replay_hit_rate_of_solved` the hit rate among those; `replay_answers` counts the answers by
+  source and servability ("failed": none).
 
 Every returned path is dense-checked as in bench/mbm.py (mbm_check: meshes, self-collision, the
 scene's allowed pairs), and its last state's hand pose is checked against the pose asked, with
@@ -154,7 +158,10 @@ class PoseRun:
         tally.counts[f"unservable:{unservable}" if unservable else "servable"] += 1
         again = self.ask(robot_id, start, moved, lookup=True)
         if again is None or again["status"] != "success":
+            self.counts[f"replay_answer:failed:{unservable or 'servable'}"] += 1
             return
+        self.counts[f"replay_answer:{again['source']}:{unservable or 'servable'}"] += 1
+        tally.counts["replay_solved"] += 1
         self.check(tally, again, start, moved)
         if again["source"] == "cache":
             tally.counts["replay_hits"] += 1
@@ -210,7 +217,13 @@ def main(argv: list[str] | None = None) -> int:
         table.add_row(t.family, str(t.problems), str(t.solved), hits)
     Console(width=120).print(table)
     replays, hits, servable = counts["replays"], counts["replay_hits"], counts["servable"]
-    unservable = {k.split(":", 1)[1]: n for k, n in sorted(counts.items()) if ":" in k}
+    unservable = {
+        k.split(":", 1)[1]: n for k, n in sorted(counts.items()) if k.startswith("unservable:")
+    }
+    answers = {
+        k.split(":", 1)[1]: n for k, n in sorted(counts.items()) if k.startswith("replay_answer:")
+    }
+    solved_replays = counts["replay_solved"]
     figures = {
         "problems": problems_n,
         "success_rate": round(solved / problems_n, 4) if problems_n else None,
@@ -222,6 +235,9 @@ def main(argv: list[str] | None = None) -> int:
             round(counts["servable_hits"] / servable, 4) if servable else None
         ),
         "replays_unservable": unservable,
+        "replay_solved_rate": round(solved_replays / replays, 4) if replays else None,
+        "replay_hit_rate_of_solved": (round(hits / solved_replays, 4) if solved_replays else None),
+        "replay_answers": answers,
         "replay_as_is_share": round(counts["as_is"] / hits, 4) if hits else None,
         "hit_server_ms_median": percentile(run.times["hit"]),
     }

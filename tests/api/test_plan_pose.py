@@ -101,6 +101,24 @@ def test_a_pose_near_a_cached_end_is_solved_from_it(robot: TestClient, arm: Any)
     assert within(arm, answer["states"][-1], nearby)
 
 
+def test_a_pose_further_from_a_cached_end_is_still_served_from_it(
+    robot: TestClient, arm: Any
+) -> None:
+    """The pose's state lies 0.5 rad from the cached end: beyond the request's threshold, within
+    the pose goals' (`TRAJCACHE_POSE_GOAL_THRESHOLD`, 1 rad). IK from the cached end finds it,
+    and the cached path, its last state replaced and certified, answers; a start as far from
+    the cached one finds nothing."""
+    plan(robot, target(arm, GOAL), fallback=True)
+    further = target(arm, [GOAL[0] + 0.5, GOAL[1] - 0.3])
+    answer = plan(robot, further, fallback=False)
+    assert answer["source"] == "cache" and answer["goal_found_by"] == "ik"
+    assert within(arm, answer["states"][-1], further)
+    assert np.abs(np.subtract(answer["goal_state"], GOAL)).max() > 0.2
+    body = {"start": [0.5, 0.0], "goal_pose": further, "options": {"fallback": False}}
+    missed = robot.post("/v1/robots/r1/plan", json=body).json()
+    assert missed["status"] != "success"
+
+
 def test_an_unreachable_pose_is_a_failure_not_an_error(robot: TestClient) -> None:
     far = {"link": "fore", "position": [2.0, 0.0, 2.0], "orientation": [0, 0, 0, 1]}
     answer = plan(robot, far, fallback=True)

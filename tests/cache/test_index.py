@@ -25,15 +25,20 @@ def brute_force(
     base: BaseType = BaseType.PLANAR,
     threshold: float = 0.2,
     arm_only: bool = False,
+    goal_threshold: float | None = None,
 ) -> Expected:
-    """All relevant (id, reversed, score), best orientation per id, sorted by (score, id)."""
+    """All relevant (id, reversed, score), best orientation per id, sorted by (score, id); with
+    `goal_threshold`, each end within it and the start's summed distance within `threshold`."""
     best: dict[int, tuple[float, bool]] = {}
+    wide = goal_threshold or threshold
     for rev, (first, second) in enumerate(((starts, goals), (goals, starts))):
         b1, a1 = state_distance(first, start, base=base)
         b2, a2 = state_distance(second, goal, base=base)
         if arm_only:
             b1, b2 = 0 * b1, 0 * b2
-        ok = (b1 < threshold) & (a1 < threshold) & (b2 < threshold) & (a2 < threshold)
+        ok = (b1 < wide) & (a1 < wide) & (b2 < wide) & (a2 < wide)
+        if goal_threshold is not None:
+            ok &= b1 + a1 < threshold
         for i in np.flatnonzero(ok):
             score = float(b1[i] + a1[i] + b2[i] + a2[i])
             key = int(ids[i])
@@ -90,6 +95,29 @@ def test_matches_brute_force_main_and_delta(arm_only: bool) -> None:
         counts.append(len(want))
     assert sum(counts) > 60  # the test data must actually produce matches
     assert min(counts) <= _FEW < max(counts)  # ranked both ways: in Python and by numpy
+
+
+@pytest.mark.parametrize("base", [BaseType.PLANAR, BaseType.FIXED])
+def test_a_wider_goal_threshold_keeps_the_start_s(base: BaseType) -> None:
+    """A pose goal's lookup: goal ends up to 0.6 away, start ends within 0.2 (main and delta,
+    both orientations), as a brute-force scan finds them."""
+    rng = np.random.default_rng(3)
+    starts, goals = clustered(rng, 1500)
+    ids = np.arange(1500)
+    index = TrajectoryIndex(D, base=base, rebuild_min=100_000, background_rebuild=False)
+    index.add(ids[:1000], starts[:1000], goals[:1000])
+    index.rebuild()
+    index.add(ids[1000:], starts[1000:], goals[1000:])
+    widened = 0
+    for s, g in queries(rng, starts, goals, 40):
+        g = g + rng.uniform(-0.4, 0.4, D)
+        want = brute_force(ids, starts, goals, s, g, base=base, goal_threshold=0.6)
+        assert_same(index.query(s, g, limit=10**6, goal_threshold=0.6), want)
+        assert_same(index.query(s, g, limit=2, goal_threshold=0.6), want[:2])
+        narrow = brute_force(ids, starts, goals, s, g, base=base)
+        assert_same(index.query(s, g, limit=10**6, goal_threshold=0.1), narrow)
+        widened += len(want) - len(narrow)
+    assert widened > 40  # the wider threshold finds more
 
 
 def test_removals_and_rebuild_keep_results_exact() -> None:

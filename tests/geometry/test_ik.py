@@ -3,10 +3,12 @@ seed, the base held unless allowed, and failures as values."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
-from trajcache.geometry.model.ik import IkProblem, IkStatus, PoseTarget, solve_ik
+from trajcache.geometry.model.ik import IkProblem, IkStatus, PoseTarget, _starts, solve_ik
 from trajcache.geometry.model.kinematics import check_limits, link_transforms
 from trajcache.geometry.model.pin_kinematics import PinKinematics
 from trajcache.geometry.model.robot import RobotModel
@@ -122,3 +124,20 @@ def test_given_starts_are_tried_after_the_seed(panda: PinKinematics) -> None:
     result = solve_ik(IkProblem(panda, target, READY, starts=[goal], solutions=2, budget_s=0.5))
     assert result.status is IkStatus.SUCCESS
     assert result.attempts >= 2
+
+
+def test_restarts_stay_within_the_window_about_the_seed(panda: PinKinematics) -> None:
+    """A pose goal looks near a cached end first: with `window`, every random restart lies
+    within it of the seed's values (and in the limits); without, they spread to the range."""
+    target = PoseTarget("panda_hand", _pose(panda.model, READY, "panda_hand"))
+    model = panda.model
+
+    def restarts(window: float | None) -> FloatArray:
+        problem = IkProblem(panda, target, READY, window=window)
+        drawn = itertools.islice(_starts(problem, np.random.default_rng(0)), 1, 41)
+        return np.array(list(drawn))
+
+    near = restarts(0.3)
+    assert np.abs(near - READY).max() <= 0.3 + 1e-12
+    assert (near >= model.lower).all() and (near <= model.upper).all()
+    assert np.abs(restarts(None) - READY).max() > 1.0

@@ -184,10 +184,16 @@ class TrajectoryIndex:
         threshold: float = 0.2,
         limit: int = 3,
         arm_only: bool = False,
+        goal_threshold: float | None = None,
     ) -> list[Match]:
-        """Up to ``limit`` relevant trajectories, best (lowest score, then id) first."""
+        """Up to ``limit`` relevant trajectories, best (lowest score, then id) first; with
+        ``goal_threshold`` above ``threshold``, the goal end may lie that far (the start end
+        within ``threshold``, its base and arm distances summed for a planar base)."""
         if not threshold > 0:
             raise ValueError(f"threshold must be positive, not {threshold}")
+        start_within = None
+        if goal_threshold is not None and goal_threshold > threshold:
+            start_within, threshold = threshold, goal_threshold
         q = self._keys(start, goal)[0]
         arm_only = arm_only and self.base is BaseType.PLANAR
         if arm_only and self.dim == self.base.arm_offset:
@@ -215,7 +221,7 @@ class TrajectoryIndex:
             rows = np.arange(len(snap.delta_ids), dtype=np.int64)
             found = relevant_rows(snap.delta_keys, rows, queries, threshold, planar, arm_only)
             parts.append((snap.delta_ids, found))
-        return _best(parts, limit)
+        return _best(parts, limit, start_within)
 
     def _keys(self, starts: npt.ArrayLike, goals: npt.ArrayLike) -> FloatArray:
         """Validate (n, D) starts/goals and pack them as keys with θ mapped into [0, 2π)."""
@@ -267,15 +273,21 @@ class TrajectoryIndex:
 
 
 def _best(
-    parts: list[tuple[IntArray, tuple[IntArray, IntArray, FloatArray, FloatArray]]], limit: int
+    parts: list[tuple[IntArray, tuple[IntArray, IntArray, FloatArray, FloatArray]]],
+    limit: int,
+    start_within: float | None = None,
 ) -> list[Match]:
     """The relevant rows of `parts` (each: the ids of its tested rows, and `relevant_rows`' answer
-    on them), the best orientation per id, the first `limit` by score, then id, then forward:
-    sorted in Python when they are few, by numpy when many."""
+    on them), those whose start lies within `start_within` if given, the best orientation per
+    id, the first `limit` by score, then id, then forward: sorted in Python when they are few,
+    by numpy when many."""
     ids = np.concatenate([part_ids[found[0]] for part_ids, found in parts] or [_NONE])
     rev = np.concatenate([found[1] for _, found in parts] or [_NONE])
     d_start = np.concatenate([found[2] for _, found in parts] or [_NO_FLOATS])
     d_goal = np.concatenate([found[3] for _, found in parts] or [_NO_FLOATS])
+    if start_within is not None:
+        near = d_start < start_within
+        ids, rev, d_start, d_goal = ids[near], rev[near], d_start[near], d_goal[near]
     score = d_start + d_goal
     if len(ids) > _FEW:
         order = np.lexsort((rev, ids, score))

@@ -124,6 +124,9 @@ class Settings(BaseSettings):
     default_planner: str = Field(
         default="compiled", min_length=1, description="Planner used when a request names none."
     )
+    pose_goal_threshold: float = Field(default=1.0, gt=0, description="How far (rad, on "
+        "every joint) a cached path's end may lie from a pose goal's state for the lookup "
+        "(its start: the request's threshold).")  # fmt: skip
     repair_budget_s: float = Field(default=0.25, ge=0, description="Planner budget (s) to mend "
         "a rejected cached path's failing stretch before planning anew (0: off).")  # fmt: skip
     negative_cache_ttl_s: float = Field(

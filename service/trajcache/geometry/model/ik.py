@@ -90,6 +90,7 @@ class IkProblem:
     budget_s: float = 0.05
     rng_seed: int = 0
     hold_limits: bool = False  # values at a limit that a step would push out are held
+    window: float | None = None  # rad: random restarts stay this close to the seed's values
     clock: Callable[[], float] = field(default=time.perf_counter, repr=False)
 
 
@@ -217,8 +218,9 @@ def _setup(problem: IkProblem) -> _Setup:
 
 def _starts(problem: IkProblem, rng: np.random.Generator) -> Iterator[FloatArray]:
     """The seed, the given starts, then random states around the seed: the arm within the
-    limits, each value within a window about the seed that widens to the whole range (restarts
-    near the seed converge more often, and to solutions nearer it); the seed's base."""
+    limits, each value within a window about the seed that widens to the whole range, or to
+    `window` at most (restarts near the seed converge more often, and to solutions nearer it);
+    the seed's base."""
     seed = np.asarray(problem.seed, dtype=float)
     yield seed.copy()
     for start in problem.starts:
@@ -228,6 +230,8 @@ def _starts(problem: IkProblem, rng: np.random.Generator) -> Iterator[FloatArray
     lower, upper = model.lower[arm], model.upper[arm]
     for restart in itertools.count(1):
         spread = min(1.0, RESTART_SPREAD * restart) * (upper - lower)
+        if problem.window is not None:
+            spread = np.minimum(spread, problem.window)
         state = seed.copy()
         low, high = np.maximum(lower, seed[arm] - spread), np.minimum(upper, seed[arm] + spread)
         state[arm] = rng.uniform(low, high)

@@ -297,6 +297,7 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
                 threshold=request.threshold,
                 limit=max(request.max_candidates, ctx.ranking.pool if ranking else 0),
                 arm_only=arm_only,
+                goal_threshold=ctx.settings.pose_goal_threshold if attempt.goal_found_by else None,
             )
         if ranking and len(matches) > 1:
             matches = _ranked(reads, ctx, matches, attempt.scene)

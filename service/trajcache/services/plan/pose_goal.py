@@ -7,9 +7,12 @@ Lookup by pose first, then inverse kinematics (`geometry/model/ik.py`):
    `services.ik.cached.ends_within`) and are free in the robot's scene; the one whose
    trajectory's other end is nearest the request's start is the goal. The joint lookup then
    finds that trajectory at distance zero from the goal.
-2. After IK from a nearby cached state: the solver starts from the cached states whose link
-   lies nearest the target (the nearest first, as its seed; `nearest_starts`), so that a
-   solution it finds lies next to a cached trajectory's end, within the lookup threshold.
+2. After IK from a nearby cached state: the solver starts from the cached state whose link
+   lies nearest the target (`nearest_starts`), its random restarts within the pose goals'
+   lookup threshold of it (`pose_goal_threshold`), then from the others, so that a solution it
+   finds lies next to a cached trajectory's end. The lookup takes a path whose goal end lies
+   within that threshold (`flow.lookup`): the goal state is the service's choice, not the
+   client's, and the adapted path is certified (or repaired) as any other.
 3. Otherwise IK from the request's start, with random restarts (the solution nearest it).
 
 The ends of 1 and the starts of 2 come from one read of the end-pose index while the cache is
@@ -76,13 +79,16 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
     as_is = _cached_as_is(attempt, ends, free)
     if as_is is not None:
         return PoseGoalFound(as_is, "cached")
-    starts = ends.starts
-    seeds = [(starts[0], starts[1:]), (attempt.start, starts)] if starts else [(attempt.start, [])]
+    starts, window = ends.starts, ctx.settings.pose_goal_threshold
+    seeds: list[tuple[FloatArray, list[FloatArray], float | None]] = [(attempt.start, starts, None)]
+    if starts:  # near the nearest cached end first, where the lookup finds its path
+        seeds[:0] = [(starts[0], [], window), (starts[0], starts[1:], None)]
     budget = POSE_IK_BUDGET_S / len(seeds)
-    for seed, others in seeds:
+    for seed, others, near in seeds:
         problem = IkProblem(
-            kinematics, target, seed, starts=others, valid_fn=free, solutions=1, budget_s=budget
-        )
+            kinematics, target, seed, starts=others, valid_fn=free, solutions=1,
+            budget_s=budget, window=near,
+        )  # fmt: skip
         found = solve_ik(problem)
         if found.status is IkStatus.SUCCESS and found.state is not None:
             return PoseGoalFound(found.state, "ik")
