@@ -16,6 +16,7 @@ from yourdfpy.urdf import filename_handler_null
 
 from tests.api.conftest import assert_detail, register
 from tests.robots import TWO_JOINT_URDF
+from trajcache.services.plan import pose_goal
 
 START = [0.0, 0.0]
 GOAL = [0.9, 0.3]  # the forearm's pose there is the target
@@ -117,6 +118,32 @@ def test_a_pose_further_from_a_cached_end_is_still_served_from_it(
     body = {"start": [0.5, 0.0], "goal_pose": further, "options": {"fallback": False}}
     missed = robot.post("/v1/robots/r1/plan", json=body).json()
     assert missed["status"] != "success"
+
+
+def test_the_paths_a_hit_can_take_need_no_end_pose_read(
+    robot: TestClient, arm: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A hit takes a path with an end near the request's start: their other ends come from the
+    replica's trajectory index, as they are or as IK seeds, without reading the end-pose index;
+    from a start no cached path is near, the whole cache is searched."""
+    plan(robot, target(arm, GOAL), fallback=True)
+    reads: list[str] = []
+    whole = pose_goal.pose_ends
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        reads.append("pose_ends")
+        return whole(*args, **kwargs)
+
+    monkeypatch.setattr(pose_goal, "pose_ends", counted)
+    again = plan(robot, target(arm, GOAL), fallback=False)
+    assert again["source"] == "cache" and again["goal_found_by"] == "cached"
+    nearby = target(arm, [GOAL[0] + 0.02, GOAL[1] - 0.02])
+    answer = plan(robot, nearby, fallback=False)
+    assert answer["source"] == "cache" and answer["goal_found_by"] == "ik"
+    assert within(arm, answer["states"][-1], nearby) and reads == []
+    body = {"start": [0.6, 0.0], "goal_pose": nearby, "options": {"fallback": False}}
+    assert robot.post("/v1/robots/r1/plan", json=body).status_code == 200
+    assert reads == ["pose_ends"]
 
 
 def test_an_unreachable_pose_is_a_failure_not_an_error(robot: TestClient) -> None:

@@ -323,3 +323,35 @@ def test_concurrent_mutations_and_queries_stay_consistent() -> None:
     for s, g in qs[:20]:
         want = brute_force(ids[keep], starts[keep], goals[keep], s, g)
         assert_same(index.query(s, g, limit=100), want[:100])
+
+
+@pytest.mark.parametrize("base", [BaseType.PLANAR, BaseType.FIXED])
+def test_ends_near_a_state_match_a_scan(base: BaseType) -> None:
+    """Every entry with an end within the threshold of a state (main, delta, removed ones
+    left out), with its other end, nearest first, as a brute-force scan of both ends finds."""
+    rng = np.random.default_rng(4)
+    starts, goals = clustered(rng, 1200)
+    ids = np.arange(1200) * 7
+    index = TrajectoryIndex(D, base=base, rebuild_min=100_000, background_rebuild=False)
+    index.add(ids[:800], starts[:800], goals[:800])
+    index.rebuild()
+    index.add(ids[800:], starts[800:], goals[800:])
+    index.remove(ids[::9])
+    alive = ~np.isin(ids, ids[::9])
+    found = 0
+    for s, _ in queries(rng, starts, goals, 30):
+        got = index.ends_near(s, threshold=0.2)
+        want = []
+        for end, (near, far) in enumerate(((starts, goals), (goals, starts))):
+            b, a = state_distance(near, s, base=base)
+            for i in np.flatnonzero((b < 0.2) & (a < 0.2) & alive):
+                want.append((float(b[i] + a[i]), int(ids[i]), end, far[i]))
+        want.sort(key=lambda w: w[:3])
+        assert got.ids.tolist() == [w[1] for w in want]
+        assert got.reversed.tolist() == [w[2] == 1 for w in want]
+        np.testing.assert_allclose(got.distances, [w[0] for w in want], atol=1e-12)
+        if want:
+            b, a = state_distance(got.states, np.array([w[3] for w in want]), base=base)
+            assert (b < 1e-9).all() and (a < 1e-9).all()  # the other end (θ modulo 2π)
+        found += len(want)
+    assert found > 30

@@ -27,12 +27,12 @@ import numpy as np
 import numpy.typing as npt
 
 from trajcache.cache.index_state import Block, IntArray, Snapshot, with_added, with_removed
-from trajcache.cache.metric import THETA, TWO_PI, check_dimension
+from trajcache.cache.metric import THETA, TWO_PI, check_dimension, state_distance
 from trajcache.geometry.model.nearness import relevant_rows
 from trajcache.geometry.model.robot import BaseType
 from trajcache.geometry.model.shapes import FloatArray
 
-__all__ = ["Match", "TrajectoryIndex"]
+__all__ = ["EndsOf", "Match", "TrajectoryIndex"]
 
 _log = logging.getLogger(__name__)
 _BELOW_TWO_PI = float(np.nextafter(TWO_PI, 0.0))
@@ -53,6 +53,17 @@ class Match:
     d_start: float
     d_goal: float
     score: float
+
+
+@dataclass(frozen=True)
+class EndsOf:
+    """Entries with an end near a state (`TrajectoryIndex.ends_near`): ids, whether the near
+    end is the goal (the entry played reversed), its distance, and the other end's state."""
+
+    ids: IntArray
+    reversed: npt.NDArray[np.bool_]
+    distances: FloatArray
+    states: FloatArray
 
 
 _Op = Callable[[Snapshot], Snapshot]
@@ -166,11 +177,12 @@ class TrajectoryIndex:
         return len(self._snap.delta_ids)
 
     def memory_bytes(self) -> dict[str, int]:
-        """Approximate bytes held by the main block, the arm-only tree and the delta buffer."""
+        """Approximate bytes held by the main block, the arm-only and ends trees (built on
+        first use) and the delta buffer."""
         snap = self._snap
-        main, arm = snap.main.memory_bytes()
+        main, arm, ends = snap.main.memory_bytes()
         delta = snap.delta_ids.nbytes + snap.delta_keys.nbytes
-        return {"main": main + snap.alive.nbytes, "arm_only": arm, "delta": delta}
+        return {"main": main + snap.alive.nbytes, "arm_only": arm, "ends": ends, "delta": delta}
 
     def delta_limit(self, n_main: int) -> int:
         """Delta size beyond which a rebuild is due, for a main block of ``n_main`` entries."""
@@ -222,6 +234,41 @@ class TrajectoryIndex:
             found = relevant_rows(snap.delta_keys, rows, queries, threshold, planar, arm_only)
             parts.append((snap.delta_ids, found))
         return _best(parts, limit, start_within)
+
+    def ends_near(self, state: npt.ArrayLike, *, threshold: float) -> EndsOf:
+        """Every entry one of whose ends lies within ``threshold`` of ``state`` (base and arm
+        distances each, as ``query`` measures an end), with its other end's state (θ in
+        [−π, π)), nearest first, then by id; an entry both of whose ends do counts twice."""
+        if not threshold > 0:
+            raise ValueError(f"threshold must be positive, not {threshold}")
+        d = self.dim
+        at = self._keys(state, state)[0][:d]
+        snap = self._snap
+        parts: list[tuple[IntArray, IntArray, FloatArray]] = []  # ids, which end, the entry's keys
+        tree = snap.main.ends_tree()
+        if tree is not None:
+            hits = np.asarray(tree.query_ball_point(at, threshold + _EPS, p=np.inf), np.int64)
+            n = len(snap.main.ids)
+            rows, end = hits % n, hits // n
+            live = snap.alive[rows]
+            parts.append((snap.main.ids[rows[live]], end[live], snap.main.keys[rows[live]]))
+        if len(snap.delta_ids):
+            both = np.repeat(np.arange(2, dtype=np.int64), len(snap.delta_ids))
+            keys = np.concatenate([snap.delta_keys, snap.delta_keys])
+            parts.append((np.concatenate([snap.delta_ids, snap.delta_ids]), both, keys))
+        ids = np.concatenate([p[0] for p in parts] or [_NONE])
+        end = np.concatenate([p[1] for p in parts] or [_NONE])
+        keys = np.concatenate([p[2] for p in parts] or [np.empty((0, 2 * d))])
+        goal_end = end[:, None] == 1
+        near = np.where(goal_end, keys[:, d:], keys[:, :d])
+        far = np.where(goal_end, keys[:, :d], keys[:, d:])
+        if self.base is BaseType.PLANAR:
+            far[:, THETA] -= np.pi  # keys hold θ + π (`_keys`)
+        base_gap, arm_gap = state_distance(near, at, base=self.base)
+        keep = (base_gap < threshold) & (arm_gap < threshold)
+        gap = (base_gap + arm_gap)[keep]
+        order = np.lexsort((end[keep], ids[keep], gap))
+        return EndsOf(ids[keep][order], end[keep][order] == 1, gap[order], far[keep][order])
 
     def _keys(self, starts: npt.ArrayLike, goals: npt.ArrayLike) -> FloatArray:
         """Validate (n, D) starts/goals and pack them as keys with θ mapped into [0, 2π)."""

@@ -32,9 +32,12 @@ class Block:
         if len(ids):
             self.tree = _make_tree(keys, leafsize, boxsize)
         keys.flags.writeable = False
+        self._boxsize = boxsize
         self._arm_tree: cKDTree | None = None
         self._arm_keys = np.empty((0, 0))
         self._arm_lock = threading.Lock()
+        self._ends_tree: cKDTree | None = None
+        self._ends_keys = np.empty((0, 0))
 
     def arm_tree(self, cols: IntArray) -> cKDTree | None:
         """The tree over the arm columns only (built on first use)."""
@@ -45,10 +48,23 @@ class Block:
                     self._arm_tree = _make_tree(self._arm_keys, self.leafsize, None)
         return self._arm_tree
 
-    def memory_bytes(self) -> tuple[int, int]:
-        """Bytes of (ids, keys and main tree; arm-only keys and tree)."""
+    def ends_tree(self) -> cKDTree | None:
+        """The tree over every entry's two ends as states: row k < n is entry k's start, row
+        n + k its goal (built on first use)."""
+        if self._ends_tree is None and len(self.ids):
+            with self._arm_lock:
+                if self._ends_tree is None:
+                    d = self.keys.shape[1] // 2
+                    self._ends_keys = np.concatenate([self.keys[:, :d], self.keys[:, d:]])
+                    box = None if self._boxsize is None else self._boxsize[:d]
+                    self._ends_tree = _make_tree(self._ends_keys, self.leafsize, box)
+        return self._ends_tree
+
+    def memory_bytes(self) -> tuple[int, int, int]:
+        """Bytes of (ids, keys and main tree; arm-only keys and tree; ends keys and tree)."""
         main = self.ids.nbytes + self.keys.nbytes + _tree_bytes(self.tree)
-        return main, self._arm_keys.nbytes + _tree_bytes(self._arm_tree)
+        arm = self._arm_keys.nbytes + _tree_bytes(self._arm_tree)
+        return main, arm, self._ends_keys.nbytes + _tree_bytes(self._ends_tree)
 
 
 def _make_tree(keys: FloatArray, leafsize: int, boxsize: FloatArray | None) -> cKDTree:

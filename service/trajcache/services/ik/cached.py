@@ -30,6 +30,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from sqlalchemy.orm import Session
 
 from trajcache.geometry.model.end_poses import anchor_of, anchor_offset
@@ -45,6 +46,7 @@ __all__ = [
     "CACHED_STARTS",
     "PoseEnds",
     "ends_within",
+    "meets_target",
     "nearest_starts",
     "pose_ends",
     "stored_count",
@@ -113,12 +115,20 @@ def _within(
     if len(ends.gaps) == 0:
         return ends
     states = _on_base(checked, ends.states, base)
+    keep, gap = meets_target(checked, target, states)
+    return EndsNear(states[keep], ends.partners[keep], gap[keep])
+
+
+def meets_target(
+    checked: RobotModel, target: PoseTarget, states: FloatArray
+) -> tuple[npt.NDArray[np.bool_], FloatArray]:
+    """Which of `states` put the target's link within its tolerances (forward kinematics on
+    `checked`), and the link's distance from the target's position at each."""
     frames = forward_kinematics(checked, states)[:, checked.link_names.index(target.link)]
     gap = np.linalg.norm(frames[:, :3, 3] - target.pose[:3, 3], axis=1)
     turn = np.einsum("nij,ij->n", frames[:, :3, :3], target.pose[:3, :3])  # trace(Rᵀ R*)
     angle = np.arccos(np.clip((turn - 1.0) / 2.0, -1.0, 1.0))
-    keep = (gap <= target.position_tolerance) & (angle <= target.orientation_tolerance)
-    return EndsNear(states[keep], ends.partners[keep], gap[keep])
+    return (gap <= target.position_tolerance) & (angle <= target.orientation_tolerance), gap
 
 
 def nearest_starts(

@@ -2,6 +2,13 @@
 
 Lookup by pose first, then inverse kinematics (`geometry/model/ik.py`):
 
+0. From the paths the lookup could take: a hit needs a cached path with an end within the
+   request's threshold of its start, so their other ends are the goal states a hit can reach.
+   This replica's trajectory index lists them (`TrajectoryIndex.ends_near`) without a database
+   read: one that is free and reaches the pose as it is is the goal (the nearest path first),
+   else IK starts from the one whose link lies nearest the target, its restarts and its answer
+   within the pose goals' threshold of it. Otherwise (none, IK finds nothing there, the lookup
+   off or a planar base) the whole cache is searched, as follows:
 1. As it is: among the ends of every cached trajectory of the model, those that put the link
    within the tolerances (read from the end-pose index, checked by forward kinematics:
    `services.ik.cached.ends_within`) and are free in the robot's scene; the one whose
@@ -37,13 +44,14 @@ from trajcache.geometry.model.shapes import FloatArray, pose_matrix
 from trajcache.geometry.scene.fields import unit_quaternion
 from trajcache.geometry.validation.validator import validator_for
 from trajcache.services.catalog.models import model_source
-from trajcache.services.ik.cached import PoseEnds, pose_ends, stored_count
+from trajcache.services.ik.cached import PoseEnds, meets_target, pose_ends, stored_count
 from trajcache.services.ik.solve import free_fn, link_of
 from trajcache.services.plan.attempt import GoalPose, PlanAttempt
 
 __all__ = ["NO_GOAL_STATE", "PoseGoalFound", "resolve_pose_goal"]
 
 POSE_IK_BUDGET_S = 0.1  # IK's share of a plan request's time
+NEAR_START_POOL = 64  # the most cached ends near the start a pose goal considers (nearest first)
 NO_GOAL_STATE = "no goal state puts"  # how the failure message of an unreached pose begins
 
 
@@ -74,6 +82,9 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
     )
     checker = validator_for(checked, attempt.scene, ctx.settings, cache=ctx.validators).checker
     free = free_fn(checker)
+    near_start = _from_start(attempt, kinematics, target, free)
+    if near_start is not None:
+        return near_start
     stored = stored_count(ctx.indexes, session, attempt.model)
     ends = pose_ends(session, attempt.model, checked, target, attempt.start, stored=stored)
     as_is = _cached_as_is(attempt, ends, free)
@@ -99,6 +110,44 @@ def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
         f"{NO_GOAL_STATE} {link!r} within {goal.position_tolerance:g} m and "
         f"{goal.orientation_tolerance:g} rad of the pose ({why})",
     )
+
+
+def _from_start(
+    attempt: PlanAttempt,
+    kinematics: PinKinematics,
+    target: PoseTarget,
+    free: Callable[[FloatArray], bool],
+) -> PoseGoalFound | None:
+    """The goal state from the cached paths the lookup could take (step 0 of the module
+    docstring): those with an end within the request's threshold of its start, read from this
+    replica's trajectory index (no database read). Their other end, if one is free and reaches
+    the pose as it is (the nearest such path first); else IK from the one whose link lies
+    nearest the target, its restarts and its answer within the pose goals' threshold of it.
+    None: neither."""
+    checked, request = attempt.checked, attempt.request
+    if checked.base is BaseType.PLANAR or not request.lookup:
+        return None  # a planar base's ends stand elsewhere: the end-pose index places them
+    index = attempt.ctx.indexes.index(attempt.reads, attempt.model, arrived=attempt.clock.arrived)
+    ends = index.ends_near(attempt.start, threshold=request.threshold).states[:NEAR_START_POOL]
+    if len(ends) == 0:
+        return None
+    meets, gaps = meets_target(checked, target, ends)
+    for k in np.flatnonzero(meets):
+        if free(ends[k]):
+            return PoseGoalFound(np.array(ends[k]), "cached")
+    seed, window = ends[int(np.argmin(gaps))], attempt.ctx.settings.pose_goal_threshold
+
+    def near_and_free(state: FloatArray) -> bool:  # where the lookup finds the seed's path
+        return bool(np.abs(state - seed).max() < window) and free(state)
+
+    problem = IkProblem(
+        kinematics, target, seed, valid_fn=near_and_free, solutions=1,
+        budget_s=POSE_IK_BUDGET_S / 4, window=window,
+    )  # fmt: skip
+    found = solve_ik(problem)
+    if found.status is IkStatus.SUCCESS and found.state is not None:
+        return PoseGoalFound(found.state, "ik")
+    return None
 
 
 def _cached_as_is(
