@@ -9,7 +9,10 @@ gives it (`goal_pose`, native form):
   spent finding the goal state (`timings_ms.pose_goal`: IK, `ik_ms`);
 - replay: the pose moved by 1–3 cm in a random direction, the lookup on: answered from the
   cache (`replay_hit_rate`), of which with a cached end that reaches the pose as it is
-  (`replay_as_is_share`), and the server's time of a hit (`hit_server_ms_median`).
+  (`replay_as_is_share`), and the server's time of a hit (`hit_server_ms_median`); beside it,
+  in the same run, the same path asked with a joint goal as bench/mbm.py's replays ask it
+  (`joint_hit_server_ms_median`; before the pose replay for odd problems, after it for even
+  ones) and the ratio of the two medians (`hit_vs_joint_hit`).
   A moved pose may have no free state near the cached end (the fingers pushed into a can, a
   joint at its limit): no cache can serve it. Each replay is judged without the service
   (`cartesian_filter.line_witness`: an independent IK path from the cached end along the
@@ -72,6 +75,7 @@ POSITION_TOLERANCE = 0.005  # m: a 5 mm sphere
 ORIENTATION_TOLERANCE = 0.05  # rad
 MOVE_M = (0.01, 0.03)
 LOOKUP_THRESHOLD = 0.2  # rad: the service's default, on every joint
+JOINT_NOISE = 0.02  # rad per joint, of a joint-goal replay's start and goal (as bench/mbm.py)
 SMOKE_PER_FAMILY = 2
 
 
@@ -113,7 +117,7 @@ class PoseRun:
         self.ik = LineIk(self.checker, LINK)
         self.model_id = register_panda(client, robot_dir).model_id
         self.counts: Counter[str] = Counter()
-        self.times: dict[str, list[float]] = {"plan": [], "ik": [], "hit": []}
+        self.times: dict[str, list[float]] = {"plan": [], "ik": [], "hit": [], "joint_hit": []}
 
     def ask(
         self, robot_id: str, start: np.ndarray, goal: dict[str, Any], lookup: bool
@@ -156,7 +160,12 @@ class PoseRun:
         unservable = self.unservable(np.asarray(answer["states"][-1], dtype=float), moved)
         tally.counts["replays"] += 1
         tally.counts[f"unservable:{unservable}" if unservable else "servable"] += 1
+        ends = (start, np.asarray(answer["states"][-1], dtype=float))
+        if problem.index % 2:  # before the pose replay for odd problems, after it for even
+            self.joint_replay(tally, robot_id, ends, rng)
         again = self.ask(robot_id, start, moved, lookup=True)
+        if not problem.index % 2:
+            self.joint_replay(tally, robot_id, ends, rng)
         if again is None or again["status"] != "success":
             self.counts[f"replay_answer:failed:{unservable or 'servable'}"] += 1
             return
@@ -169,6 +178,37 @@ class PoseRun:
             self.counts["as_is"] += again["goal_found_by"] == "cached"
             self.times["hit"].append(again["timings_ms"]["total"])
 
+    def joint_replay(
+        self, tally: Tally, robot_id: str, ends: tuple[np.ndarray, np.ndarray], rng: Any
+    ) -> None:
+        """The path asked again with a joint goal, as bench/mbm.py's replays ask it (start and
+        goal moved by up to ±0.02 rad per joint, within the limits and free; no fallback): the
+        server's time of a joint-goal hit, in the same run (`joint_hit_server_ms_median`)."""
+        start, goal = (self.noisy(end, rng) for end in ends)
+        if start is None or goal is None:
+            return
+        options = {"fallback": False, "lookup": True}
+        try:
+            answer = self.client.plan(robot_id, start.tolist(), goal.tolist(), options).model_dump()
+        except APIError as exc:
+            self.counts["http_5xx" if exc.status_code >= 500 else "http_4xx"] += 1
+            return
+        if answer["status"] == "success":
+            states = np.asarray(answer["states"], dtype=float)
+            check_path(tally, self.checker, states, (start, goal), "joint replay")
+        if answer["source"] == "cache":
+            self.times["joint_hit"].append(answer["timings_ms"]["total"])
+
+    def noisy(self, state: np.ndarray, rng: Any) -> np.ndarray | None:
+        """The state moved by up to ±JOINT_NOISE per joint, within the limits and free (as
+        bench/mbm.py draws its replays); None after 20 draws."""
+        lower, upper = self.checker.lower, self.checker.upper
+        for _ in range(20):
+            out = np.clip(state + rng.uniform(-JOINT_NOISE, JOINT_NOISE, len(state)), lower, upper)
+            if self.checker.is_free(out):
+                return out
+        return None
+
     def unservable(self, cached_end: np.ndarray, moved: dict[str, Any]) -> str:
         """Why no cached answer can reach the moved pose from the cached end (module
         docstring), or "" when one can."""
@@ -177,6 +217,13 @@ class PoseRun:
         if not reason and np.abs(states[-1] - cached_end).max() >= LOOKUP_THRESHOLD:
             reason = "far_from_cache"
         return reason
+
+
+def ratio(times: list[float], others: list[float]) -> float | None:
+    """The ratio of the two medians (None without both)."""
+    if not times or not others:
+        return None
+    return round(float(np.median(times) / np.median(others)), 2)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -240,6 +287,8 @@ def main(argv: list[str] | None = None) -> int:
         "replay_answers": answers,
         "replay_as_is_share": round(counts["as_is"] / hits, 4) if hits else None,
         "hit_server_ms_median": percentile(run.times["hit"]),
+        "joint_hit_server_ms_median": percentile(run.times["joint_hit"]),
+        "hit_vs_joint_hit": ratio(run.times["hit"], run.times["joint_hit"]),
     }
     return print_checked(figures, counts, check="pose_errors", began=began, smoke=args.smoke)
 

@@ -51,7 +51,7 @@ from trajcache.services.plan.attempt import GoalPose, PlanAttempt
 __all__ = ["NO_GOAL_STATE", "PoseGoalFound", "resolve_pose_goal"]
 
 POSE_IK_BUDGET_S = 0.1  # IK's share of a plan request's time
-NEAR_START_POOL = 64  # the most cached ends near the start a pose goal considers (nearest first)
+NEAR_START_POOL = 512  # the most cached ends near the start a pose goal considers (nearest first)
 NO_GOAL_STATE = "no goal state puts"  # how the failure message of an unreached pose begins
 
 
