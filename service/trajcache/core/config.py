@@ -301,6 +301,8 @@ class Settings(BaseSettings):
         ge=1,
         description="Consecutive validation failures after which a candidate is tried last.",
     )
+    ranking_facts_ttl_s: float = Field(default=30.0, gt=0, description="Seconds a replica "
+        "trusts the ranking facts it read (others' bookkeeping shows up within them).")  # fmt: skip
     cache_max_per_model: int = Field(default=0, ge=0, description="Most trajectories kept per "
         "robot model; beyond it the eviction policy deletes the rest (0 = no cap).")  # fmt: skip
     eviction_policy: Literal["lru", "least_hit"] = Field(default="lru", description="What "

@@ -81,6 +81,7 @@ class ServiceContext:
             memo=ValidationMemo(),
             records=PlanRecorder(engine),
             ranking=RankingRules.from_settings(settings),
+            facts=RankingFactsCache(ttl_s=settings.ranking_facts_ttl_s),
         )
 
     def clear_caches(self) -> None:

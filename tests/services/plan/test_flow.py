@@ -19,6 +19,7 @@ import sqlalchemy as sa
 from tests.services.hit_setup import context, count_statements, store, two_joint
 from tests.waiting import NEVER_BINDS_S
 from trajcache.cache.memo import MemoUse
+from trajcache.cache.ranking import CandidateFacts
 from trajcache.db.models import PlanEvent, Trajectory
 from trajcache.geometry.collision.checker import CollisionChecker
 from trajcache.geometry.errors import CollisionStateError
@@ -185,6 +186,20 @@ def test_a_rejected_candidate_then_the_planner(
     [event] = events
     assert (event.status, event.source, event.seed) == ("success", "planner", 7)
     assert event.trajectory_id == answer.trajectory_id
+
+
+def test_a_stored_path_s_ranking_facts_are_known_without_a_read(
+    ctx: ServiceContext, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """This process stored it: its first ranking needs no read of its facts."""
+    setup_robot(ctx, [blocker()], DETOUR)
+    path = np.array([[0.02, 0.0], [0.5, 0.1], [0.98, 0.0]])
+    use_planner(ctx, monkeypatch, FakePlanner(PlanResult(PlannerStatus.SOLVED, path, seed=7)))
+    answer = ask(ctx, [0.02, 0.0], [0.98, 0.0], fallback=True)
+    assert answer.source is PlanSource.PLANNER and answer.trajectory_id is not None
+    found, missing = ctx.facts.get_many([answer.trajectory_id])
+    assert missing == [] and found[answer.trajectory_id] == CandidateFacts()
+    assert ctx.facts.ttl_s == ctx.settings.ranking_facts_ttl_s == 30.0
 
 
 def test_a_miss_without_planning_is_recorded_by_the_writer(

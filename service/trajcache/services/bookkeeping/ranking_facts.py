@@ -2,10 +2,11 @@
 
 A trajectory's `env` never changes once stored; its failure streak and last real-robot
 validation change with the bookkeeping of every plan that tries it. This process applies its own
-bookkeeping to the cache as the plan flow submits it; what other replicas wrote is read again
-once an entry is older than `ttl_s`. Ranking only orders candidates that are each validated
-before one is served, so a fact a moment old can change which valid trajectory is tried first,
-never whether an answer is safe.
+bookkeeping to the cache as the plan flow submits it, and knows the facts of a trajectory it
+stores from the store; what other replicas wrote is read again once an entry is older than
+`ttl_s` (`TRAJCACHE_RANKING_FACTS_TTL_S`, 30 s). Ranking only orders candidates that are each
+validated before one is served, so a fact older than another replica's bookkeeping can change
+which valid trajectory is tried first, never whether an answer is safe.
 """
 
 from __future__ import annotations

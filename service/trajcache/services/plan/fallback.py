@@ -14,6 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from trajcache.cache.memo import MemoScope, remember_path
+from trajcache.cache.ranking import CandidateFacts
 from trajcache.geometry.errors import CollisionStateError
 from trajcache.geometry.validation.validator import certificate_for
 from trajcache.jobs.pool import PlannerPool
@@ -100,6 +101,9 @@ def store_and_answer(
     attempt.ctx.indexes.add_stored(  # committed: indexed now, not at the next sync
         model.model_id, trajectory_id, commit_ids[0] if commit_ids else None, path
     )
+    if created:  # its ranking facts are known: a later lookup need not read them
+        env = {str(k): float(v) for k, v in scene.env.items()}
+        attempt.ctx.facts.put_many({trajectory_id: CandidateFacts(env=env)})
     certify_planned(attempt, trajectory_id, path)
     job = _quality_job(attempt, trajectory_id, path) if created else None
     measure_ends(attempt, path)  # by the writer, before its quality: a hit may follow at once
