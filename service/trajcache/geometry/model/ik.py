@@ -43,7 +43,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 import time
+import weakref
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
@@ -116,7 +118,7 @@ class IkResult:
     orientation_error: float | None = None  # of the answer (rad)
 
 
-@dataclass(frozen=True)
+@dataclass
 class _Setup:
     """What every attempt of a problem shares."""
 
@@ -129,20 +131,21 @@ class _Setup:
     velocity: FloatArray | None  # V(s) of the moving columns, when the base does not turn
     target: pin.SE3
     tolerances: tuple[float, float]
-    data: pin.Data  # Pinocchio's workspace, one per problem
+    data: pin.Data  # Pinocchio's workspace, one per kinematics and thread
     hold_limits: bool = False
+    reached: tuple[float, float] = (math.inf, math.inf)  # the last descent's errors at its end
 
 
 def solve_ik(problem: IkProblem) -> IkResult:
     """The valid state nearest the seed that puts the link at the target, or why there is none."""
     ends = problem.clock() + max(0.0, problem.budget_s)
     setup = _setup(problem)
-    rng = np.random.default_rng(problem.rng_seed)
     seen: list[FloatArray] = []  # every distinct state that reached the pose
     pending: list[FloatArray] = []  # those not yet checked by valid_fn
+    errors: dict[int, tuple[float, float]] = {}  # by id of a state seen: its pose errors
     best: FloatArray | None = None
     rejected = attempts = iterations = 0
-    for start in _starts(problem, rng):
+    for start in _starts(problem):
         if attempts and problem.clock() >= ends:
             break
         attempts += 1
@@ -151,6 +154,7 @@ def solve_ik(problem: IkProblem) -> IkResult:
         if state is None or any(_same(state, other, setup) for other in seen):
             continue
         seen.append(state)
+        errors[id(state)] = setup.reached
         pending.append(state)
         if len(pending) >= problem.solutions:
             best, failed = _nearest_valid(problem, setup, pending)
@@ -163,7 +167,7 @@ def solve_ik(problem: IkProblem) -> IkResult:
     if best is None:
         status = IkStatus.IN_COLLISION if rejected else IkStatus.NOT_FOUND
         return IkResult(status, None, len(seen), rejected, attempts, iterations)
-    position, orientation = pose_errors(problem.kinematics, setup.frame, best, setup.target)
+    position, orientation = errors[id(best)]  # as the descent measured them where it ended
     return IkResult(
         IkStatus.SUCCESS, best, len(seen), rejected, attempts, iterations, position, orientation
     )
@@ -192,15 +196,8 @@ def _nearest_valid(
 
 
 def _setup(problem: IkProblem) -> _Setup:
-    model = problem.kinematics.model
-    first = 0 if problem.move_base else model.arm_offset
-    columns = np.arange(first, model.dof)
-    lower, upper = model.lower[columns].astype(float), model.upper[columns].astype(float)
-    if model.arm_offset and problem.move_base:
-        lower[:2], upper[:2] = -np.inf, np.inf
-        lower[2], upper[2] = -math.pi, math.pi
     target, kin = problem.target, problem.kinematics
-    turns = np.isfinite(upper - lower) & (upper - lower >= _FULL_TURN)
+    columns, lower, upper, turns = _columns(kin, problem.move_base)
     return _Setup(
         frame=kin.frame_id(target.link),
         columns=columns,
@@ -211,12 +208,48 @@ def _setup(problem: IkProblem) -> _Setup:
         velocity=None if problem.move_base else kin.velocity_of(problem.seed)[:, columns],
         target=pin.SE3(np.asarray(target.pose, dtype=float)),
         tolerances=(target.position_tolerance, target.orientation_tolerance),
-        data=kin.pin_model.createData(),
+        data=_data(kin),
         hold_limits=problem.hold_limits,
     )
 
 
-def _starts(problem: IkProblem, rng: np.random.Generator) -> Iterator[FloatArray]:
+_Columns = tuple[np.ndarray, FloatArray, FloatArray, np.ndarray]
+_COLUMNS: weakref.WeakKeyDictionary[PinKinematics, dict[bool, _Columns]] = (
+    weakref.WeakKeyDictionary()
+)
+_DATA = threading.local()  # per thread: Pinocchio workspaces by kinematics
+
+
+def _columns(kin: PinKinematics, move_base: bool) -> _Columns:
+    """The state values IK moves, their limits and which wrap over a full turn: constants of
+    the kinematics, computed once (never written to)."""
+    known = _COLUMNS.setdefault(kin, {})
+    if move_base not in known:
+        model = kin.model
+        columns = np.arange(0 if move_base else model.arm_offset, model.dof)
+        lower, upper = model.lower[columns].astype(float), model.upper[columns].astype(float)
+        if model.arm_offset and move_base:
+            lower[:2], upper[:2] = -np.inf, np.inf
+            lower[2], upper[2] = -math.pi, math.pi
+        turns = np.isfinite(upper - lower) & (upper - lower >= _FULL_TURN)
+        for array in (columns, lower, upper, turns):
+            array.flags.writeable = False
+        known[move_base] = (columns, lower, upper, turns)
+    return known[move_base]
+
+
+def _data(kin: PinKinematics) -> pin.Data:
+    """This thread's Pinocchio workspace for `kin` (a solve runs on one thread, start to end)."""
+    workspaces = getattr(_DATA, "by_kinematics", None)
+    if workspaces is None:
+        workspaces = _DATA.by_kinematics = weakref.WeakKeyDictionary()
+    data = workspaces.get(kin)
+    if data is None:
+        data = workspaces[kin] = kin.pin_model.createData()
+    return data
+
+
+def _starts(problem: IkProblem, rng: np.random.Generator | None = None) -> Iterator[FloatArray]:
     """The seed, the given starts, then random states around the seed: the arm within the
     limits, each value within a window about the seed that widens to the whole range, or to
     `window` at most (restarts near the seed converge more often, and to solutions nearer it);
@@ -228,6 +261,8 @@ def _starts(problem: IkProblem, rng: np.random.Generator) -> Iterator[FloatArray
     model = problem.kinematics.model
     arm = np.arange(model.arm_offset, model.dof)
     lower, upper = model.lower[arm], model.upper[arm]
+    if rng is None:  # made only when restarts are needed: most solves end at the seed
+        rng = np.random.default_rng(problem.rng_seed)
     for restart in itertools.count(1):
         spread = min(1.0, RESTART_SPREAD * restart) * (upper - lower)
         if problem.window is not None:
@@ -262,6 +297,7 @@ def _descend(
         position = math.sqrt(gap @ gap)
         orientation = math.sqrt(error[3:] @ error[3:])  # log6's rotation part is log3's
         if position <= position_goal and orientation <= orientation_goal:
+            setup.reached = (position, orientation)
             return state, iteration
         size = position + orientation
         stalled = 0 if size < 0.99 * best else stalled + 1
