@@ -14,7 +14,14 @@ import numpy as np
 import pytest
 
 from tests.robots import ROD_URDF
-from trajcache.cache.memo import MemoScope, MemoUse, ValidationMemo, validate_with_memo
+from trajcache.cache.index import Match
+from trajcache.cache.memo import (
+    MemoScope,
+    MemoUse,
+    ValidationMemo,
+    proved_first,
+    validate_with_memo,
+)
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import Shape, ShapeKind
 from trajcache.geometry.model.urdf import load_robot_model
@@ -294,3 +301,21 @@ def test_a_plate_between_two_pieces_is_not_a_finding(swing: RobotModel) -> None:
     assert not validator.validate(path).valid
     assert validator.validate_segments(path, [0, 2]).valid
     assert validator.validate_segments(path, [0, 1]).status is ValidationStatus.COLLISION
+
+
+def test_candidates_proved_in_the_scene_are_tried_first(swing: RobotModel) -> None:
+    """Of several candidates, those whose interior (as played) passed certified validation in
+    this scope go first, each group in its order; a reversed match is looked up reversed, and
+    another scope's proof does not count."""
+    scene, memo = plates(-1.0), ValidationMemo()
+    scope = scope_of(scene, swing)
+    other = np.array([[0.0], [0.3], [1.0], [1.8]])
+    stored = {1: other, 2: PATH, 3: PATH[::-1].copy(), 4: PATH}
+    matches = [Match(i, i == 3, 0.0, 0.0, 0.01 * i) for i in (1, 2, 3, 4)]
+    assert proved_first(memo, scope, matches, stored) == matches  # nothing proved yet
+    result, _ = run(PATH, Counted(TrajectoryValidator(swing, scene)), memo, scope)
+    assert result.valid  # PATH's interior is remembered in this scope
+    ordered = proved_first(memo, scope, matches, stored)
+    assert [m.trajectory_id for m in ordered] == [2, 3, 4, 1]  # 3 reversed: played as PATH
+    elsewhere = scope_of(plates(1.0), swing)
+    assert proved_first(memo, elsewhere, matches, stored) == matches

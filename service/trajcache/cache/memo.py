@@ -22,12 +22,13 @@ endpoint, a base re-anchored by 1 µm, a reversed playback — is a different en
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
 
+from trajcache.cache.index import Match
 from trajcache.core.lru import LRU
 from trajcache.geometry.model.robot import RobotModel
 from trajcache.geometry.model.shapes import FloatArray
@@ -40,7 +41,14 @@ from trajcache.geometry.validation.validator import (
     settings_key_of,
 )
 
-__all__ = ["MemoScope", "MemoUse", "ValidationMemo", "remember_path", "validate_with_memo"]
+__all__ = [
+    "MemoScope",
+    "MemoUse",
+    "ValidationMemo",
+    "proved_first",
+    "remember_path",
+    "validate_with_memo",
+]
 
 ValidateFn = Callable[[FloatArray], ValidationResult]
 SegmentsFn = Callable[[FloatArray, list[int]], ValidationResult]
@@ -152,6 +160,31 @@ def remember_path(memo: ValidationMemo, scope: MemoScope, states: FloatArray) ->
     memo.remember(scope, states)
     if len(states) >= 4:
         memo.remember(scope, states[1:-1])
+
+
+def proved_first(
+    memo: ValidationMemo,
+    scope: MemoScope,
+    matches: Sequence[Match],
+    stored: Mapping[int, FloatArray],
+) -> list[Match]:
+    """`matches` with those whose interior, as played (reversed for a reversed match), passed
+    certified validation in `scope` first, each group in its order: adapted to new ends, such a
+    candidate needs only its first and last segments proved. It orders candidates only: each is
+    validated as before. (Candidates of other scenes, near in joint space, would otherwise be
+    tried first where many paths share an end.)"""
+
+    def proved(match: Match) -> bool:
+        states = stored.get(match.trajectory_id)
+        if states is None or len(states) < 3:
+            return False
+        interior = states[1:-1][::-1] if match.reversed else states[1:-1]
+        return memo.known_valid(scope, interior)
+
+    marks = [proved(m) for m in matches]
+    return [m for m, p in zip(matches, marks, strict=True) if p] + [
+        m for m, p in zip(matches, marks, strict=True) if not p
+    ]
 
 
 def _validate_ends(states: FloatArray, validate_fn: ValidateFn) -> ValidationResult:

@@ -60,7 +60,7 @@ from sqlalchemy.orm import Session
 
 from trajcache.cache.adapt import adapt_trajectory
 from trajcache.cache.index import Match
-from trajcache.cache.memo import MemoUse
+from trajcache.cache.memo import MemoUse, proved_first
 from trajcache.cache.ranking import RANKING_COLUMNS, facts_from_row, rank_matches
 from trajcache.db.models import Trajectory, utcnow
 from trajcache.geometry.model.kinematics import (
@@ -301,6 +301,9 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
             )
         if ranking and len(matches) > 1:
             matches = _ranked(reads, ctx, matches, attempt.scene)
+        if len(matches) > 1 and (scope := attempt.memo_scope) is not None:
+            stored = ctx.indexes.states(reads, [m.trajectory_id for m in matches])
+            matches = proved_first(ctx.memo, scope, matches, stored)
         matches = matches[: request.max_candidates]
         attempt.candidates = ctx.indexes.states(reads, [m.trajectory_id for m in matches])
         # End the reads: no connection is held while validating. The session has one only if
