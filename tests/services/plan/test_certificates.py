@@ -26,15 +26,19 @@ from trajcache.geometry.scene.parse import parse_scene
 from trajcache.geometry.validation.certificates import (
     CertificateDisagreement,
     CertificateKey,
+    ObjectClearance,
     object_digest,
 )
 from trajcache.geometry.validation.envelope import Envelope
 from trajcache.geometry.validation.validator import Resolution, TrajectoryValidator, interpolate
 from trajcache.services.catalog.certificates import (
+    CertificateStore,
     CertificateWrite,
+    Certified,
     ClearanceJob,
     decode,
     encode,
+    footprint,
 )
 from trajcache.services.catalog.robots import put_robot
 from trajcache.services.catalog.scene_writes import put_scene
@@ -340,3 +344,19 @@ def test_a_missing_envelope_is_swept_alone(url: str) -> None:
     assert {oid: c.clearance for oid, c in decode(after.clearances).items()} == {
         oid: c.clearance for oid, c in kept.items()
     }
+
+
+def test_the_certificates_kept_in_memory_are_bounded_in_bytes() -> None:
+    """Each certificate counts its digests, clearances and envelope (one the writer has yet to
+    measure at its bounds): past the budget, the least recently used go."""
+    envelope = Envelope(np.zeros((40, 3)), np.ones(40))
+    clearance = ObjectClearance("s" * 64, np.eye(4), 0.05)
+    read = Certified(frozenset({"d" * 64}), read={"box": clearance}, read_envelope=envelope)
+    assert footprint(read) == 120 + 480 + 40 * 32
+    pending = CertificateWrite(1, CertificateKey("v", "s", "p"), frozenset({"d" * 64}))
+    pending = dataclasses.replace(pending, clearances=ClearanceJob(lambda: ({}, None)))
+    assert footprint(pending.known()) == 120 + 480 + 512 * 32  # at its bounds
+    store = CertificateStore(max_bytes=3 * footprint(pending.known()))
+    for tid in range(1, 5):
+        store.put(dataclasses.replace(pending, trajectory_id=tid))
+    assert len(store) == 3

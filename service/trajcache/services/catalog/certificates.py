@@ -15,7 +15,8 @@ transaction (`ClearanceJob`); a process that wrote it knows them once they are m
 
 Bounds: at most `MAX_OBJECTS` digests, `MAX_KEPT` clearances and `MAX_BALLS` envelope balls
 per certificate, `PER_TRAJECTORY` certificates per trajectory (the most recently written), and
-only the current stamp's.
+only the current stamp's; in each process's LRU, `CACHE_BYTES` of them (64 MiB; an envelope
+alone may take 16 KiB) besides its count.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from sqlalchemy.orm import Session
 from trajcache.core.lru import LRU
 from trajcache.db.models import Trajectory, TrajectoryCertificate
 from trajcache.geometry.validation.certificates import CertificateKey, ObjectClearance
-from trajcache.geometry.validation.envelope import Envelope
+from trajcache.geometry.validation.envelope import MAX_BALLS, Envelope
 from trajcache.geometry.validation.object_clearance import MAX_KEPT
 
 __all__ = [
@@ -42,10 +43,15 @@ __all__ = [
     "CertificateWrite",
     "Certified",
     "ClearanceJob",
+    "footprint",
     "write_certificates",
 ]
 
 PER_TRAJECTORY = 8
+CACHE_BYTES = 64 << 20  # the per-process LRU's budget (`footprint`)
+_DIGEST_BYTES = 120  # a hex SHA-256 digest as a Python str, with its slot in a frozenset
+_CLEARANCE_BYTES = 480  # an ObjectClearance: its shape digest, 4×4 pose array and dict slot
+_BALL_BYTES = 32  # an envelope ball: x, y, z, r as float64
 _C = TrajectoryCertificate
 _log = logging.getLogger(__name__)
 Clearances = Mapping[str, ObjectClearance]
@@ -127,10 +133,13 @@ class Certified:
 
 
 class CertificateStore:
-    """The certificates this process has read or written, by trajectory and key."""
+    """The certificates this process has read or written, by trajectory and key, at most
+    `capacity` of them and `max_bytes` of their contents (`footprint`)."""
 
-    def __init__(self, capacity: int = 16384) -> None:
-        self._known: LRU[tuple[int, CertificateKey], Certified] = LRU(capacity=capacity)
+    def __init__(self, capacity: int = 16384, max_bytes: int = CACHE_BYTES) -> None:
+        self._known: LRU[tuple[int, CertificateKey], Certified] = LRU(
+            capacity=capacity, max_size=max_bytes, size_fn=footprint
+        )
 
     def get(self, session: Session, trajectory_id: int, key: CertificateKey) -> Certified:
         """What is certified for `key` on the trajectory (no digests: nothing)."""
@@ -160,6 +169,22 @@ class CertificateStore:
     def clear(self) -> None:
         """Forget every certificate read (the table keeps them)."""
         self._known.clear()
+
+    def __len__(self) -> int:
+        return len(self._known)
+
+
+def footprint(certified: Certified) -> int:
+    """Bytes a certificate holds in memory, about: its digests, clearances and envelope; one the
+    writer has yet to measure counted at its bounds (`MAX_BALLS`), so the cache never grows past
+    its budget when the measures arrive."""
+    objects = len(certified.objects)
+    if certified.job is not None:
+        clearances, balls = min(objects, MAX_KEPT), MAX_BALLS
+    else:
+        envelope = certified.read_envelope
+        clearances, balls = len(certified.read or {}), len(envelope.radii) if envelope else 0
+    return objects * _DIGEST_BYTES + clearances * _CLEARANCE_BYTES + balls * _BALL_BYTES
 
 
 def write_certificates(conn: Connection, writes: Iterable[CertificateWrite], at: datetime) -> None:
