@@ -279,7 +279,8 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
     are read (or cached) before the reads end.
 
     Lookup fetches up to `ranking_pool` candidates, nearest first; ranking (`cache.ranking`:
-    environment nearness, real-robot validations, failure streaks) orders them.
+    environment nearness, real-robot validations, failure streaks) orders them, and those this
+    replica proved in the current scene go first (`cache.memo.proved_first`).
     """
     ctx, reads, clock, request = attempt.ctx, attempt.reads, attempt.clock, attempt.request
     with clock.measure("db"):
@@ -301,17 +302,16 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
             )
         if ranking and len(matches) > 1:
             matches = _ranked(reads, ctx, matches, attempt.scene)
-        if len(matches) > 1 and (scope := attempt.memo_scope) is not None:
-            stored = ctx.indexes.states(reads, [m.trajectory_id for m in matches])
-            matches = proved_first(ctx.memo, scope, matches, stored)
-        matches = matches[: request.max_candidates]
+        # the whole pool's states: candidates proved in this scene go first (once reads end)
         attempt.candidates = ctx.indexes.states(reads, [m.trajectory_id for m in matches])
         # End the reads: no connection is held while validating. The session has one only if
         # it read a model the registry lacked, or a pose goal's ends.
         reads.close()
         if attempt.session.in_transaction():
             attempt.session.rollback()
-    return matches
+        if len(matches) > 1 and (scope := attempt.memo_scope) is not None:
+            matches = proved_first(ctx.memo, scope, matches, attempt.candidates)
+    return matches[: request.max_candidates]
 
 
 def validate_candidates(attempt: PlanAttempt, matches: list[Match]) -> _Hit | None:
