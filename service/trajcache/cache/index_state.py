@@ -35,14 +35,14 @@ class Block:
         self._boxsize = boxsize
         self._arm_tree: cKDTree | None = None
         self._arm_keys = np.empty((0, 0))
-        self._arm_lock = threading.Lock()
+        self._lazy_lock = threading.Lock()  # builds either lazy tree once
         self._ends_tree: cKDTree | None = None
         self._ends_keys = np.empty((0, 0))
 
     def arm_tree(self, cols: IntArray) -> cKDTree | None:
         """The tree over the arm columns only (built on first use)."""
         if self._arm_tree is None and len(self.ids):
-            with self._arm_lock:
+            with self._lazy_lock:
                 if self._arm_tree is None:
                     self._arm_keys = np.ascontiguousarray(self.keys[:, cols])
                     self._arm_tree = _make_tree(self._arm_keys, self.leafsize, None)
@@ -52,7 +52,7 @@ class Block:
         """The tree over every entry's two ends as states: row k < n is entry k's start, row
         n + k its goal (built on first use)."""
         if self._ends_tree is None and len(self.ids):
-            with self._arm_lock:
+            with self._lazy_lock:
                 if self._ends_tree is None:
                     d = self.keys.shape[1] // 2
                     self._ends_keys = np.concatenate([self.keys[:, :d], self.keys[:, d:]])
