@@ -13,17 +13,22 @@ gives it (`goal_pose`, native form):
   in the same run, the same path asked with a joint goal as bench/mbm.py's replays ask it
   (`joint_hit_server_ms_median`; before the pose replay for odd problems, after it for even
   ones) and the ratio of the two medians (`hit_vs_joint_hit`).
-  A moved pose may have no free state near the cached end (the fingers pushed into a can, a
-  joint at its limit): no cache can serve it. Each replay is judged without the service
-  (`cartesian_filter.line_witness`: an independent IK path from the cached end along the
-  straight line to the moved pose, the whole arm dense-checked along it); it is servable when
-  that path is clear and ends within the service's default lookup threshold (0.2 rad on every
-  joint) of the cached end. `replay_servable_hit_rate` is the hit rate over servable replays;
-  the others are counted by reason (`replays_unservable`), and a hit among them is a bonus.
-  A moved pose may have no free state at all: `replay_solved_rate` is the share of replays the
-  service answered (from the cache, repaired or planned within --budget s), and
-  `replay_hit_rate_of_solved` the hit rate among those; `replay_answers` counts the answers by
-  source and servability ("failed": none).
+  As bench/mbm.py draws its moved states within the limits and free, a moved pose is drawn
+  again (up to 20 times) until a free state reaches it: an independent IK (`LineIk`, from
+  the cached end, then from REACH_SEEDS random states) finds one within the limits that the
+  dense check passes. A pose that puts the fingers inside a can, or past the arm's reach,
+  is no request a cache or planner can answer (`replay_redraws` counts them; a problem with
+  no reachable draw is left out, `replays_unreachable`).
+  A reachable pose may still have no free state near the cached end (a joint at its limit,
+  the arm blocked on the way): no cache can serve it. Each replay is judged without the
+  service (`cartesian_filter.line_witness`: an independent IK path from the cached end along
+  the straight line to the moved pose, the whole arm dense-checked along it); it is servable
+  when that path is clear and ends within the service's default lookup threshold (0.2 rad on
+  every joint) of the cached end. `replay_servable_hit_rate` is the hit rate over servable
+  replays; the others are counted by reason (`replays_unservable`), and a hit among them is a
+  bonus. `replay_solved_rate` is the share of replays the service answered (from the cache,
+  repaired or planned within --budget s), and `replay_hit_rate_of_solved` the hit rate among
+  those; `replay_answers` counts the answers by source and servability ("failed": none).
 
 Every returned path is dense-checked as in bench/mbm.py (mbm_check: meshes, self-collision, the
 scene's allowed pairs), and its last state's hand pose is checked against the pose asked, with
@@ -39,6 +44,7 @@ instead (`pose_cartesian`: `cartesian_success_rate`, `cartesian_ms_median`,
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections import Counter
@@ -46,6 +52,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import yourdfpy
 from rich.console import Console
 from rich.table import Table
@@ -75,6 +82,7 @@ POSITION_TOLERANCE = 0.005  # m: a 5 mm sphere
 ORIENTATION_TOLERANCE = 0.05  # rad
 MOVE_M = (0.01, 0.03)
 LOOKUP_THRESHOLD = 0.2  # rad: the service's default, on every joint
+REACH_SEEDS = 40  # random IK seeds that judge a moved pose reachable
 JOINT_NOISE = 0.02  # rad per joint, of a joint-goal replay's start and goal (as bench/mbm.py)
 SMOKE_PER_FAMILY = 2
 
@@ -118,6 +126,7 @@ class PoseRun:
         self.model_id = register_panda(client, robot_dir).model_id
         self.counts: Counter[str] = Counter()
         self.times: dict[str, list[float]] = {"plan": [], "ik": [], "hit": [], "joint_hit": []}
+        self.phases: dict[str, list[dict[str, float]]] = {"hit": [], "joint_hit": []}
 
     def ask(
         self, robot_id: str, start: np.ndarray, goal: dict[str, Any], lookup: bool
@@ -154,10 +163,12 @@ class PoseRun:
         self.times["ik"].append(answer["timings_ms"].get("pose_goal", 0.0))
         self.check(tally, answer, start, goal)
         rng = np.random.default_rng([self.args.seed, FAMILIES.index(problem.family), problem.index])
-        direction = rng.normal(size=3)
-        shift = direction / np.linalg.norm(direction) * rng.uniform(*MOVE_M)
-        moved = self.hand.goal(goal_state, shift)
-        unservable = self.unservable(np.asarray(answer["states"][-1], dtype=float), moved)
+        cached_end = np.asarray(answer["states"][-1], dtype=float)
+        drawn = self.draw_move(goal_state, cached_end, rng)
+        if drawn is None:
+            self.counts["replays_unreachable"] += 1
+            return
+        moved, unservable = drawn
         tally.counts["replays"] += 1
         tally.counts[f"unservable:{unservable}" if unservable else "servable"] += 1
         ends = (start, np.asarray(answer["states"][-1], dtype=float))
@@ -168,7 +179,10 @@ class PoseRun:
             self.joint_replay(tally, robot_id, ends, rng)
         if again is None or again["status"] != "success":
             self.counts[f"replay_answer:failed:{unservable or 'servable'}"] += 1
+            self.miss(problem, unservable, again)
             return
+        if again["source"] != "cache":
+            self.miss(problem, unservable, again)
         self.counts[f"replay_answer:{again['source']}:{unservable or 'servable'}"] += 1
         tally.counts["replay_solved"] += 1
         self.check(tally, again, start, moved)
@@ -177,6 +191,18 @@ class PoseRun:
             tally.counts["servable_hits"] += not unservable
             self.counts["as_is"] += again["goal_found_by"] == "cached"
             self.times["hit"].append(again["timings_ms"]["total"])
+            self.phases["hit"].append(again["timings_ms"])
+
+    def miss(self, problem: Any, unservable: str, answer: dict[str, Any] | None) -> None:
+        """A replay not answered from the cache, written to --misses (one JSON line each)."""
+        if self.args.misses is None:
+            return
+        record = {"family": problem.family, "index": problem.index, "unservable": unservable}
+        if answer is not None:
+            keys = ("status", "source", "message", "candidates_tried", "rejected")
+            record |= {key: answer.get(key) for key in keys}
+        with self.args.misses.open("a") as out:
+            out.write(json.dumps(record) + "\n")
 
     def joint_replay(
         self, tally: Tally, robot_id: str, ends: tuple[np.ndarray, np.ndarray], rng: Any
@@ -198,6 +224,7 @@ class PoseRun:
             check_path(tally, self.checker, states, (start, goal), "joint replay")
         if answer["source"] == "cache":
             self.times["joint_hit"].append(answer["timings_ms"]["total"])
+            self.phases["joint_hit"].append(answer["timings_ms"])
 
     def noisy(self, state: np.ndarray, rng: Any) -> np.ndarray | None:
         """The state moved by up to ±JOINT_NOISE per joint, within the limits and free (as
@@ -208,6 +235,36 @@ class PoseRun:
             if self.checker.is_free(out):
                 return out
         return None
+
+    def draw_move(
+        self, goal_state: np.ndarray, cached_end: np.ndarray, rng: Any
+    ) -> tuple[dict[str, Any], str] | None:
+        """The replay's pose (the goal's moved by MOVE_M in a random direction) and why no
+        cached answer can serve it ("" when one can), redrawn until some free state reaches it
+        (`reachable`, as bench/mbm.py draws its replays free); None after 20 draws."""
+        for _ in range(20):
+            direction = rng.normal(size=3)
+            shift = direction / np.linalg.norm(direction) * rng.uniform(*MOVE_M)
+            moved = self.hand.goal(goal_state, shift)
+            unservable = self.unservable(cached_end, moved)
+            if not unservable or self.reachable(cached_end, moved, rng):
+                return moved, unservable
+            self.counts["replay_redraws"] += 1
+        return None
+
+    def reachable(self, cached_end: np.ndarray, moved: dict[str, Any], rng: Any) -> bool:
+        """Whether an independent IK (`LineIk`, from the cached end, then from REACH_SEEDS
+        random states) finds a state within the limits that puts the hand at the pose and is
+        free (dense mesh check)."""
+        target = pin.SE3(Rotation.from_quat(moved["orientation"]).as_matrix(),
+                         np.asarray(moved["position"], dtype=float))  # fmt: skip
+        lower, upper = self.checker.lower, self.checker.upper
+        seeds = [cached_end, *(rng.uniform(lower, upper) for _ in range(REACH_SEEDS))]
+        for seed in seeds:
+            state = self.ik.solve(seed, target)
+            if state is not None and self.checker.is_free(state):
+                return True
+        return False
 
     def unservable(self, cached_end: np.ndarray, moved: dict[str, Any]) -> str:
         """Why no cached answer can reach the moved pose from the cached end (module
@@ -226,6 +283,12 @@ def ratio(times: list[float], others: list[float]) -> float | None:
     return round(float(np.median(times) / np.median(others)), 2)
 
 
+def phase_medians(timings: list[dict[str, float]]) -> dict[str, float | None]:
+    """The median of each phase the answers' `timings_ms` name (a phase an answer lacks: 0)."""
+    phases = sorted({phase for one in timings for phase in one})
+    return {phase: percentile([one.get(phase, 0.0) for one in timings]) for phase in phases}
+
+
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the mbm-panda folder")
@@ -234,6 +297,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=1, help="of the replays' shifts")
     parser.add_argument("--smoke", action="store_true", help=f"{SMOKE_PER_FAMILY} per family")
     parser.add_argument("--cartesian", action="store_true", help="Cartesian moves instead")
+    parser.add_argument("--misses", type=Path, help="a file: one JSON line per replay missed")
     args = parser.parse_args(argv)
     if args.smoke and args.per_family is None:
         args.per_family, args.budget = SMOKE_PER_FAMILY, 2.0
@@ -277,6 +341,8 @@ def main(argv: list[str] | None = None) -> int:
         "plan_ms_median": percentile(run.times["plan"]),
         "ik_ms_median": percentile(run.times["ik"]),
         "replays": replays,
+        "replay_redraws": counts["replay_redraws"],
+        "replays_unreachable": counts["replays_unreachable"],
         "replay_hit_rate": round(hits / replays, 4) if replays else None,
         "replay_servable_hit_rate": (
             round(counts["servable_hits"] / servable, 4) if servable else None
@@ -289,6 +355,8 @@ def main(argv: list[str] | None = None) -> int:
         "hit_server_ms_median": percentile(run.times["hit"]),
         "joint_hit_server_ms_median": percentile(run.times["joint_hit"]),
         "hit_vs_joint_hit": ratio(run.times["hit"], run.times["joint_hit"]),
+        "hit_phases_ms_median": phase_medians(run.phases["hit"]),
+        "joint_hit_phases_ms_median": phase_medians(run.phases["joint_hit"]),
     }
     return print_checked(figures, counts, check="pose_errors", began=began, smoke=args.smoke)
 
