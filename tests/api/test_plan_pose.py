@@ -16,7 +16,7 @@ from yourdfpy.urdf import filename_handler_null
 
 from tests.api.conftest import assert_detail, register
 from tests.robots import TWO_JOINT_URDF
-from trajcache.services.plan import pose_goal
+from trajcache.services.plan import flow, pose_goal
 
 START = [0.0, 0.0]
 GOAL = [0.9, 0.3]  # the forearm's pose there is the target
@@ -144,6 +144,29 @@ def test_the_paths_a_hit_can_take_need_no_end_pose_read(
     body = {"start": [0.6, 0.0], "goal_pose": nearby, "options": {"fallback": False}}
     assert robot.post("/v1/robots/r1/plan", json=body).status_code == 200
     assert reads == ["pose_ends"]
+
+
+def test_the_path_a_pose_goal_was_found_from_is_tried_first(
+    robot: TestClient, arm: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The goal state is found from the cached end nearest the pose; that end's path is the
+    first candidate, unranked, even where ranking would favour another (a real robot's path,
+    its end further from the pose)."""
+    first = plan(robot, target(arm, GOAL), fallback=True)
+    model_id = robot.get("/v1/robots/r1").json()["model_id"]
+    body = {"model_id": model_id, "states": [START, [0.5, 0.2], [1.2, 0.3]], "source": "real"}
+    assert robot.post("/v1/trajectories", json=body).status_code == 201
+    ranked: list[int] = []
+    whole = flow._ranked
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        ranked.append(1)
+        return whole(*args, **kwargs)
+
+    monkeypatch.setattr(flow, "_ranked", counted)
+    answer = plan(robot, target(arm, [GOAL[0] + 0.02, GOAL[1]]), fallback=False)
+    assert answer["source"] == "cache" and answer["goal_found_by"] == "ik"
+    assert answer["trajectory_id"] == first["trajectory_id"] and ranked == []
 
 
 def test_an_unreachable_pose_is_a_failure_not_an_error(robot: TestClient) -> None:

@@ -21,6 +21,7 @@ import numpy as np
 from sqlalchemy import Connection
 from sqlalchemy.orm import Session
 
+from trajcache.cache.index import Match
 from trajcache.cache.memo import MemoScope, MemoUse
 from trajcache.geometry.model.kinematics import StateInput
 from trajcache.geometry.model.robot import RobotModel
@@ -198,6 +199,7 @@ class PlanAttempt:
     ends_proved: list[float] = field(default_factory=list)  # end segments' shares proved by
     # their stored clearance (`end_clearance.py`), for each end validated, in order
     goal_found_by: str | None = None  # a pose goal's state came from: "cached" or "ik"
+    goal_path: Match | None = None  # the cached path whose end it was found from, if one
     pose_goal_ms: float = 0.0  # finding a pose goal's state (part of the lookup phase)
 
     @functools.cached_property

@@ -254,8 +254,11 @@ def _answer(attempt: PlanAttempt) -> PlanAnswer:
         attempt.pose_goal_ms = (attempt.clock.seconds("lookup") - began) * 1e3
         if found.state is None:
             return answer_without_path(attempt, PlanStatus.FAILURE, found.message)
-        attempt.goal = found.state
-        attempt.goal_found_by = found.found_by
+        attempt.goal, attempt.goal_found_by, attempt.goal_path = (
+            found.state,
+            found.found_by,
+            found.path,
+        )
     matches = lookup(attempt)
     hit = validate_candidates(attempt, matches)
     if hit is not None:
@@ -280,7 +283,9 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
 
     Lookup fetches up to `ranking_pool` candidates, nearest first; ranking (`cache.ranking`:
     environment nearness, real-robot validations, failure streaks) orders them, and those this
-    replica proved in the current scene go first (`cache.memo.proved_first`).
+    replica proved in the current scene go first (`cache.memo.proved_first`). A pose goal
+    found from a cached path's end (`pose_goal`, step 0) takes that path first, then the
+    nearest others, unranked: it was chosen for its end's nearness to the pose.
     """
     ctx, reads, clock, request = attempt.ctx, attempt.reads, attempt.clock, attempt.request
     with clock.measure("db"):
@@ -289,7 +294,9 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
     with clock.measure("lookup"):
         start, goal = attempt.start, attempt.goal
         arm_only = request.arm_only and base_is_still(start, goal, attempt.model.base)
-        ranking = ctx.ranking.active  # no rule on: skip the facts query, lookup's order stands
+        first = attempt.goal_path if request.lookup else None  # the path a pose goal came from
+        # no rule on, or a first candidate given: skip the facts query, lookup's order stands
+        ranking = ctx.ranking.active and first is None
         matches: list[Match] = []
         if request.lookup:
             matches = index.query(
@@ -300,6 +307,9 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
                 arm_only=arm_only,
                 goal_threshold=ctx.settings.pose_goal_threshold if attempt.goal_found_by else None,
             )
+        if first is not None:
+            others = (m for m in matches if m.trajectory_id != first.trajectory_id)
+            matches = [first, *others][: request.max_candidates]
         if ranking and len(matches) > 1:
             matches = _ranked(reads, ctx, matches, attempt.scene)
         # the whole pool's states: candidates proved in this scene go first (once reads end)
@@ -309,7 +319,7 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
         reads.close()
         if attempt.session.in_transaction():
             attempt.session.rollback()
-        if len(matches) > 1 and (scope := attempt.memo_scope) is not None:
+        if len(matches) > 1 and first is None and (scope := attempt.memo_scope) is not None:
             matches = proved_first(ctx.memo, scope, matches, attempt.candidates)
     return matches[: request.max_candidates]
 

@@ -7,8 +7,9 @@ Lookup by pose first, then inverse kinematics (`geometry/model/ik.py`):
    This replica's trajectory index lists them (`TrajectoryIndex.ends_near`) without a database
    read: one that is free and reaches the pose as it is is the goal (the nearest path first),
    else IK starts from the one whose link lies nearest the target, its restarts and its answer
-   within the pose goals' threshold of it. Otherwise (none, IK finds nothing there, the lookup
-   off or a planar base) the whole cache is searched, as follows:
+   within the pose goals' threshold of it. That path is then the lookup's first candidate
+   (`PoseGoalFound.path`). Otherwise (none, IK finds nothing there, the lookup off or a
+   planar base) the whole cache is searched, as follows:
 1. As it is: among the ends of every cached trajectory of the model, those that put the link
    within the tolerances (read from the end-pose index, checked by forward kinematics:
    `services.ik.cached.ends_within`) and are free in the robot's scene; the one whose
@@ -37,6 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from trajcache.cache.index import EndsOf, Match
+from trajcache.cache.metric import state_distance
 from trajcache.geometry.model.ik import IkProblem, IkStatus, PoseTarget, solve_ik
 from trajcache.geometry.model.pin_kinematics import PinKinematics
 from trajcache.geometry.model.robot import BaseType
@@ -58,11 +61,13 @@ NO_GOAL_STATE = "no goal state puts"  # how the failure message of an unreached 
 @dataclass(frozen=True)
 class PoseGoalFound:
     """The goal state a pose goal resolved to (None: no free state reaches the pose), how it
-    was found ("cached": a cached trajectory's end as it is; "ik"), and why not, if not."""
+    was found ("cached": a cached trajectory's end as it is; "ik"), why not, if not, and the
+    cached path it was found from, when step 0 found it: the lookup's first candidate."""
 
     state: FloatArray | None
     found_by: str
     message: str = ""
+    path: Match | None = None  # the cached path whose end the state was found from (step 0)
 
 
 def resolve_pose_goal(attempt: PlanAttempt, goal: GoalPose) -> PoseGoalFound:
@@ -128,14 +133,15 @@ def _from_start(
     if checked.base is BaseType.PLANAR or not request.lookup:
         return None  # a planar base's ends stand elsewhere: the end-pose index places them
     index = attempt.ctx.indexes.index(attempt.reads, attempt.model, arrived=attempt.clock.arrived)
-    ends = index.ends_near(attempt.start, threshold=request.threshold).states[:NEAR_START_POOL]
-    if len(ends) == 0:
+    ends = index.ends_near(attempt.start, threshold=request.threshold, limit=NEAR_START_POOL)
+    if len(ends.ids) == 0:
         return None
-    meets, gaps = meets_target(checked, target, ends)
+    meets, gaps = meets_target(checked, target, ends.states)
     for k in np.flatnonzero(meets):
-        if free(ends[k]):
-            return PoseGoalFound(np.array(ends[k]), "cached")
-    seed, window = ends[int(np.argmin(gaps))], attempt.ctx.settings.pose_goal_threshold
+        if free(ends.states[k]):
+            return PoseGoalFound(np.array(ends.states[k]), "cached", path=_path(ends, int(k), 0.0))
+    nearest = int(np.argmin(gaps))
+    seed, window = ends.states[nearest], attempt.ctx.settings.pose_goal_threshold
 
     def near_and_free(state: FloatArray) -> bool:  # where the lookup finds the seed's path
         return bool(np.abs(state - seed).max() < window) and free(state)
@@ -146,8 +152,15 @@ def _from_start(
     )  # fmt: skip
     found = solve_ik(problem)
     if found.status is IkStatus.SUCCESS and found.state is not None:
-        return PoseGoalFound(found.state, "ik")
+        d_base, d_arm = state_distance(found.state, seed, base=checked.base)
+        return PoseGoalFound(found.state, "ik", path=_path(ends, nearest, float(d_base + d_arm)))
     return None
+
+
+def _path(ends: EndsOf, k: int, d_goal: float) -> Match:
+    """The lookup's match of the k-th entry of `ends` for a goal `d_goal` from its other end."""
+    d_start = float(ends.distances[k])
+    return Match(int(ends.ids[k]), bool(ends.reversed[k]), d_start, d_goal, d_start + d_goal)
 
 
 def _cached_as_is(
