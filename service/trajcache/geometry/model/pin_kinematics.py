@@ -20,7 +20,7 @@ the service keeps what it builds (`ServiceContext.kinematics`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
@@ -57,6 +57,7 @@ class PinKinematics:
     cont_scale: FloatArray
     cont_offset: FloatArray
     velocity_map: FloatArray  # V without the planar base's rotation (nv × dof)
+    _frames: dict[str, int] = field(default_factory=dict, repr=False)  # frame ids by link
 
     @classmethod
     def build(cls, model: RobotModel, urdf: str) -> PinKinematics:
@@ -102,10 +103,14 @@ class PinKinematics:
         )
 
     def frame_id(self, link: str) -> int:
-        """Pinocchio's frame of link `link`; RobotModelError when the model has no such link."""
-        if link not in self.model.link_names or not self.pin_model.existFrame(link, pin.BODY):
-            raise RobotModelError(f"no link {link!r} in the model")
-        return int(self.pin_model.getFrameId(link, pin.BODY))
+        """Pinocchio's frame of link `link`; RobotModelError when the model has no such link.
+        Found once per link (Pinocchio searches its frames by name)."""
+        found = self._frames.get(link)
+        if found is None:
+            if link not in self.model.link_names or not self.pin_model.existFrame(link, pin.BODY):
+                raise RobotModelError(f"no link {link!r} in the model")
+            found = self._frames[link] = int(self.pin_model.getFrameId(link, pin.BODY))
+        return found
 
     def q_of(self, state: FloatArray) -> FloatArray:
         """Pinocchio's configuration of a state (values in `state_names` order)."""

@@ -285,7 +285,7 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
     environment nearness, real-robot validations, failure streaks) orders them, and those this
     replica proved in the current scene go first (`cache.memo.proved_first`). A pose goal
     found from a cached path's end (`pose_goal`, step 0) takes that path first, then the
-    nearest others, unranked: it was chosen for its end's nearness to the pose.
+    others unranked (proved first): it was chosen for its end's nearness to the pose.
     """
     ctx, reads, clock, request = attempt.ctx, attempt.reads, attempt.clock, attempt.request
     with clock.measure("db"):
@@ -303,13 +303,12 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
                 start,
                 goal,
                 threshold=request.threshold,
-                limit=max(request.max_candidates, ctx.ranking.pool if ranking else 0),
+                limit=max(request.max_candidates, ctx.ranking.pool if ctx.ranking.active else 0),
                 arm_only=arm_only,
                 goal_threshold=ctx.settings.pose_goal_threshold if attempt.goal_found_by else None,
             )
         if first is not None:
-            others = (m for m in matches if m.trajectory_id != first.trajectory_id)
-            matches = [first, *others][: request.max_candidates]
+            matches = [first, *(m for m in matches if m.trajectory_id != first.trajectory_id)]
         if ranking and len(matches) > 1:
             matches = _ranked(reads, ctx, matches, attempt.scene)
         # the whole pool's states: candidates proved in this scene go first (once reads end)
@@ -319,8 +318,9 @@ def lookup(attempt: PlanAttempt) -> list[Match]:
         reads.close()
         if attempt.session.in_transaction():
             attempt.session.rollback()
-        if len(matches) > 1 and first is None and (scope := attempt.memo_scope) is not None:
-            matches = proved_first(ctx.memo, scope, matches, attempt.candidates)
+        if len(matches) > 1 and (scope := attempt.memo_scope) is not None:
+            tail = proved_first(ctx.memo, scope, matches[bool(first) :], attempt.candidates)
+            matches = matches[: bool(first)] + tail
     return matches[: request.max_candidates]
 
 
