@@ -169,6 +169,47 @@ def test_the_path_a_pose_goal_was_found_from_is_tried_first(
     assert answer["trajectory_id"] == first["trajectory_id"] and ranked == []
 
 
+def test_ik_starts_from_a_path_proved_in_the_scene_before_a_nearer_one(
+    robot: TestClient, arm: Any
+) -> None:
+    """Of the few ends nearest the pose, one whose path this replica proved in the current
+    scene seeds IK (and is the first candidate) before a nearer one never validated here."""
+    first = plan(robot, target(arm, GOAL), fallback=True)
+    assert plan(robot, target(arm, GOAL), fallback=False)["source"] == "cache"  # proved here
+    model_id = robot.get("/v1/robots/r1").json()["model_id"]
+    body = {"model_id": model_id, "states": [START, [0.5, 0.2], [GOAL[0] + 0.05, GOAL[1]]]}
+    assert robot.post("/v1/trajectories", json=body).status_code == 201
+    answer = plan(robot, target(arm, [GOAL[0] + 0.06, GOAL[1]]), fallback=False)
+    assert answer["source"] == "cache" and answer["goal_found_by"] == "ik"
+    assert answer["trajectory_id"] == first["trajectory_id"]
+
+
+def test_the_newest_paths_near_the_start_are_the_ones_considered(
+    robot: TestClient, arm: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Where more paths share the start than a pose goal ranks, it considers the most
+    recently stored (here one: the posted path, not the older planned one)."""
+    plan(robot, target(arm, GOAL), fallback=True)
+    model_id = robot.get("/v1/robots/r1").json()["model_id"]
+    end = [GOAL[0] + 0.05, GOAL[1]]
+    body = {"model_id": model_id, "states": [START, [0.5, 0.2], end]}
+    posted = robot.post("/v1/trajectories", json=body)
+    assert posted.status_code == 201
+    monkeypatch.setattr(pose_goal, "NEAR_START_POOL", 1)
+    ranked: list[np.ndarray] = []
+    whole = pose_goal.meets_target
+
+    def seen(checked: Any, goal: Any, states: np.ndarray) -> Any:
+        ranked.append(states.copy())
+        return whole(checked, goal, states)
+
+    monkeypatch.setattr(pose_goal, "meets_target", seen)
+    answer = plan(robot, target(arm, [GOAL[0] + 0.02, GOAL[1]]), fallback=False)
+    assert answer["source"] == "cache"
+    assert answer["trajectory_id"] == posted.json()["trajectory_id"]
+    np.testing.assert_allclose(ranked[0], [end])
+
+
 def test_an_unreachable_pose_is_a_failure_not_an_error(robot: TestClient) -> None:
     far = {"link": "fore", "position": [2.0, 0.0, 2.0], "orientation": [0, 0, 0, 1]}
     answer = plan(robot, far, fallback=True)

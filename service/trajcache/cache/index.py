@@ -235,13 +235,10 @@ class TrajectoryIndex:
             parts.append((snap.delta_ids, found))
         return _best(parts, limit, start_within)
 
-    def ends_near(
-        self, state: npt.ArrayLike, *, threshold: float, limit: int | None = None
-    ) -> EndsOf:
+    def ends_near(self, state: npt.ArrayLike, *, threshold: float) -> EndsOf:
         """Every entry one of whose ends lies within ``threshold`` of ``state`` (base and arm
         distances each, as ``query`` measures an end), with its other end's state (θ in
-        [−π, π)), nearest first, then by id, the first ``limit`` if given; an entry both of
-        whose ends do counts twice."""
+        [−π, π)), nearest first, then by id; an entry both of whose ends do counts twice."""
         if not threshold > 0:
             raise ValueError(f"threshold must be positive, not {threshold}")
         d = self.dim
@@ -270,7 +267,7 @@ class TrajectoryIndex:
         base_gap, arm_gap = state_distance(near, at, base=self.base)
         keep = (base_gap < threshold) & (arm_gap < threshold)
         gap = (base_gap + arm_gap)[keep]
-        order = np.lexsort((end[keep], ids[keep], gap))[:limit]
+        order = np.lexsort((end[keep], ids[keep], gap))
         return EndsOf(ids[keep][order], end[keep][order] == 1, gap[order], far[keep][order])
 
     def _keys(self, starts: npt.ArrayLike, goals: npt.ArrayLike) -> FloatArray:

@@ -45,6 +45,7 @@ __all__ = [
     "MemoScope",
     "MemoUse",
     "ValidationMemo",
+    "is_proved",
     "proved_first",
     "remember_path",
     "validate_with_memo",
@@ -162,6 +163,16 @@ def remember_path(memo: ValidationMemo, scope: MemoScope, states: FloatArray) ->
         memo.remember(scope, states[1:-1])
 
 
+def is_proved(
+    memo: ValidationMemo, scope: MemoScope, states: FloatArray | None, reversed_: bool
+) -> bool:
+    """Whether the interior of a stored path (`states`; None: not read), as played (reversed
+    with `reversed_`), passed certified validation in `scope`."""
+    if states is None or len(states) < 3:
+        return False
+    return memo.known_valid(scope, states[1:-1][::-1] if reversed_ else states[1:-1])
+
+
 def proved_first(
     memo: ValidationMemo,
     scope: MemoScope,
@@ -174,14 +185,7 @@ def proved_first(
     validated as before. (Candidates of other scenes, near in joint space, would otherwise be
     tried first where many paths share an end.)"""
 
-    def proved(match: Match) -> bool:
-        states = stored.get(match.trajectory_id)
-        if states is None or len(states) < 3:
-            return False
-        interior = states[1:-1][::-1] if match.reversed else states[1:-1]
-        return memo.known_valid(scope, interior)
-
-    marks = [proved(m) for m in matches]
+    marks = [is_proved(memo, scope, stored.get(m.trajectory_id), m.reversed) for m in matches]
     return [m for m, p in zip(matches, marks, strict=True) if p] + [
         m for m, p in zip(matches, marks, strict=True) if not p
     ]

@@ -5,8 +5,10 @@ Lookup by pose first, then inverse kinematics (`geometry/model/ik.py`):
 0. From the paths the lookup could take: a hit needs a cached path with an end within the
    request's threshold of its start, so their other ends are the goal states a hit can reach.
    This replica's trajectory index lists them (`TrajectoryIndex.ends_near`) without a database
-   read: one that is free and reaches the pose as it is is the goal (the nearest path first),
-   else IK starts from the one whose link lies nearest the target, its restarts and its answer
+   read, the NEAR_START_POOL most recently stored where more share the start (forward
+   kinematics ranks them all): one that is free and reaches the pose as it is is the goal,
+   else IK starts from the one whose link lies nearest the target (of the few nearest, one
+   whose path this replica proved in the current scene first), its restarts and its answer
    within the pose goals' threshold of it. That path is then the lookup's first candidate
    (`PoseGoalFound.path`). Otherwise (none, IK finds nothing there, the lookup off or a
    planar base) the whole cache is searched, as follows:
@@ -39,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from trajcache.cache.index import EndsOf, Match
+from trajcache.cache.memo import is_proved
 from trajcache.cache.metric import state_distance
 from trajcache.geometry.model.ik import IkProblem, IkStatus, PoseTarget, solve_ik
 from trajcache.geometry.model.pin_kinematics import PinKinematics
@@ -54,7 +57,8 @@ from trajcache.services.plan.attempt import GoalPose, PlanAttempt
 __all__ = ["NO_GOAL_STATE", "PoseGoalFound", "resolve_pose_goal"]
 
 POSE_IK_BUDGET_S = 0.1  # IK's share of a plan request's time
-NEAR_START_POOL = 512  # the most cached ends near the start a pose goal considers (nearest first)
+SEED_POOL = 32  # the ends nearest the target among which IK prefers a path proved in the scene
+NEAR_START_POOL = 512  # the most cached ends near the start a pose goal considers (newest)
 NO_GOAL_STATE = "no goal state puts"  # how the failure message of an unreached pose begins
 
 
@@ -133,14 +137,14 @@ def _from_start(
     if checked.base is BaseType.PLANAR or not request.lookup:
         return None  # a planar base's ends stand elsewhere: the end-pose index places them
     index = attempt.ctx.indexes.index(attempt.reads, attempt.model, arrived=attempt.clock.arrived)
-    ends = index.ends_near(attempt.start, threshold=request.threshold, limit=NEAR_START_POOL)
+    ends = _newest(index.ends_near(attempt.start, threshold=request.threshold))
     if len(ends.ids) == 0:
         return None
     meets, gaps = meets_target(checked, target, ends.states)
     for k in np.flatnonzero(meets):
         if free(ends.states[k]):
             return PoseGoalFound(np.array(ends.states[k]), "cached", path=_path(ends, int(k), 0.0))
-    nearest = int(np.argmin(gaps))
+    nearest = _seed(attempt, ends, gaps)
     seed, window = ends.states[nearest], attempt.ctx.settings.pose_goal_threshold
 
     def near_and_free(state: FloatArray) -> bool:  # where the lookup finds the seed's path
@@ -155,6 +159,32 @@ def _from_start(
         d_base, d_arm = state_distance(found.state, seed, base=checked.base)
         return PoseGoalFound(found.state, "ik", path=_path(ends, nearest, float(d_base + d_arm)))
     return None
+
+
+def _newest(ends: EndsOf) -> EndsOf:
+    """The NEAR_START_POOL most recently stored of `ends` (ids grow with time), in their order:
+    where more paths share the start than FK can rank in time, the robot's recent work (and
+    scene) is likeliest to hold the pose; the whole cache is searched after (step 1)."""
+    if len(ends.ids) <= NEAR_START_POOL:
+        return ends
+    keep = np.sort(np.argsort(-ends.ids, kind="stable")[:NEAR_START_POOL])
+    return EndsOf(ends.ids[keep], ends.reversed[keep], ends.distances[keep], ends.states[keep])
+
+
+def _seed(attempt: PlanAttempt, ends: EndsOf, gaps: FloatArray) -> int:
+    """Which of `ends` IK starts from: of the SEED_POOL whose link lies nearest the target,
+    the nearest whose path this replica proved in the robot's current scene (`cache.memo`),
+    else the nearest. Where many paths share the start, the nearest end may be another
+    scene's, whose path crosses this scene's objects."""
+    order = np.argsort(gaps, kind="stable")[:SEED_POOL]
+    scope = attempt.memo_scope
+    if scope is None or len(order) == 1:
+        return int(order[0])
+    stored = attempt.ctx.indexes.states(attempt.reads, [int(ends.ids[k]) for k in order])
+    for k in order:
+        if is_proved(attempt.ctx.memo, scope, stored.get(int(ends.ids[k])), ends.reversed[k]):
+            return int(k)
+    return int(order[0])
 
 
 def _path(ends: EndsOf, k: int, d_goal: float) -> Match:
