@@ -180,10 +180,11 @@ def _seed(attempt: PlanAttempt, ends: EndsOf, gaps: FloatArray) -> int:
     scope = attempt.memo_scope
     if scope is None or len(order) == 1:
         return int(order[0])
-    stored = attempt.ctx.indexes.states(attempt.reads, [int(ends.ids[k]) for k in order])
-    for k in order:
-        if is_proved(attempt.ctx.memo, scope, stored.get(int(ends.ids[k])), ends.reversed[k]):
-            return int(k)
+    for part in (order[:1], order[1:]):  # the nearest alone first: usually it is the one
+        stored = attempt.ctx.indexes.states(attempt.reads, [int(ends.ids[k]) for k in part])
+        for k in part:
+            if is_proved(attempt.ctx.memo, scope, stored.get(int(ends.ids[k])), ends.reversed[k]):
+                return int(k)
     return int(order[0])
 
 
