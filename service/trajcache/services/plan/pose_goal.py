@@ -58,7 +58,7 @@ __all__ = ["NO_GOAL_STATE", "PoseGoalFound", "resolve_pose_goal"]
 
 POSE_IK_BUDGET_S = 0.1  # IK's share of a plan request's time
 SEED_POOL = 32  # the ends nearest the target among which IK prefers a path proved in the scene
-NEAR_START_POOL = 512  # the most cached ends near the start a pose goal considers (newest)
+NEAR_START_POOL = 128  # the most cached ends near the start a pose goal considers (newest)
 NO_GOAL_STATE = "no goal state puts"  # how the failure message of an unreached pose begins
 
 
