@@ -254,11 +254,8 @@ def _answer(attempt: PlanAttempt) -> PlanAnswer:
         attempt.pose_goal_ms = (attempt.clock.seconds("lookup") - began) * 1e3
         if found.state is None:
             return answer_without_path(attempt, PlanStatus.FAILURE, found.message)
-        attempt.goal, attempt.goal_found_by, attempt.goal_path = (
-            found.state,
-            found.found_by,
-            found.path,
-        )
+        attempt.goal, attempt.goal_found_by = found.state, found.found_by
+        attempt.goal_path = found.path
     matches = lookup(attempt)
     hit = validate_candidates(attempt, matches)
     if hit is not None:
